@@ -1,0 +1,1 @@
+"""ACV application layer: web app, services, jobs and the ``acv`` command line."""

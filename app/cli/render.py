@@ -1,0 +1,1 @@
+"""``acv render``: (being written)."""

@@ -1,0 +1,1 @@
+"""``acv train``: (being written)."""

@@ -1,0 +1,108 @@
+"""Candidate states: sampled from rollouts, each a player in the bracket.
+
+Modes (DESIGN.md section 2): ``uniform`` picks N of all visited states uniformly;
+``diverse`` clusters the visited states' standardised posture features with k-means and keeps
+the state nearest each centroid (the paper's "future work" on more interpretable trees).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+from sklearn.cluster import KMeans
+
+from engine.envs import DEFAULT_ENV_ID, make_env, restore
+from engine.errors import InputError
+from engine.rewards import posture_features, state_reward
+
+SamplingMode = Literal["uniform", "diverse"]
+SAMPLING_MODES: tuple[str, ...] = ("uniform", "diverse")
+MAX_CANDIDATES = 128
+
+#: A policy for rollouts: observation -> action. ``None`` means uniform random actions.
+Policy = Callable[[np.ndarray], np.ndarray]
+
+
+@dataclass(frozen=True, eq=False)
+class Candidate:
+    """A player of the bracket: one stored state.
+
+    Attributes:
+        id: position in the study's candidate list, ``0 .. N-1``.
+        qpos: generalised positions, shape ``(nq,)``.
+        qvel: generalised velocities, shape ``(nv,)``.
+        env_reward: R(s), its ability in Braverman-Mossel seeding.
+    """
+
+    id: int
+    qpos: np.ndarray
+    qvel: np.ndarray
+    env_reward: float
+
+
+def sample_candidates(env_id: str = DEFAULT_ENV_ID, n: int = 16, *, rng: np.random.Generator,
+                      mode: SamplingMode = "uniform", rollout_steps: int | None = None,
+                      policy: Policy | None = None) -> list[Candidate]:
+    """Roll out ``policy`` in the env and pick ``n`` candidate states from those visited.
+
+    Args:
+        env_id: a Gymnasium MuJoCo env id.
+        n: number of candidates, 2 ..  :data:`MAX_CANDIDATES`.
+        rng: the only source of randomness (env seeds, actions, the pick).
+        mode: ``uniform`` or ``diverse``.
+        rollout_steps: env steps to visit; default ``max(2000, 50 n)``.
+        policy: observation -> action; random actions when ``None``.
+    """
+    if not 2 <= n <= MAX_CANDIDATES:
+        raise InputError(f"number of candidates must be in 2..{MAX_CANDIDATES}, got {n}")
+    if mode not in SAMPLING_MODES:
+        raise InputError(f"unknown sampling mode {mode!r}: expected one of {SAMPLING_MODES}")
+    env = make_env(env_id)
+    try:
+        qpos, qvel = _rollout(env, rollout_steps or max(2000, 50 * n), rng, policy)
+        features = posture_features(qpos, env.unwrapped.model)
+        picked = _pick_uniform(len(qpos), n, rng) if mode == "uniform" else \
+            _pick_diverse(features, n, rng)
+        return [_candidate(env, i, qpos[j], qvel[j]) for i, j in enumerate(picked)]
+    finally:
+        env.close()
+
+
+def _rollout(env, steps: int, rng: np.random.Generator,
+             policy: Policy | None) -> tuple[np.ndarray, np.ndarray]:
+    """Visit ``steps`` states over as many episodes as needed; returns (qpos, qvel) stacks."""
+    env.action_space.seed(int(rng.integers(2**31)))
+    obs, _ = env.reset(seed=int(rng.integers(2**31)))
+    qpos, qvel = [], []
+    for _ in range(steps):
+        action = env.action_space.sample() if policy is None else policy(obs)
+        obs, _, terminated, truncated, _ = env.step(action)
+        qpos.append(env.unwrapped.data.qpos.copy())
+        qvel.append(env.unwrapped.data.qvel.copy())
+        if terminated or truncated:
+            obs, _ = env.reset(seed=int(rng.integers(2**31)))
+    return np.array(qpos), np.array(qvel)
+
+
+def _pick_uniform(visited: int, n: int, rng: np.random.Generator) -> np.ndarray:
+    return np.sort(rng.choice(visited, size=n, replace=False))
+
+
+def _pick_diverse(features: np.ndarray, n: int, rng: np.random.Generator) -> np.ndarray:
+    """One visited state per k-means cluster: the one nearest its centroid."""
+    z = (features - features.mean(0)) / (features.std(0) + 1e-8)
+    km = KMeans(n_clusters=n, n_init=4, random_state=int(rng.integers(2**31))).fit(z)
+    dist = ((z[None, :, :] - km.cluster_centers_[:, None, :]) ** 2).sum(-1)  # (n, visited)
+    picked: list[int] = []
+    for row in dist:  # nearest not yet picked: two centroids may share a nearest state
+        order = np.argsort(row)
+        picked.append(int(next(j for j in order if j not in picked)))
+    return np.sort(np.array(picked))
+
+
+def _candidate(env, cid: int, qpos: np.ndarray, qvel: np.ndarray) -> Candidate:
+    restore(env, qpos, qvel)
+    return Candidate(id=cid, qpos=qpos, qvel=qvel, env_reward=state_reward(env))

@@ -1,0 +1,79 @@
+"""The state reward R(s) and the advice features of a state.
+
+R(s) is the part of a Gymnasium MuJoCo locomotion reward that one state determines (DESIGN.md
+section 2): the healthy bonus, the forward-velocity term (centre-of-mass x velocity), the
+contact cost, and the control cost only when an action is given. It is the players' *ability*
+in Braverman-Mossel seeding and the `good` teacher's preference (the paper's Case 1, F = R).
+"""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+
+
+def state_reward(env: gym.Env, action: np.ndarray | None = None) -> float:
+    """R(s) of the env's current state; call :func:`engine.envs.restore` first.
+
+    Args:
+        env: a Gymnasium MuJoCo env (any wrapper); its ``data`` holds the state.
+        action: the policy's action in this state, for the control cost; ``None`` means 0.
+
+    Returns:
+        healthy bonus + forward weight * COM x velocity - contact cost - control cost.
+    """
+    base = env.unwrapped
+    reward = float(getattr(base, "healthy_reward", 0.0))
+    reward += float(getattr(base, "_forward_reward_weight", 1.0)) * com_x_velocity(base)
+    reward -= float(getattr(base, "contact_cost", 0.0))
+    if action is not None and hasattr(base, "control_cost"):
+        reward -= float(base.control_cost(np.asarray(action)))
+    return reward
+
+
+def com_x_velocity(base: gym.Env) -> float:
+    """Centre-of-mass x velocity of the whole model (``subtree_linvel`` of the world body)."""
+    return float(base.data.subtree_linvel[0, 0])
+
+
+def posture_slice(model: mujoco.MjModel) -> slice:
+    """The part of ``qpos`` that describes posture, not position on the floor.
+
+    A free-joint root (Humanoid, Ant) starts with x, y, z, quaternion: posture is ``qpos[2:]``
+    (torso height, orientation, joint angles). A planar root (Hopper, Walker2d, HalfCheetah)
+    starts with a slide-x joint: posture is ``qpos[1:]``.
+    """
+    free = model.njnt > 0 and model.jnt_type[0] == mujoco.mjtJoint.mjJNT_FREE
+    return slice(2, None) if free else slice(1, None)
+
+
+def posture_features(qpos: np.ndarray, model: mujoco.MjModel) -> np.ndarray:
+    """Advice features of a batch of states.
+
+    Args:
+        qpos: shape ``(B, nq)`` or ``(nq,)``.
+        model: the env's MuJoCo model.
+
+    Returns:
+        shape ``(B, nq - 2)`` for a free root, ``(B, nq - 1)`` for a planar root.
+    """
+    return np.atleast_2d(np.asarray(qpos, dtype=np.float64))[:, posture_slice(model)]
+
+
+def uprightness(qpos: np.ndarray, model: mujoco.MjModel) -> np.ndarray:
+    """Cosine between the torso's up axis and the world's up axis, shape ``(B,)``.
+
+    For a free root, ``1 - 2 (qx^2 + qy^2)`` from the torso quaternion ``(w, x, y, z)``; for a
+    planar root, the cosine of the pitch angle ``qpos[2]``.
+    """
+    q = np.atleast_2d(np.asarray(qpos, dtype=np.float64))
+    if posture_slice(model).start == 2:
+        return 1.0 - 2.0 * (q[:, 4] ** 2 + q[:, 5] ** 2)
+    return np.cos(q[:, 2])
+
+
+def torso_height(qpos: np.ndarray, model: mujoco.MjModel) -> np.ndarray:
+    """Root height, shape ``(B,)``: ``qpos[2]`` for a free root, ``qpos[1]`` for a planar one."""
+    q = np.atleast_2d(np.asarray(qpos, dtype=np.float64))
+    return q[:, 2] if posture_slice(model).start == 2 else q[:, 1]

@@ -1,0 +1,146 @@
+"""Training configuration: one frozen dataclass, CleanRL style (one docstring per field)."""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any
+
+from engine.errors import InputError
+
+ALGOS: tuple[str, ...] = ("ppo", "ppo-shaped", "bipars-em", "bipars-mgl")
+"""``ppo``: env reward only; ``ppo-shaped``: R + F (z = 1); ``bipars-*``: R + z_phi(s) F(s)."""
+
+ADVISED_ALGOS: frozenset[str] = frozenset(ALGOS[1:])
+"""Algorithms that need an advice reward F."""
+
+BIPARS_ALGOS: frozenset[str] = frozenset(ALGOS[2:])
+"""Algorithms that learn the shaping weight z_phi (Hu et al. 2020)."""
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """Everything that determines a training run (saved as the run's ``config.json``)."""
+
+    algo: str = "ppo"
+    """one of :data:`ALGOS`"""
+    env_id: str = "Humanoid-v5"
+    """Gymnasium MuJoCo env id"""
+    total_timesteps: int = 1_000_000
+    """env steps over all envs"""
+    seed: int = 0
+    """seed of torch, numpy and the envs"""
+    n_envs: int = 4
+    """parallel envs in one ``SyncVectorEnv``"""
+    num_steps: int = 512
+    """steps per env per rollout (batch = ``n_envs * num_steps``)"""
+    num_minibatches: int = 32
+    """minibatches per epoch"""
+    update_epochs: int = 10
+    """epochs over each rollout"""
+    learning_rate: float = 3e-4
+    """Adam learning rate of the policy and critics"""
+    anneal_lr: bool = True
+    """anneal the learning rates linearly to 0 over the run"""
+    gamma: float = 0.99
+    """discount factor"""
+    gae_lambda: float = 0.95
+    """GAE lambda"""
+    clip_coef: float = 0.2
+    """PPO surrogate clipping coefficient"""
+    ent_coef: float = 0.0
+    """entropy bonus coefficient"""
+    vf_coef: float = 0.5
+    """value loss coefficient"""
+    max_grad_norm: float = 0.5
+    """global gradient norm clip"""
+    norm_obs: bool = True
+    """normalise observations with running statistics"""
+    norm_reward: bool = True
+    """scale rewards by the running std of the discounted return"""
+    hidden: int = 64
+    """width of the two hidden layers of every network"""
+    advice_scale: float = 1.0
+    """multiplies F(s) before shaping"""
+    advice_mode: str = "nearest"
+    """F mode of :class:`engine.advice.AdviceReward` (nearest, softmax, paper-min)"""
+    advice_depth_factor: str = "none"
+    """depth factor D of F (none or paper)"""
+    advice_kappa: float = 10.0
+    """softmax temperature of the ``softmax`` F mode"""
+    z_max: float = 2.0
+    """z_phi(s) = z_max * tanh(.), so z lies in (-z_max, z_max)"""
+    z_init: float = 1.0
+    """z_phi(s) at initialisation (near this value for every state)"""
+    z_learning_rate: float = 1e-3
+    """Adam learning rate of z_phi"""
+    z_epochs: int = 1
+    """epochs of z_phi updates over each rollout (bipars-em)"""
+    meta_lr: float = 0.1
+    """inner step size of the one-step meta-gradient (bipars-mgl)"""
+    checkpoint_every: int = 50_000
+    """write ``checkpoints/step_<timesteps>.pt`` every this many env steps"""
+
+    def __post_init__(self) -> None:
+        errors = self._errors()
+        if errors:
+            raise InputError(errors[0])
+
+    def _errors(self) -> list[str]:
+        checks = [
+            (self.algo in ALGOS, f"unknown algo {self.algo!r}: choose one of {', '.join(ALGOS)}"),
+            (self.total_timesteps > 0, f"timesteps must be positive, got {self.total_timesteps}"),
+            (self.n_envs >= 1 and self.num_steps >= 2, "n_envs must be >= 1, num_steps >= 2"),
+            (1 <= self.num_minibatches <= self.batch_size,
+             f"num_minibatches must lie in [1, {self.batch_size}]"),
+            (self.update_epochs >= 1 and self.z_epochs >= 1, "epochs must be >= 1"),
+            (0 < self.gamma <= 1 and 0 <= self.gae_lambda <= 1, "gamma/gae_lambda out of range"),
+            (self.learning_rate > 0 and self.z_learning_rate > 0, "learning rates must be > 0"),
+            (self.checkpoint_every > 0, "checkpoint-every must be positive"),
+            (0 < abs(self.z_init) < self.z_max, "z_init must satisfy 0 < |z_init| < z_max"),
+            (self.advice_scale > 0, f"advice-scale must be positive, got {self.advice_scale}"),
+        ]
+        return [message for ok, message in checks if not ok]
+
+    @property
+    def batch_size(self) -> int:
+        """Transitions per rollout."""
+        return self.n_envs * self.num_steps
+
+    @property
+    def minibatch_size(self) -> int:
+        """Transitions per gradient step."""
+        return self.batch_size // self.num_minibatches
+
+    @property
+    def num_updates(self) -> int:
+        """Rollouts in the run (the last one may overshoot ``total_timesteps``)."""
+        return -(-self.total_timesteps // self.batch_size)
+
+    @property
+    def uses_advice(self) -> bool:
+        """Whether the algorithm shapes the reward with F."""
+        return self.algo in ADVISED_ALGOS
+
+    @property
+    def learns_z(self) -> bool:
+        """Whether the algorithm learns z_phi."""
+        return self.algo in BIPARS_ALGOS
+
+    def to_json(self) -> dict[str, Any]:
+        """Plain dict for ``config.json``."""
+        return dataclasses.asdict(self)
+
+    @classmethod
+    def from_json(cls, obj: Any) -> TrainConfig:
+        """Inverse of :meth:`to_json`; unknown or missing keys raise :class:`InputError`."""
+        if not isinstance(obj, dict):
+            raise InputError("config must be a JSON object")
+        names = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(obj) - names)
+        if unknown:
+            raise InputError(f"unknown config keys: {', '.join(unknown)}")
+        try:
+            return cls(**obj)
+        except TypeError as exc:
+            raise InputError(f"invalid config: {exc}") from exc

@@ -1,0 +1,78 @@
+"""Reward shaping with advice, as Gymnasium wrappers (paper: R~(s, a) = R(s, a) + z_phi(s) F(s)).
+
+:class:`StateInfo` makes every sub-env report the state it reached (``qpos``) and nothing else,
+which also keeps ``SyncVectorEnv``'s per-step info merging cheap. :class:`AdviceShaping`
+evaluates the advice F on the whole batch of reached states at once and returns the reward
+terms in ``info``; the weighting by z happens in the learner, because z_phi changes during
+training.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Protocol
+
+import gymnasium as gym
+import numpy as np
+
+
+class AdviceFn(Protocol):
+    """An advice reward: F(s) for a batch of MuJoCo positions, shape (B, nq) -> (B,).
+
+    :class:`engine.advice.AdviceReward` is one; tests use plain functions of ``qpos``.
+    """
+
+    def __call__(self, qpos: np.ndarray) -> np.ndarray: ...
+
+
+class StateInfo(gym.Wrapper):
+    """Replace the env's ``info`` by ``{"qpos": <the state reached>}``, shape (nq,)."""
+
+    def reset(self, **kwargs: Any) -> tuple[np.ndarray, dict[str, Any]]:
+        obs, _ = self.env.reset(**kwargs)
+        return obs, {"qpos": self.env.unwrapped.data.qpos.copy()}
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        obs, reward, terminated, truncated, _ = self.env.step(action)
+        return obs, reward, terminated, truncated, {"qpos": self.env.unwrapped.data.qpos.copy()}
+
+
+def reached_qpos(info: dict[str, Any], done: np.ndarray) -> np.ndarray:
+    """Positions reached by the last step, shape (B, nq).
+
+    With ``autoreset_mode=SAME_STEP`` a finished env has already been reset: its ``qpos`` is
+    the new episode's first state and the reached one sits in ``info["final_info"]``.
+    """
+    qpos = info["qpos"]
+    if done.any():
+        qpos = qpos.copy()
+        qpos[done] = info["final_info"]["qpos"][done]
+    return qpos
+
+
+class AdviceShaping(gym.vector.VectorWrapper):
+    """Add the advice terms of each step to ``info``; the returned reward stays R.
+
+    ``info["advice"]``: ``scale * F(s')`` of the reached states s', shape (B,);
+    ``info["env_reward"]``: the environment reward R, shape (B,).
+
+    Args:
+        env: a vector env whose sub-envs are wrapped in :class:`StateInfo`.
+        advice: the advice reward F, or None for zeros (the ``ppo`` baseline).
+        scale: multiplies F (``--advice-scale``).
+    """
+
+    def __init__(self, env: gym.vector.VectorEnv, advice: AdviceFn | None, scale: float = 1.0):
+        super().__init__(env)
+        self.advice = advice
+        self.scale = scale
+
+    def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                                                 dict[str, Any]]:
+        obs, reward, terminated, truncated, info = self.env.step(actions)
+        info["env_reward"] = reward
+        if self.advice is None:
+            info["advice"] = np.zeros_like(reward)
+        else:
+            qpos = reached_qpos(info, terminated | truncated)
+            info["advice"] = self.scale * np.asarray(self.advice(qpos), dtype=np.float64)
+        return obs, reward, terminated, truncated, info

@@ -1,0 +1,87 @@
+"""Playing a bracket with a judge, and the tournament dendrogram.
+
+A *judge* decides each match: a person (through the web app), a simulated teacher, or the
+agent's shaped reward. The dendrogram is a binary tree whose leaves are the candidates (height
+0); a match node holds its winner and has height ``1 + max(children's heights)``. A bye passes
+the player's node up unchanged.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Protocol
+
+from engine.bracket import Bracket, Results
+from engine.candidates import Candidate
+from engine.errors import InputError
+
+
+class Judge(Protocol):
+    """Decides a match between two candidates."""
+
+    def __call__(self, a: Candidate, b: Candidate) -> int:
+        """Return the id of the preferred candidate (``a.id`` or ``b.id``)."""
+        ...
+
+
+class ScoreJudge:
+    """Prefers the candidate with the higher score; ties go to ``a``, the higher seed's side.
+
+    Args:
+        scores: candidate id -> score (for example R(s), or the agent's shaped reward).
+    """
+
+    def __init__(self, scores: Mapping[int, float]):
+        self.scores = {int(k): float(v) for k, v in scores.items()}
+
+    def __call__(self, a: Candidate, b: Candidate) -> int:
+        return b.id if self.scores[b.id] > self.scores[a.id] else a.id
+
+
+def play(bracket: Bracket, candidates: Mapping[int, Candidate], judge: Judge,
+         results: Results | None = None) -> dict[tuple[int, int], int]:
+    """Play every open match, round by round, until the bracket is complete.
+
+    Args:
+        bracket: the bracket's structure.
+        candidates: id -> candidate, covering the bracket's players.
+        judge: decides each match.
+        results: matches already decided (kept as they are).
+
+    Returns:
+        ``(round, slot) -> winner id`` for every match.
+    """
+    decided = dict(results or {})
+    while open_ := bracket.open_matches(decided):
+        for m in open_:
+            winner = judge(candidates[m.a], candidates[m.b])
+            bracket.check_result(m, winner)
+            decided[(m.round, m.slot)] = winner
+    return decided
+
+
+@dataclass(frozen=True)
+class DendroNode:
+    """A dendrogram node: ``value`` is the state it stands for (the winner, for a match)."""
+
+    value: int
+    height: int
+    children: tuple[DendroNode, ...] = ()
+
+
+def dendrogram(bracket: Bracket, results: Results) -> DendroNode:
+    """Build the dendrogram of a complete bracket."""
+    if not bracket.is_complete(results):
+        raise InputError("the bracket is not complete: every match needs a winner")
+    nodes = [DendroNode(a, 0) if b is None else
+             _match_node(results[(1, k)], DendroNode(a, 0), DendroNode(b, 0))
+             for k, (a, b) in enumerate(bracket.first_round)]
+    for rnd in range(2, bracket.n_rounds + 1):
+        nodes = [_match_node(results[(rnd, k)], nodes[2 * k], nodes[2 * k + 1])
+                 for k in range(len(nodes) // 2)]
+    return nodes[0]
+
+
+def _match_node(winner: int, left: DendroNode, right: DendroNode) -> DendroNode:
+    return DendroNode(winner, 1 + max(left.height, right.height), (left, right))

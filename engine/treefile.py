@@ -1,0 +1,196 @@
+"""The ``acv.tree/1`` document: one labelled bracket and its Preference Tree.
+
+The same JSON is the CLI's file format and the REST API's body (README "Tree file format").
+The matches are the source of truth: loading rebuilds the tree from them and rejects a file
+whose stored tree disagrees, so a hand-edited or truncated file cannot pass as valid.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from engine.bracket import Bracket, FirstRound, Match
+from engine.candidates import Candidate
+from engine.errors import InputError
+from engine.preference_tree import PreferenceTree, from_dendrogram
+from engine.tournament import dendrogram
+
+SCHEMA = "acv.tree/1"
+
+
+@dataclass(frozen=True)
+class TreeDocument:
+    """A complete labelled bracket over a candidate set.
+
+    Attributes:
+        env_id: Gymnasium MuJoCo env the states belong to.
+        seed: seed the candidates and bracket were drawn with.
+        p: Braverman-Mossel coin probability used for seeding.
+        judge: who decided the matches (``"standing"``, ``"participant:12"``, ``"agent:..."``).
+        r_b: leaf reward constant of T_r.
+        r_e: edge reward constant of T_r.
+        candidates: the players, ids ``0 .. N-1`` in order.
+        first_round: bracket order, ``(a, None)`` for a bye.
+        results: ``(round, slot) -> winner`` for every match.
+        tree: the Preference Tree built from ``results``.
+        scores: the judge's score per candidate, when it judged by a score.
+    """
+
+    env_id: str
+    seed: int
+    p: float
+    judge: str
+    r_b: float
+    r_e: float
+    candidates: list[Candidate]
+    first_round: FirstRound
+    results: dict[tuple[int, int], int]
+    tree: PreferenceTree
+    scores: dict[int, float] | None = None
+
+    @property
+    def bracket(self) -> Bracket:
+        return Bracket(self.first_round)
+
+    @property
+    def matches(self) -> list[tuple[Match, int]]:
+        """Every match with its winner, in (round, slot) order."""
+        return [(m, self.results[(m.round, m.slot)]) for m in self.bracket.matches(self.results)]
+
+    @property
+    def by_id(self) -> dict[int, Candidate]:
+        return {c.id: c for c in self.candidates}
+
+
+def make_document(*, env_id: str, seed: int, p: float, judge: str, candidates: list[Candidate],
+                  first_round: FirstRound, results: dict[tuple[int, int], int],
+                  r_b: float = 1.0, r_e: float = 1.0,
+                  scores: dict[int, float] | None = None) -> TreeDocument:
+    """Build the Preference Tree of a complete bracket and wrap everything in a document."""
+    tree = from_dendrogram(dendrogram(Bracket(first_round), results), r_b=r_b, r_e=r_e)
+    return TreeDocument(env_id, seed, p, judge, r_b, r_e, candidates, first_round, results,
+                        tree, scores)
+
+
+def tree_to_json(doc: TreeDocument) -> dict[str, Any]:
+    """The document as JSON-ready data (floats kept exact: JSON round-trips ``repr``)."""
+    return {
+        "schema": SCHEMA, "env_id": doc.env_id, "seed": doc.seed, "p": doc.p,
+        "judge": doc.judge, "tree_reward": {"r_b": doc.r_b, "r_e": doc.r_e},
+        "candidates": [_candidate_json(c, doc.scores) for c in doc.candidates],
+        "first_round": [[a, b] for a, b in doc.first_round],
+        "matches": [{"round": m.round, "a": m.a, "b": m.b, "winner": w} for m, w in doc.matches],
+        "tree": {"root": doc.tree.root, "nodes": [
+            {"state": n.state, "parent": n.parent, "height": n.height, "depth": n.depth,
+             "weight": n.weight, "reward": n.reward} for n in doc.tree.nodes.values()]},
+    }
+
+
+def _candidate_json(c: Candidate, scores: dict[int, float] | None) -> dict[str, Any]:
+    out = {"id": c.id, "qpos": c.qpos.tolist(), "qvel": c.qvel.tolist(),
+           "env_reward": c.env_reward}
+    if scores is not None:
+        out["score"] = scores[c.id]
+    return out
+
+
+def dumps(doc: TreeDocument) -> str:
+    """Serialise deterministically: the same document gives the same bytes."""
+    return json.dumps(tree_to_json(doc), indent=1) + "\n"
+
+
+def dump_tree(doc: TreeDocument, path: str | Path) -> None:
+    Path(path).write_text(dumps(doc))
+
+
+def load_tree(path: str | Path) -> TreeDocument:
+    """Read and validate an ``acv.tree/1`` file; :class:`InputError` on anything else."""
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"cannot read tree file {path}: {exc}") from exc
+    try:
+        return tree_from_json(json.loads(text))
+    except json.JSONDecodeError as exc:
+        raise InputError(f"{path} is not an {SCHEMA} document: invalid JSON ({exc})") from exc
+    except InputError as exc:
+        raise InputError(f"{path}: {exc}") from exc
+
+
+def tree_from_json(obj: Any) -> TreeDocument:
+    """Validate parsed JSON and rebuild the document; :class:`InputError` if invalid."""
+    if not isinstance(obj, dict) or obj.get("schema") != SCHEMA:
+        raise InputError(f"not an {SCHEMA} document (missing or wrong 'schema')")
+    try:
+        doc = _parse(obj)
+    except (KeyError, TypeError, ValueError, IndexError) as exc:
+        if isinstance(exc, InputError):
+            raise
+        raise InputError(f"malformed {SCHEMA} document: {type(exc).__name__}: {exc}") from exc
+    _check_tree(doc, obj["tree"])
+    return doc
+
+
+def _parse(obj: dict[str, Any]) -> TreeDocument:
+    cands = [Candidate(int(c["id"]), _floats(c["qpos"]), _floats(c["qvel"]),
+                       float(c["env_reward"])) for c in obj["candidates"]]
+    if [c.id for c in cands] != list(range(len(cands))):
+        raise InputError("candidate ids must be 0 .. N-1 in order")
+    scores = ({c["id"]: float(c["score"]) for c in obj["candidates"]}
+              if all("score" in c for c in obj["candidates"]) else None)
+    first_round = [(int(a), None if b is None else int(b)) for a, b in obj["first_round"]]
+    bracket = Bracket(first_round)
+    if sorted(bracket.players) != list(range(len(cands))):
+        raise InputError("first round must hold every candidate exactly once")
+    results = _results(bracket, obj["matches"])
+    tr = obj["tree_reward"]
+    return make_document(env_id=str(obj["env_id"]), seed=int(obj["seed"]), p=float(obj["p"]),
+                         judge=str(obj["judge"]), candidates=cands, first_round=first_round,
+                         results=results, r_b=float(tr["r_b"]), r_e=float(tr["r_e"]),
+                         scores=scores)
+
+
+def _floats(values: Any) -> np.ndarray:
+    arr = np.asarray(values, dtype=np.float64)
+    if arr.ndim != 1 or not np.isfinite(arr).all():
+        raise InputError("qpos/qvel must be flat lists of finite numbers")
+    return arr
+
+
+def _results(bracket: Bracket, matches: list[dict[str, Any]]) -> dict[tuple[int, int], int]:
+    """Replay the listed matches through the bracket, checking each one's players."""
+    results: dict[tuple[int, int], int] = {}
+    pending = {(int(m["round"]), frozenset((int(m["a"]), int(m["b"])))): int(m["winner"])
+               for m in matches}
+    if len(pending) != len(matches):
+        raise InputError("a match is listed twice")
+    while open_ := bracket.open_matches(results):
+        for m in open_:
+            key = (m.round, frozenset((m.a, m.b)))
+            if key not in pending:
+                raise InputError(f"missing round {m.round} match {m.a} vs {m.b}")
+            winner = pending.pop(key)
+            bracket.check_result(m, winner)
+            results[(m.round, m.slot)] = winner
+    if pending:
+        raise InputError(f"{len(pending)} listed match(es) are not in the bracket")
+    return results
+
+
+def _check_tree(doc: TreeDocument, stored: dict[str, Any]) -> None:
+    nodes = stored["nodes"] if isinstance(stored, dict) else None
+    if not isinstance(nodes, list) or stored.get("root") != doc.tree.root or \
+            len(nodes) != len(doc.tree):
+        raise InputError("'tree' does not match the tree built from 'matches'")
+    for n in nodes:
+        ref = doc.tree.nodes.get(n.get("state")) if isinstance(n, dict) else None
+        if ref is None or (n.get("parent"), n.get("height"), n.get("depth"), n.get("weight")) \
+                != (ref.parent, ref.height, ref.depth, ref.weight) or \
+                not math.isclose(float(n.get("reward", math.nan)), ref.reward, abs_tol=1e-9):
+            raise InputError("'tree' does not match the tree built from 'matches'")
