@@ -73,6 +73,8 @@ class NoisyJudge:
 def make_teacher(name: str, candidates: Sequence[Candidate], model: mujoco.MjModel, *,
                  noise: float = 0.0, rng: np.random.Generator) -> tuple[Judge, dict | None]:
     """A simulated teacher and, for score-based ones, the scores it judges by."""
+    if not 0.0 <= noise <= 1.0:
+        raise InputError(f"noise must be in [0, 1], got {noise}")
     scores = teacher_scores(name, candidates, model)
     judge: Judge = CoinJudge(rng) if scores is None else ScoreJudge(scores)
     return (NoisyJudge(judge, noise, rng) if noise > 0 else judge), scores

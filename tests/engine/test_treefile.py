@@ -1,0 +1,79 @@
+"""The acv.tree/1 document: round trip, determinism, and rejection of anything else."""
+
+from __future__ import annotations
+
+import copy
+import json
+
+import pytest
+
+from engine.errors import InputError
+from engine.pipeline import run_tournament
+from engine.treefile import dumps, load_tree, tree_from_json, tree_to_json
+
+
+@pytest.fixture(scope="module")
+def doc():
+    return run_tournament(env_id="Hopper-v5", n_candidates=6, p=0.9, seed=5, teacher="good")
+
+
+def test_round_trip_is_byte_identical(doc) -> None:
+    text = dumps(doc)
+    assert dumps(tree_from_json(json.loads(text))) == text
+
+
+def test_same_seed_same_bytes(doc) -> None:
+    again = run_tournament(env_id="Hopper-v5", n_candidates=6, p=0.9, seed=5, teacher="good")
+    assert dumps(again) == dumps(doc)
+
+
+def test_document_has_the_documented_keys(doc) -> None:
+    obj = tree_to_json(doc)
+    assert obj["schema"] == "acv.tree/1"
+    assert set(obj) == {"schema", "env_id", "seed", "p", "judge", "tree_reward", "candidates",
+                        "first_round", "matches", "tree"}
+    assert len(obj["matches"]) == 5 and len(obj["tree"]["nodes"]) == 6
+    assert {"id", "qpos", "qvel", "env_reward"} <= set(obj["candidates"][0])
+    assert set(obj["tree"]["nodes"][0]) == {"state", "parent", "height", "depth", "weight",
+                                            "reward"}
+
+
+def _tamper_winner(obj):
+    m = obj["matches"][0]
+    m["winner"] = m["a"] if m["winner"] == m["b"] else m["b"]
+
+
+def _tamper_height(obj):
+    obj["tree"]["nodes"][1]["height"] += 1
+
+
+@pytest.mark.parametrize("tamper", [
+    lambda o: o.update(schema="acv.tree/0"),
+    lambda o: o.pop("matches"),
+    lambda o: o["matches"].pop(),
+    lambda o: o["matches"].append(dict(o["matches"][0])),
+    lambda o: o["candidates"][0].update(qpos="x"),
+    lambda o: o["candidates"][0].update(id=9),
+    lambda o: o["first_round"].pop(),
+    _tamper_winner,
+    _tamper_height,
+], ids=["schema", "no-matches", "missing-match", "duplicate-match", "bad-qpos", "bad-id",
+        "short-first-round", "winner", "height"])
+def test_invalid_documents_are_rejected(doc, tamper) -> None:
+    obj = copy.deepcopy(tree_to_json(doc))
+    tamper(obj)
+    with pytest.raises(InputError):
+        tree_from_json(obj)
+
+
+@pytest.mark.parametrize("content", [b"not json", b"[1, 2]", b"\xff\xfe\x00"])
+def test_load_rejects_non_documents(tmp_path, content: bytes) -> None:
+    path = tmp_path / "x.json"
+    path.write_bytes(content)
+    with pytest.raises(InputError):
+        load_tree(path)
+
+
+def test_load_missing_file(tmp_path) -> None:
+    with pytest.raises(InputError):
+        load_tree(tmp_path / "nope.json")
