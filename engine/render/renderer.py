@@ -67,6 +67,19 @@ class FrameRenderer:
         renderer.update_scene(env.unwrapped.data, VIEWS[spec.view].camera())
         return renderer.render()
 
+    def warm_up(self, env_id: str, spec: RenderSpec) -> None:
+        """Make the env and renderer for ``spec`` and draw the model's initial state once.
+
+        The first draw compiles shaders and uploads textures: about half a second on CPU.
+        """
+        model = self._env(env_id).unwrapped.model
+        self.frame(env_id, model.qpos0.copy(), np.zeros(model.nv), spec)
+
+    @property
+    def has_contexts(self) -> bool:
+        """Whether this holds OpenGL contexts (at least one renderer)."""
+        return bool(self._renderers)
+
     def close(self) -> None:
         """Free every renderer and env; call it on the thread that rendered."""
         while self._renderers:

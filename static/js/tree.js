@@ -1,0 +1,78 @@
+// Draws an acv.tree/1 Preference Tree as SVG with candidate thumbnails at the nodes.
+// Layout: d3-hierarchy's tidy tree (vendored in static/vendor), never a hand-rolled layout.
+/* global d3 */
+"use strict";
+
+const SVG_NS = "http://www.w3.org/2000/svg";
+
+function svgEl(name, attrs) {
+  const el = document.createElementNS(SVG_NS, name);
+  for (const [k, v] of Object.entries(attrs || {})) el.setAttribute(k, v);
+  return el;
+}
+
+// Root the tree's flat node list (pre-order, parent links) with d3.stratify, children ordered
+// as in the file (latest round first), so the same tree always draws the same way.
+function hierarchy(doc) {
+  return d3.stratify()
+    .id((n) => String(n.state))
+    .parentId((n) => (n.parent === null ? null : String(n.parent)))(doc.tree.nodes);
+}
+
+// Draw `doc` into `container`.
+// options.imageUrl(candidateId) -> thumbnail URL; options.highlight: Set of candidate ids;
+// options.thumb: thumbnail size in px; options.onSelect(candidateId) on click.
+function drawPreferenceTree(container, doc, options) {
+  const opts = Object.assign({ thumb: 56, highlight: new Set() }, options || {});
+  const root = hierarchy(doc);
+  const dx = opts.thumb + 14;  // horizontal spacing between siblings
+  const dy = opts.thumb + 46;  // vertical spacing between depths
+  d3.tree().nodeSize([dx, dy])(root);
+  let x0 = Infinity, x1 = -Infinity;
+  root.each((d) => { x0 = Math.min(x0, d.x); x1 = Math.max(x1, d.x); });
+  const width = x1 - x0 + dx, height = root.height * dy + opts.thumb + 40;
+  const svg = svgEl("svg", {
+    viewBox: `${x0 - dx / 2} ${-opts.thumb / 2 - 8} ${width} ${height}`,
+    width, height, class: "pref-tree", role: "img",
+    "aria-label": `Preference tree judged by ${doc.judge}`,
+  });
+  for (const link of root.links()) svg.appendChild(edge(link, opts));
+  for (const d of root.descendants()) svg.appendChild(node(d, opts));
+  container.replaceChildren(svg);
+  return svg;
+}
+
+function edge(link, opts) {
+  const id = Number(link.target.id);
+  const g = svgEl("g", { class: "edge" + (opts.highlight.has(id) ? " rejected" : "") });
+  g.appendChild(svgEl("line", { x1: link.source.x, y1: link.source.y + opts.thumb / 2,
+    x2: link.target.x, y2: link.target.y - opts.thumb / 2 }));
+  const label = svgEl("text", { x: (link.source.x + link.target.x) / 2 + 4,
+    y: (link.source.y + link.target.y) / 2, class: "weight" });
+  label.textContent = `w=${link.target.data.weight}`;
+  g.appendChild(label);
+  return g;
+}
+
+function node(d, opts) {
+  const id = Number(d.id), t = opts.thumb;
+  const g = svgEl("g", { class: "node" + (opts.highlight.has(id) ? " rejected" : ""),
+    transform: `translate(${d.x},${d.y})`, "data-state": id, tabindex: 0 });
+  const title = svgEl("title");
+  title.textContent = `state ${id}: won ${d.data.height} round(s), depth ${d.data.depth}, ` +
+    `T_r = ${d.data.reward.toFixed(2)}`;
+  g.appendChild(title);
+  g.appendChild(svgEl("rect", { x: -t / 2 - 2, y: -t / 2 - 2, width: t + 4, height: t + 4,
+    rx: 6 }));
+  if (opts.imageUrl) {
+    g.appendChild(svgEl("image", { href: opts.imageUrl(id), x: -t / 2, y: -t / 2,
+      width: t, height: t }));
+  }
+  const label = svgEl("text", { y: t / 2 + 14, class: "label" });
+  label.textContent = `#${id} · h${d.data.height}`;
+  g.appendChild(label);
+  if (opts.onSelect) g.addEventListener("click", () => opts.onSelect(id));
+  return g;
+}
+
+window.ACVTree = { drawPreferenceTree };
