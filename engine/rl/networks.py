@@ -67,15 +67,33 @@ def gaussian_log_prob(mean: torch.Tensor, log_std: torch.Tensor, x: torch.Tensor
     return -(0.5 * z.square() + log_std + 0.5 * LOG_2PI).sum(-1)
 
 
-class Critic(nn.Module):
-    """State value V(s), shape (B,)."""
+class Critics(nn.Module):
+    """``n`` independent value networks V_k(s) evaluated together, output shape (n, B).
 
-    def __init__(self, obs_dim: int, hidden: int = 64):
+    Each critic is a 2x64 tanh MLP with its own weights; stacking them in batched matrix
+    products costs about as much as one critic (BiPaRS needs two: shaped and true return).
+    """
+
+    def __init__(self, obs_dim: int, hidden: int = 64, n: int = 1):
         super().__init__()
-        self.net = mlp(obs_dim, 1, hidden, out_std=1.0)
+        sizes = [(obs_dim, hidden, math.sqrt(2.0)), (hidden, hidden, math.sqrt(2.0)),
+                 (hidden, 1, 1.0)]
+        self.weights = nn.ParameterList()
+        self.biases = nn.ParameterList()
+        for n_in, n_out, gain in sizes:
+            w = torch.empty(n, n_in, n_out)
+            for k in range(n):  # orthogonal per critic, as layer_init does for nn.Linear
+                nn.init.orthogonal_(w[k].T, gain)
+            self.weights.append(nn.Parameter(w))
+            self.biases.append(nn.Parameter(torch.zeros(n, 1, n_out)))
 
     def forward(self, obs: torch.Tensor) -> torch.Tensor:
-        return self.net(obs).squeeze(-1)
+        h = obs.expand(self.weights[0].shape[0], *obs.shape)
+        for i, (w, b) in enumerate(zip(self.weights, self.biases, strict=True)):
+            h = torch.baddbmm(b, h, w)
+            if i < len(self.weights) - 1:
+                h = torch.tanh(h)
+        return h.squeeze(-1)
 
 
 class ShapingWeight(nn.Module):
@@ -96,19 +114,19 @@ class ShapingWeight(nn.Module):
 
 
 class Agent(nn.Module):
-    """The learner's networks: actor, shaped critic and, for BiPaRS, true critic and z_phi.
+    """The learner's networks: actor, critics and, for BiPaRS, z_phi.
 
-    ``critic`` estimates the return of the reward the policy optimises (R for ``ppo``, the
-    shaped R + z F otherwise); ``true_critic`` the return of R alone, used for the z update.
+    ``critics(obs)[0]`` estimates the return of the reward the policy optimises (R for
+    ``ppo``, the shaped R + z F otherwise); BiPaRS adds ``critics(obs)[1]``, the return of R
+    alone, used for the z update.
     """
 
     def __init__(self, obs_dim: int, act_dim: int, hidden: int, algo: str, z_max: float,
                  z_init: float):
         super().__init__()
         self.actor = Actor(obs_dim, act_dim, hidden, z_input=algo == "bipars-em")
-        self.critic = Critic(obs_dim, hidden)
         learns_z = algo.startswith("bipars")
-        self.true_critic = Critic(obs_dim, hidden) if learns_z else None
+        self.critics = Critics(obs_dim, hidden, n=2 if learns_z else 1)
         self.z_net = ShapingWeight(obs_dim, hidden, z_max, z_init) if learns_z else None
         self.fixed_z = 1.0 if algo == "ppo-shaped" else 0.0
 
@@ -120,5 +138,9 @@ class Agent(nn.Module):
 
     def policy_params(self) -> list[nn.Parameter]:
         """Parameters trained by the PPO loss (actor and critics, not z_phi)."""
-        nets = [self.actor, self.critic] + ([self.true_critic] if self.true_critic else [])
-        return [p for net in nets for p in net.parameters()]
+        return [*self.actor.parameters(), *self.critics.parameters()]
+
+    def values(self, obs: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Shaped and true state values, each shape (B,) (the same tensor without BiPaRS)."""
+        v = self.critics(obs)
+        return v[0], v[-1]

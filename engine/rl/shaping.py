@@ -5,6 +5,11 @@ which also keeps ``SyncVectorEnv``'s per-step info merging cheap. :class:`Advice
 evaluates the advice F on the whole batch of reached states at once and returns the reward
 terms in ``info``; the weighting by z happens in the learner, because z_phi changes during
 training.
+
+Timing: the shaped reward of step t is ``R_t + z_phi(s_t) F(s_{t+1})``. F judges the state
+the action reached, as MuJoCo's own rewards do (they are computed after the step); z_phi
+weighs it at the state where the action was chosen, as in Hu et al.'s f(s, a) weighted by
+z_phi(s, a). The agent preference tree evaluates both at the candidate state.
 """
 
 from __future__ import annotations

@@ -12,8 +12,6 @@ import torch
 from engine.envs import make_env
 from engine.rl.shaping import AdviceFn, AdviceShaping, StateInfo
 
-_FULL_STATE = mujoco.mjtState.mjSTATE_INTEGRATION
-
 
 def make_vec_env(env_id: str, n_envs: int, advice: AdviceFn | None,
                  advice_scale: float = 1.0) -> AdviceShaping:
@@ -41,13 +39,22 @@ def _time_limit(env: gym.Env) -> gym.wrappers.TimeLimit | None:
     return None
 
 
+def _data_arrays(data: mujoco.MjData) -> dict[str, np.ndarray]:
+    return {name: value for name in dir(data)
+            if not name.startswith("_") and isinstance(value := getattr(data, name), np.ndarray)}
+
+
 def snapshot_env(env: gym.Env) -> dict[str, Any]:
-    """Everything that decides a sub-env's future: full MuJoCo state, step count, rng state."""
+    """Everything that decides a sub-env's future: MuJoCo data, step count, rng state.
+
+    We copy every array of ``MjData``, not only the integration state: Gymnasium envs read
+    quantities left over from the previous ``mj_step`` (Humanoid's centre of mass uses the
+    pre-integration ``xipos``), and recomputing them with ``mj_forward`` would change rewards.
+    """
     base = env.unwrapped
-    state = np.empty(mujoco.mj_stateSize(base.model, _FULL_STATE))
-    mujoco.mj_getState(base.model, base.data, state, _FULL_STATE)
     limit = _time_limit(env)
-    return {"mujoco": torch.from_numpy(state),
+    return {"mujoco": {k: torch.from_numpy(v.copy()) for k, v in _data_arrays(base.data).items()},
+            "time": float(base.data.time),
             "elapsed_steps": None if limit is None else limit._elapsed_steps,
             "np_random": base.np_random.bit_generator.state}
 
@@ -55,9 +62,12 @@ def snapshot_env(env: gym.Env) -> dict[str, Any]:
 def restore_env(env: gym.Env, snap: dict[str, Any]) -> None:
     """Inverse of :func:`snapshot_env` (``env`` must have been reset once)."""
     base = env.unwrapped
-    mujoco.mj_setState(base.model, base.data, snap["mujoco"].numpy(), _FULL_STATE)
-    # Derived quantities (body positions, ...) are read by some envs before their next step.
-    mujoco.mj_forward(base.model, base.data)
+    for name, array in _data_arrays(base.data).items():
+        saved = snap["mujoco"][name]
+        # per-constraint buffers (efc_*) change size every step and are rebuilt by mj_step
+        if tuple(saved.shape) == array.shape:
+            array[...] = saved.numpy()
+    base.data.time = snap["time"]
     limit = _time_limit(env)
     if limit is not None:
         limit._elapsed_steps = snap["elapsed_steps"]

@@ -1,0 +1,124 @@
+"""The Agent Preference Tree: the advice bracket replayed with the agent as the judge.
+
+"Anytime" (paper, section III): at any checkpoint, each candidate s of the Human Preference
+Tree's bracket gets a score from the agent, and the same bracket (same candidates, same first
+round) is played again with the higher score winning each match. Judges:
+
+- ``shaped`` (default): g(s) = R(s) + z_phi(s) F(s), the agent's shaped reward;
+- ``shaping``: z_phi(s) F(s), the part of it that comes from the advice;
+- ``value``: the shaped critic V(s).
+
+R(s) is the candidate's stored env reward, F the run's advice reward (times
+``advice_scale``), and z_phi and V are evaluated on the candidate's observation (restored with
+:func:`engine.envs.restore`, normalised as in training). ``ppo`` runs have z = 0 and
+``ppo-shaped`` runs z = 1.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from engine.envs import make_env, restore
+from engine.errors import InputError
+from engine.pipeline import replay
+from engine.rl.checkpoint import find_checkpoint, load_checkpoint
+from engine.rl.config import TrainConfig
+from engine.rl.networks import Agent
+from engine.rl.normalize import ObsNormalizer
+from engine.rl.runner import advice_reward, load_run_advice
+from engine.tournament import ScoreJudge
+from engine.treefile import TreeDocument
+
+JUDGES: tuple[str, ...] = ("shaped", "shaping", "value")
+
+
+@dataclass(frozen=True)
+class TrainedAgent:
+    """The networks and normaliser of one checkpoint.
+
+    Attributes:
+        config: the run's configuration.
+        agent: actor, critics and z_phi, in eval mode.
+        obs_norm: the observation normaliser at that checkpoint.
+        timesteps: env steps trained.
+    """
+
+    config: TrainConfig
+    agent: Agent
+    obs_norm: ObsNormalizer
+    timesteps: int
+
+
+def load_agent(path: Path) -> TrainedAgent:
+    """Rebuild the agent of a checkpoint file.
+
+    Raises:
+        InputError: the file is not an ACV checkpoint or its networks do not fit its config.
+    """
+    state = load_checkpoint(path)
+    try:
+        cfg = TrainConfig.from_json(state["config"])
+        agent = Agent(int(state["obs_dim"]), int(state["act_dim"]), cfg.hidden, cfg.algo,
+                      cfg.z_max, cfg.z_init)
+        agent.load_state_dict(state["agent"])
+        obs_norm = ObsNormalizer((int(state["obs_dim"]),), enabled=cfg.norm_obs)
+        obs_norm.load_state_dict(state["obs_norm"])
+    except (KeyError, TypeError, ValueError, RuntimeError) as exc:
+        if isinstance(exc, InputError):
+            raise
+        raise InputError(f"{path} is a damaged checkpoint ({type(exc).__name__}: {exc})"
+                         ) from exc
+    return TrainedAgent(cfg, agent.eval(), obs_norm, int(state["timesteps"]))
+
+
+@torch.no_grad()
+def agent_scores(trained: TrainedAgent, doc: TreeDocument,
+                 judge: str = "shaped") -> dict[int, float]:
+    """The agent's score of every candidate of ``doc`` under ``judge``."""
+    if judge not in JUDGES:
+        raise InputError(f"unknown judge {judge!r}: expected one of {', '.join(JUDGES)}")
+    cfg = trained.config
+    if doc.env_id != cfg.env_id:
+        raise InputError(f"the tree is for {doc.env_id}, but the agent was trained on "
+                         f"{cfg.env_id}")
+    env = make_env(doc.env_id)
+    try:
+        obs = np.stack([restore(env, c.qpos, c.qvel) for c in doc.candidates])
+    finally:
+        env.close()
+    x = torch.from_numpy(trained.obs_norm(obs))
+    if judge == "value":
+        scores = trained.agent.values(x)[0].double().numpy()
+    else:
+        qpos = np.stack([c.qpos for c in doc.candidates])
+        shaping = trained.agent.z(x).double().numpy() * cfg.advice_scale * advice_reward(
+            cfg, doc)(qpos)
+        reward = np.array([c.env_reward for c in doc.candidates])
+        scores = shaping if judge == "shaping" else reward + shaping
+    return {c.id: float(s) for c, s in zip(doc.candidates, scores, strict=True)}
+
+
+def agent_tree(run_dir: Path, step: int | None = None, judge: str = "shaped",
+               advice: TreeDocument | None = None) -> TreeDocument:
+    """The Agent Preference Tree of a run's checkpoint over the advice tree's bracket.
+
+    Args:
+        run_dir: the training run directory.
+        step: checkpoint timesteps; the latest when None.
+        judge: one of :data:`JUDGES`.
+        advice: the tree whose bracket is replayed (and whose F is used); by default the
+            run's ``advice.json``.
+
+    Raises:
+        InputError: no advice tree, no such checkpoint, a damaged checkpoint, another env.
+    """
+    doc = advice if advice is not None else load_run_advice(run_dir)
+    if doc is None:
+        raise InputError(f"{run_dir} was trained without advice: pass the tree to replay")
+    trained = load_agent(find_checkpoint(run_dir, step))
+    scores = agent_scores(trained, doc, judge)
+    return replay(doc, ScoreJudge(scores), f"agent:{judge}@{trained.timesteps}", scores=scores)

@@ -1,0 +1,67 @@
+"""The run's logs: ``metrics.jsonl`` (one row per update) and TensorBoard event files."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+from torch.utils.tensorboard import SummaryWriter
+
+METRICS_FILE = "metrics.jsonl"
+_EPISODE_KEYS = ("episode_returns", "episode_shaped_returns")
+
+
+class RunLogger:
+    """Appends metrics rows and mirrors them to TensorBoard.
+
+    On resume, rows written after the checkpoint being resumed from (by the killed process)
+    are dropped, and TensorBoard is told to purge its events after that step.
+
+    Args:
+        run_dir: the run directory.
+        start: timesteps of the checkpoint the run continues from (0 for a new run).
+    """
+
+    def __init__(self, run_dir: Path, start: int = 0):
+        self.path = Path(run_dir) / METRICS_FILE
+        self._truncate(start)
+        self.writer = SummaryWriter(str(run_dir), purge_step=start if start else None)
+
+    def _truncate(self, start: int) -> None:
+        if not self.path.exists():
+            self.path.touch()
+            return
+        keep = [line for line in self.path.read_text().splitlines()
+                if line.strip() and json.loads(line)["timesteps"] <= start]
+        self.path.write_text("".join(line + "\n" for line in keep))
+
+    def write(self, row: dict[str, Any]) -> None:
+        """Log one update: per-update scalars, and each finished episode at the update's step."""
+        step = row["timesteps"]
+        flat = {k: v for k, v in row.items() if k not in _EPISODE_KEYS}
+        with self.path.open("a") as f:
+            f.write(json.dumps(_finite(flat)) + "\n")
+        for key, value in flat.items():
+            if isinstance(value, int | float) and key not in ("timesteps", "time"):
+                self.writer.add_scalar(f"train/{key}", value, step)
+        for true, shaped in zip(*(row.get(k, []) for k in _EPISODE_KEYS), strict=True):
+            self.writer.add_scalar("episode/true_return", true, step)
+            self.writer.add_scalar("episode/shaped_return", shaped, step)
+
+    def close(self) -> None:
+        """Flush and close the TensorBoard writer."""
+        self.writer.close()
+
+
+def _finite(row: dict[str, Any]) -> dict[str, Any]:
+    """NaN and infinities become null: ``metrics.jsonl`` stays strict JSON."""
+    return {k: None if isinstance(v, float) and not math.isfinite(v) else v
+            for k, v in row.items()}
+
+
+def read_metrics(run_dir: Path) -> list[dict[str, Any]]:
+    """All rows of a run's ``metrics.jsonl``."""
+    path = Path(run_dir) / METRICS_FILE
+    return [json.loads(line) for line in path.read_text().splitlines() if line.strip()]

@@ -1,0 +1,79 @@
+"""The Agent Preference Tree of a trained run, over the advice tree's bracket."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+import torch
+
+from engine.conformance import compare
+from engine.errors import InputError
+from engine.pipeline import run_tournament
+from engine.rl.agent_judge import JUDGES, agent_scores, agent_tree, load_agent
+from engine.rl.checkpoint import find_checkpoint
+from engine.rl.config import TrainConfig
+from engine.rl.runner import train
+from engine.treefile import TreeDocument, load_tree, tree_from_json, tree_to_json
+
+
+@pytest.fixture(scope="module")
+def good_tree() -> TreeDocument:
+    return run_tournament(env_id="Hopper-v5", n_candidates=8, p=0.9, seed=1, teacher="good")
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory, good_tree: TreeDocument) -> Path:
+    out = tmp_path_factory.mktemp("judge") / "good"
+    cfg = TrainConfig(algo="bipars-em", env_id="Hopper-v5", total_timesteps=512, n_envs=2,
+                      num_steps=64, num_minibatches=4, update_epochs=2, checkpoint_every=256)
+    train(cfg, good_tree, out)
+    return out
+
+
+@pytest.mark.parametrize("judge", JUDGES)
+def test_agent_tree_is_a_valid_tree_over_the_same_bracket(run: Path, good_tree: TreeDocument,
+                                                          judge: str) -> None:
+    doc = agent_tree(run, judge=judge)
+    assert doc.judge == f"agent:{judge}@512"
+    assert doc.first_round == good_tree.first_round
+    assert [c.id for c in doc.candidates] == [c.id for c in good_tree.candidates]
+    assert len(doc.tree.nodes) == len(good_tree.candidates)
+    assert tree_to_json(tree_from_json(tree_to_json(doc))) == tree_to_json(doc)
+    assert 0.0 <= compare(good_tree, doc).match_agreement <= 1.0
+
+
+def test_advice_tree_is_saved_with_the_run(run: Path, good_tree: TreeDocument) -> None:
+    assert tree_to_json(load_tree(run / "advice.json")) == tree_to_json(good_tree)
+
+
+def test_shaped_judge_is_reward_plus_weighted_shaping(run: Path,
+                                                     good_tree: TreeDocument) -> None:
+    trained = load_agent(find_checkpoint(run, 256))
+    shaped = agent_scores(trained, good_tree, "shaped")
+    shaping = agent_scores(trained, good_tree, "shaping")
+    for c in good_tree.candidates:
+        assert shaped[c.id] == pytest.approx(c.env_reward + shaping[c.id])
+
+
+def test_a_good_advice_agent_reproduces_the_human_tree(run: Path,
+                                                       good_tree: TreeDocument) -> None:
+    # Case 1 of the paper: the good teacher's winners have the higher R and, having won more
+    # rounds, the higher T_r = F at the candidates; with z ~ 1, g = R + z F agrees everywhere
+    result = compare(good_tree, agent_tree(run))
+    assert result.match_agreement == 1.0 and result.tree_edit_distance == 0.0
+
+
+def test_bad_inputs(run: Path, tmp_path: Path) -> None:
+    other = run_tournament(env_id="InvertedPendulum-v5", n_candidates=4, p=0.9, seed=0,
+                           teacher="good")
+    with pytest.raises(InputError, match="trained on Hopper-v5"):
+        agent_tree(run, advice=other)
+    with pytest.raises(InputError, match="no checkpoint at step 7"):
+        agent_tree(run, step=7)
+    with pytest.raises(InputError, match="unknown judge"):
+        agent_tree(run, judge="vibes")
+    foreign = tmp_path / "step_5.pt"
+    torch.save({"weights": torch.zeros(3)}, foreign)
+    with pytest.raises(InputError, match="not an ACV checkpoint"):
+        load_agent(foreign)

@@ -1,0 +1,41 @@
+"""TrainConfig: validation and JSON round trip."""
+
+from __future__ import annotations
+
+import pytest
+
+from engine.errors import InputError
+from engine.rl.config import ALGOS, TrainConfig
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    ({"algo": "dqn"}, "unknown algo"),
+    ({"total_timesteps": -5}, "timesteps must be positive"),
+    ({"total_timesteps": 0}, "timesteps must be positive"),
+    ({"advice_scale": 0.0}, "advice-scale"),
+    ({"checkpoint_every": 0}, "checkpoint-every"),
+    ({"z_init": 3.0}, "z_init"),
+    ({"num_minibatches": 10**9}, "num_minibatches"),
+])
+def test_bad_values_raise_input_error(kwargs: dict, message: str) -> None:
+    with pytest.raises(InputError, match=message):
+        TrainConfig(**kwargs)
+
+
+@pytest.mark.parametrize("algo", ALGOS)
+def test_json_round_trip(algo: str) -> None:
+    cfg = TrainConfig(algo=algo, total_timesteps=1234, n_envs=2, num_steps=64)
+    assert TrainConfig.from_json(cfg.to_json()) == cfg
+
+
+def test_from_json_rejects_unknown_keys_and_non_objects() -> None:
+    with pytest.raises(InputError, match="unknown config keys: bogus"):
+        TrainConfig.from_json({**TrainConfig().to_json(), "bogus": 1})
+    with pytest.raises(InputError):
+        TrainConfig.from_json([1, 2])
+
+
+def test_derived_sizes() -> None:
+    cfg = TrainConfig(n_envs=4, num_steps=512, num_minibatches=32, total_timesteps=5000)
+    assert (cfg.batch_size, cfg.minibatch_size, cfg.num_updates) == (2048, 64, 3)
+    assert not cfg.uses_advice and TrainConfig(algo="bipars-em").learns_z

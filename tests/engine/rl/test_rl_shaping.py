@@ -1,0 +1,47 @@
+"""Advice shaping wrappers and exact env snapshots."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from engine.rl.shaping import reached_qpos
+from engine.rl.vecenv import make_vec_env, restore_vec, snapshot_vec
+
+
+def test_reached_qpos_of_a_finished_env_comes_from_final_info() -> None:
+    info = {"qpos": np.array([[0.0, 0.0], [1.0, 1.0]]),
+            "final_info": {"qpos": np.array([[0.0, 0.0], [9.0, 9.0]])}}
+    out = reached_qpos(info, np.array([False, True]))
+    np.testing.assert_array_equal(out, [[0.0, 0.0], [9.0, 9.0]])
+    assert info["qpos"][1, 0] == 1.0  # the caller's info is not modified
+
+
+def test_advice_term_is_scaled_f_of_the_reached_state() -> None:
+    envs = make_vec_env("InvertedPendulum-v5", 3, advice=lambda q: q[:, 1] * 10.0,
+                        advice_scale=0.5)
+    envs.reset(seed=0)
+    for _ in range(40):  # long enough for some episodes to end and autoreset
+        _, reward, term, trunc, info = envs.step(np.full((3, 1), 3.0))
+        qpos = reached_qpos(info, term | trunc)
+        np.testing.assert_allclose(info["advice"], 0.5 * 10.0 * qpos[:, 1])
+        np.testing.assert_array_equal(info["env_reward"], reward)
+    envs.close()
+
+
+@pytest.mark.parametrize("env_id", ["InvertedPendulum-v5", "Hopper-v5"])
+def test_snapshot_restores_the_exact_future(env_id: str) -> None:
+    rng = np.random.default_rng(0)
+    a = make_vec_env(env_id, 2, None)
+    a.reset(seed=0)
+    actions = rng.uniform(-1, 1, size=(60, 2, a.single_action_space.shape[0]))
+    for act in actions[:20]:
+        a.step(act)
+    snap = snapshot_vec(a)
+    future = [a.step(act)[:4] for act in actions[20:]]
+    b = make_vec_env(env_id, 2, None)
+    b.reset(seed=123)
+    restore_vec(b, snap)
+    for act, expected in zip(actions[20:], future, strict=True):
+        for got, want in zip(b.step(act)[:4], expected, strict=True):
+            np.testing.assert_array_equal(got, want)
