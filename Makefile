@@ -4,16 +4,28 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: setup system-deps run test lint bench clean
+.PHONY: setup system-deps test-deps run test lint bench clean
 
 # Debian packages needed at run time: EGL and OSMesa for off-screen MuJoCo rendering.
 APT_PACKAGES := libegl1 libegl-mesa0 libgl1-mesa-dri libosmesa6
+# Debian packages the tests need: PostgreSQL (the app tests start a throwaway server on
+# 127.0.0.1 with initdb/pg_ctl, so that every API test also runs on PostgreSQL) and Chromium
+# (Playwright drives it; no browser is ever downloaded).
+TEST_APT_PACKAGES := postgresql chromium
 
-system-deps:
+# $(call apt_install,packages): install the missing ones when we are root on Debian.
+define apt_install
 	@if command -v apt-get >/dev/null && [ "$$(id -u)" = 0 ]; then \
-	  missing=""; for p in $(APT_PACKAGES); do dpkg -s $$p >/dev/null 2>&1 || missing="$$missing $$p"; done; \
+	  missing=""; for p in $(1); do dpkg -s $$p >/dev/null 2>&1 || missing="$$missing $$p"; done; \
 	  if [ -n "$$missing" ]; then apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $$missing; fi; \
 	fi
+endef
+
+system-deps:
+	$(call apt_install,$(APT_PACKAGES))
+
+test-deps:
+	$(call apt_install,$(TEST_APT_PACKAGES))
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -25,10 +37,12 @@ $(STAMP): pyproject.toml
 
 setup: system-deps $(STAMP)
 
+# Serves the web app on http://127.0.0.1:8000 (migrations applied, a demo study prepared)
+# and prints the researcher login URL. Data in ./data (ACV_DATA_DIR).
 run: setup
-	$(BIN)/acv demo
+	$(BIN)/acv serve --demo
 
-test: setup
+test: setup test-deps
 	$(BIN)/ruff check app engine tests benchmarks
 	$(BIN)/pytest -n 2 -m "not slow" -q
 

@@ -23,10 +23,10 @@ function hierarchy(doc) {
 // options.imageUrl(candidateId) -> thumbnail URL; options.highlight: Set of candidate ids;
 // options.thumb: thumbnail size in px; options.onSelect(candidateId) on click.
 function drawPreferenceTree(container, doc, options) {
-  const opts = Object.assign({ thumb: 56, highlight: new Set() }, options || {});
+  const opts = Object.assign({ thumb: 72, highlight: new Set() }, options || {});
   const root = hierarchy(doc);
-  const dx = opts.thumb + 14;  // horizontal spacing between siblings
-  const dy = opts.thumb + 46;  // vertical spacing between depths
+  const dx = opts.thumb + 18;  // horizontal spacing between siblings
+  const dy = opts.thumb + 64;  // vertical spacing between depths: node label, edge, weight
   d3.tree().nodeSize([dx, dy])(root);
   let x0 = Infinity, x1 = -Infinity;
   root.each((d) => { x0 = Math.min(x0, d.x); x1 = Math.max(x1, d.x); });
@@ -39,16 +39,20 @@ function drawPreferenceTree(container, doc, options) {
   for (const link of root.links()) svg.appendChild(edge(link, opts));
   for (const d of root.descendants()) svg.appendChild(node(d, opts));
   container.replaceChildren(svg);
+  // A tree wider than its box starts scrolled so that the champion is in view.
+  container.scrollLeft = Math.max(0, root.x - x0 + dx / 2 - container.clientWidth / 2);
   return svg;
 }
 
+// An edge from below the parent's label to the child's top, its weight w = h(parent) -
+// h(child) at the middle (drawn with a halo so that it stays legible over the line).
 function edge(link, opts) {
   const id = Number(link.target.id);
   const g = svgEl("g", { class: "edge" + (opts.highlight.has(id) ? " rejected" : "") });
-  g.appendChild(svgEl("line", { x1: link.source.x, y1: link.source.y + opts.thumb / 2,
-    x2: link.target.x, y2: link.target.y - opts.thumb / 2 }));
-  const label = svgEl("text", { x: (link.source.x + link.target.x) / 2 + 4,
-    y: (link.source.y + link.target.y) / 2, class: "weight" });
+  const x1 = link.source.x, y1 = link.source.y + opts.thumb / 2 + 20;
+  const x2 = link.target.x, y2 = link.target.y - opts.thumb / 2 - 3;
+  g.appendChild(svgEl("line", { x1, y1, x2, y2 }));
+  const label = svgEl("text", { x: (x1 + x2) / 2, y: (y1 + y2) / 2 + 4, class: "weight" });
   label.textContent = `w=${link.target.data.weight}`;
   g.appendChild(label);
   return g;
@@ -56,7 +60,8 @@ function edge(link, opts) {
 
 function node(d, opts) {
   const id = Number(d.id), t = opts.thumb;
-  const g = svgEl("g", { class: "node" + (opts.highlight.has(id) ? " rejected" : ""),
+  const g = svgEl("g", { class: "node" + (d.depth === 0 ? " champion" : "") +
+    (opts.highlight.has(id) ? " rejected" : ""),
     transform: `translate(${d.x},${d.y})`, "data-state": id, tabindex: 0 });
   const title = svgEl("title");
   title.textContent = `state ${id}: won ${d.data.height} round(s), depth ${d.data.depth}, ` +

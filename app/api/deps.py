@@ -1,0 +1,137 @@
+"""FastAPI dependencies as ``Annotated`` aliases: runtime, settings, session and callers.
+
+``ResearcherDep`` accepts ``Authorization: Bearer <admin token>`` or the researcher cookie;
+``ParticipantDep`` accepts ``Authorization: Bearer <invite token>`` or the participant
+cookie; ``ViewerDep`` accepts either and says which.
+"""
+
+from __future__ import annotations
+
+from collections.abc import AsyncIterator
+from dataclasses import dataclass
+from typing import Annotated
+
+from fastapi import Cookie, Depends, Path, Request
+from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
+from sqlalchemy.orm import Session
+
+from app.db import POOL_CAPACITY
+from app.models import Participant
+from app.runtime import Runtime
+from app.services import auth
+from app.services.errors import AuthError
+from app.settings import Settings
+
+_admin_bearer = HTTPBearer(auto_error=False, scheme_name="AdminToken",
+                           description="The researcher's admin token (ACV_ADMIN_TOKEN).")
+_invite_bearer = HTTPBearer(auto_error=False, scheme_name="InviteToken",
+                            description="A participant's invite token.")
+_Credentials = HTTPAuthorizationCredentials | None
+
+#: Requests holding a database session at once: below the pool's capacity
+#: (:data:`app.db.POOL_CAPACITY`), leaving connections for background jobs.
+MAX_SESSIONS = POOL_CAPACITY - 8
+#: Database ids in paths: positive 32-bit integers (larger ones cannot exist).
+DbId = Annotated[int, Path(ge=1, le=2**31 - 1)]
+#: Candidate ids in paths: ``0 .. N-1`` with ``N <= 128``.
+CandidateId = Annotated[int, Path(ge=0, le=127)]
+
+
+async def get_runtime(request: Request) -> Runtime:  # async: no thread hop for a lookup
+    return request.app.state.runtime
+
+
+RuntimeDep = Annotated[Runtime, Depends(get_runtime)]
+
+
+async def get_settings(runtime: RuntimeDep) -> Settings:
+    return runtime.settings
+
+
+SettingsDep = Annotated[Settings, Depends(get_settings)]
+
+
+async def get_session(runtime: RuntimeDep) -> AsyncIterator[Session]:
+    """One session per request; services commit their own writes.
+
+    At most :data:`MAX_SESSIONS` requests hold a session at a time; the others wait without
+    a worker thread. A request holds its connection while it waits for worker threads (to
+    run the handler, then to validate the response), so without this bound a burst of
+    requests can take every pooled connection while the threads wait for one: a deadlock.
+    """
+    session = runtime.sessions()
+    try:
+        yield session
+    finally:
+        session.close()
+
+
+SessionDep = Annotated[Session, Depends(get_session, scope="function",
+                                       max_concurrency=MAX_SESSIONS)]
+
+
+@dataclass(frozen=True)
+class Viewer:
+    """Who is asking: the researcher, a participant, or (for ``ViewerDep``) either."""
+
+    researcher: bool
+    participant: Participant | None = None
+
+
+def _token(credentials: _Credentials) -> str | None:
+    return credentials.credentials if credentials is not None else None
+
+
+async def require_researcher(
+        runtime: RuntimeDep, credentials: Annotated[_Credentials, Depends(_admin_bearer)],
+        cookie: Annotated[str | None, Cookie(alias=auth.RESEARCHER_COOKIE)] = None) -> Viewer:
+    """The researcher, or 401."""
+    if not auth.is_researcher(admin_token=runtime.admin_token, bearer=_token(credentials),
+                              cookie=cookie):
+        raise AuthError("researcher credentials required (Authorization: Bearer <admin token>)")
+    return Viewer(researcher=True)
+
+
+ResearcherDep = Annotated[Viewer, Depends(require_researcher)]
+
+
+async def invite_token(
+        credentials: Annotated[_Credentials, Depends(_invite_bearer)],
+        cookie: Annotated[str | None, Cookie(alias=auth.PARTICIPANT_COOKIE)] = None,
+) -> str | None:
+    """The invite token sent (bearer first, then the cookie), not yet checked."""
+    return _token(credentials) or cookie
+
+
+#: The unchecked invite token, for hot paths that check it in their own worker thread
+#: (``auth.participant_by_token``) rather than in a thread hop of its own.
+InviteTokenDep = Annotated[str | None, Depends(invite_token)]
+
+
+def require_participant(session: SessionDep, token: InviteTokenDep) -> Participant:
+    """The participant whose invite token is sent, or 401."""
+    participant = auth.participant_by_token(session, token=token)
+    session.commit()  # hand the connection back while the request waits for the handler
+    return participant
+
+
+ParticipantDep = Annotated[Participant, Depends(require_participant)]
+
+
+def get_viewer(
+        runtime: RuntimeDep, session: SessionDep,
+        credentials: Annotated[_Credentials, Depends(_admin_bearer)],
+        researcher_cookie: Annotated[str | None, Cookie(alias=auth.RESEARCHER_COOKIE)] = None,
+        participant_cookie: Annotated[str | None, Cookie(alias=auth.PARTICIPANT_COOKIE)] = None,
+) -> Viewer:
+    """The researcher if their credentials are sent, else the participant, else 401."""
+    token = _token(credentials)
+    if auth.is_researcher(admin_token=runtime.admin_token, bearer=token,
+                          cookie=researcher_cookie):
+        return Viewer(researcher=True)
+    participant = auth.participant_by_token(session, token=token or participant_cookie)
+    session.commit()  # as in require_participant
+    return Viewer(researcher=False, participant=participant)
+
+
+ViewerDep = Annotated[Viewer, Depends(get_viewer)]

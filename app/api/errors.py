@@ -1,0 +1,70 @@
+"""Exception handlers: every error is JSON ``{"detail": ...}`` with a 4xx status where the
+request was at fault, 503 when the database is unreachable, never a stack trace."""
+
+from __future__ import annotations
+
+import logging
+import math
+from typing import Any
+
+from fastapi import FastAPI, Request
+from fastapi.encoders import jsonable_encoder
+from fastapi.exceptions import RequestValidationError
+from fastapi.responses import JSONResponse
+from sqlalchemy.exc import DataError, OperationalError
+
+from app.services.errors import AuthError, ServiceError
+from engine.errors import InputError
+
+log = logging.getLogger(__name__)
+
+
+def _validation_error(_: Request, exc: RequestValidationError) -> JSONResponse:
+    """FastAPI's 422, made safe for inputs JSON cannot hold (NaN, Infinity)."""
+    return JSONResponse({"detail": _json_safe(jsonable_encoder(exc.errors()))},
+                        status_code=422)
+
+
+def _json_safe(value: Any) -> Any:
+    if isinstance(value, float) and not math.isfinite(value):
+        return repr(value)
+    if isinstance(value, dict):
+        return {k: _json_safe(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_json_safe(v) for v in value]
+    return value
+
+
+def _input_error(_: Request, exc: InputError) -> JSONResponse:
+    return JSONResponse({"detail": str(exc)}, status_code=422)
+
+
+def _service_error(_: Request, exc: ServiceError) -> JSONResponse:
+    headers = {"WWW-Authenticate": "Bearer"} if isinstance(exc, AuthError) else None
+    return JSONResponse({"detail": exc.detail}, status_code=exc.status_code, headers=headers)
+
+
+def _unstorable(_: Request, exc: DataError) -> JSONResponse:
+    log.warning("refused value: %s", exc)
+    return JSONResponse({"detail": "a value in the request cannot be stored"}, status_code=422)
+
+
+def _database_down(_: Request, exc: OperationalError) -> JSONResponse:
+    log.error("database error: %s", exc)
+    return JSONResponse({"detail": "the database is unavailable; try again"}, status_code=503,
+                        headers={"Retry-After": "1"})
+
+
+def _unexpected(_: Request, exc: Exception) -> JSONResponse:
+    log.exception("unhandled error", exc_info=exc)
+    return JSONResponse({"detail": "internal server error"}, status_code=500)
+
+
+def install(app: FastAPI) -> None:
+    """Register the handlers on ``app``."""
+    app.add_exception_handler(RequestValidationError, _validation_error)
+    app.add_exception_handler(InputError, _input_error)
+    app.add_exception_handler(ServiceError, _service_error)
+    app.add_exception_handler(DataError, _unstorable)
+    app.add_exception_handler(OperationalError, _database_down)
+    app.add_exception_handler(Exception, _unexpected)

@@ -1,0 +1,17 @@
+"""``/healthz``: the app is up and its database answers."""
+
+from __future__ import annotations
+
+from fastapi import APIRouter
+from sqlalchemy import text
+
+from app.api.deps import SessionDep
+from app.api.schemas import HealthOut
+
+router = APIRouter(tags=["health"])
+
+
+@router.get("/healthz")
+def healthz(session: SessionDep) -> HealthOut:
+    session.execute(text("SELECT 1"))
+    return HealthOut(status="ok")

@@ -1,0 +1,166 @@
+"""Request and response bodies of the REST API (pydantic models, shown in ``/docs``)."""
+
+from __future__ import annotations
+
+from datetime import datetime
+from typing import Annotated, Literal
+
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field
+
+from app.models import as_utc
+from app.services.labelling import MAX_RESPONSE_MS
+from app.services.participants import MAX_BATCH
+from app.services.studies import MAX_INSTRUCTIONS_CHARS, MAX_NAME_CHARS, MAX_SEED
+from engine.candidates import MAX_CANDIDATES
+from engine.envs import DEFAULT_ENV_ID
+
+StudyStatus = Literal["preparing", "ready", "failed"]
+#: Stored times are UTC; SQLite hands them back naive.
+UtcDatetime = Annotated[datetime, AfterValidator(as_utc)]
+
+
+class StudyCreate(BaseModel):
+    """A new study. Candidates are sampled and rendered after the 201 answer."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    name: str = Field(min_length=1, max_length=MAX_NAME_CHARS)
+    env_id: str = Field(DEFAULT_ENV_ID, min_length=1, max_length=100,
+                        description="A Gymnasium MuJoCo env id, e.g. Humanoid-v5.")
+    n_candidates: int = Field(ge=2, le=MAX_CANDIDATES)
+    p: float = Field(0.9, ge=0.0, le=1.0, allow_inf_nan=False,
+                     description="Braverman-Mossel coin probability of the seeding.")
+    seed: int = Field(0, ge=0, le=MAX_SEED)
+    sampling: Literal["uniform", "diverse"] = "uniform"
+    instructions: str = Field("", max_length=MAX_INSTRUCTIONS_CHARS,
+                              description="Shown to participants before the first match.")
+
+
+class StudyOut(BaseModel):
+    model_config = ConfigDict(from_attributes=True)
+
+    id: int
+    name: str
+    env_id: str
+    n_candidates: int
+    p: float
+    seed: int
+    sampling: str
+    instructions: str
+    status: StudyStatus
+    error: str | None
+    created_at: UtcDatetime
+
+
+class CandidateOut(BaseModel):
+    id: int
+    env_reward: float
+    qpos: list[float]
+    qvel: list[float]
+    image_url: str
+    thumb_url: str
+
+
+class ProgressOut(BaseModel):
+    done: int
+    total: int
+
+
+class ParticipantCreate(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    name: str | None = Field(None, max_length=MAX_NAME_CHARS,
+                             description="Optional note, e.g. who was invited.")
+
+
+class ParticipantBatchCreate(ParticipantCreate):
+    count: int = Field(ge=1, le=MAX_BATCH)
+
+
+class ParticipantCreated(BaseModel):
+    id: int
+    study_id: int
+    token: str
+    invite_url: str
+
+
+class ParticipantOut(ParticipantCreated):
+    name: str | None
+    progress: ProgressOut
+    finished: bool
+    created_at: UtcDatetime
+    finished_at: UtcDatetime | None
+
+
+class MeOut(BaseModel):
+    """What a participant may know about themselves and their study."""
+
+    id: int
+    study_id: int
+    study_name: str
+    instructions: str
+    progress: ProgressOut
+    finished: bool
+    can_undo: bool
+
+
+class MatchSide(BaseModel):
+    candidate_id: int
+    image_url: str
+    thumb_url: str
+
+
+class NextMatchOut(BaseModel):
+    """Round ``round`` of ``n_rounds``, match ``match_number`` of ``matches_in_round``."""
+
+    match_id: int
+    round: int
+    n_rounds: int
+    match_number: int
+    matches_in_round: int
+    a: MatchSide
+    b: MatchSide
+    progress: ProgressOut
+
+
+class LabelIn(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    winner: int = Field(ge=0, le=2**31 - 1, description="The preferred candidate's id.")
+    response_ms: int | None = Field(None, ge=0, le=MAX_RESPONSE_MS,
+                                    description="Time the participant took; estimated "
+                                                "by the server when absent.")
+
+
+class LabelOut(BaseModel):
+    match_id: int
+    winner: int
+    created: bool
+    progress: ProgressOut
+    finished: bool
+
+
+class UndoOut(BaseModel):
+    """The match that is open again."""
+
+    match_id: int
+    round: int
+    progress: ProgressOut
+
+
+class BracketCellOut(BaseModel):
+    round: int
+    slot: int
+    a: int | None
+    b: int | None
+    winner: int | None
+    match_id: int | None
+    is_bye: bool
+
+
+class BracketOut(BaseModel):
+    rounds: list[list[BracketCellOut]]
+
+
+class HealthOut(BaseModel):
+    status: Literal["ok"]

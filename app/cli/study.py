@@ -1,0 +1,91 @@
+"""``acv study create|list``, ``acv participant add`` and ``acv simulate``: the service layer
+from the command line, on the database the settings name (migrated first)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from app.cli.root import cli, fail
+from app.cli.serve import cli_runtime
+from app.services import participants, studies
+from app.services import simulate as simulation
+from app.services.participants import invite_url
+from engine.candidates import SAMPLING_MODES
+from engine.envs import DEFAULT_ENV_ID
+from engine.teachers import TEACHERS
+
+study_cli = typer.Typer(help="Create and list studies.", no_args_is_help=True)
+participant_cli = typer.Typer(help="Invite participants.", no_args_is_help=True)
+cli.add_typer(study_cli, name="study")
+cli.add_typer(participant_cli, name="participant")
+
+
+@study_cli.command("create")
+def create(
+    name: Annotated[str, typer.Option(help="Shown to the researcher.")],
+    env: Annotated[str, typer.Option(help="Gymnasium MuJoCo env id.")] = DEFAULT_ENV_ID,
+    candidates: Annotated[int, typer.Option(help="Number of candidate states (2..128).")] = 16,
+    p: Annotated[float, typer.Option(help="Braverman-Mossel coin probability.")] = 0.9,
+    seed: Annotated[int, typer.Option(help="Seed for sampling and seeding.")] = 0,
+    sampling: Annotated[str, typer.Option(help=" or ".join(SAMPLING_MODES))] = "uniform",
+    instructions: Annotated[str, typer.Option(help="Text shown to participants.")] = "",
+    instructions_file: Annotated[Path | None, typer.Option(
+        help="Read the instructions from this file instead.")] = None,
+) -> None:
+    """Create a study, then sample and render its candidates (waits until ready)."""
+    text = instructions_file.read_text(encoding="utf-8") if instructions_file else instructions
+    with cli_runtime() as runtime:
+        with runtime.sessions() as session:
+            study = studies.create_study(session, name=name, env_id=env, n_candidates=candidates,
+                                         p=p, seed=seed, sampling=sampling, instructions=text)
+        runtime.prepare(study.id)
+        with runtime.sessions() as session:
+            study = studies.get_study(session, study_id=study.id)
+    if study.status != "ready":
+        fail(f"study {study.id} could not be prepared: {study.error}")
+    typer.echo(f"study {study.id} ready: {study.n_candidates} {study.env_id} candidates")
+
+
+@study_cli.command("list")
+def list_() -> None:
+    """One line per study: id, status, env, candidates, participants finished, name."""
+    with cli_runtime() as runtime, runtime.sessions() as session:
+        for study in studies.list_studies(session):
+            people = participants.list_participants(session, study_id=study.id)
+            done = sum(s.progress.finished for s in people)
+            typer.echo(f"{study.id}\t{study.status}\t{study.env_id}\t{study.n_candidates}\t"
+                       f"{done}/{len(people)} finished\t{study.name}")
+
+
+@participant_cli.command("add")
+def add(
+    study: Annotated[int, typer.Option(help="Study id.")],
+    count: Annotated[int, typer.Option(help="How many participants to invite.")] = 1,
+    name: Annotated[str | None, typer.Option(help="Optional note on the invites.")] = None,
+) -> None:
+    """Invite participants; prints one invite link per line."""
+    with cli_runtime() as runtime, runtime.sessions() as session:
+        people = participants.add_participants(session, study_id=study, count=count, name=name)
+        base = runtime.settings.public_url or "http://127.0.0.1:8000"
+        for person in people:
+            typer.echo(invite_url(base, person.token))
+
+
+@cli.command()
+def simulate(
+    study: Annotated[int, typer.Option(help="Study id.")],
+    teacher: Annotated[str, typer.Option(help=f"Judge: {', '.join(TEACHERS)}.")] = "standing",
+    participants_: Annotated[int, typer.Option(
+        "--participants", help="How many simulated participants.")] = 1,
+    noise: Annotated[float, typer.Option(help="Probability of flipping each decision.")] = 0.0,
+    seed: Annotated[int, typer.Option(help="Seed of the teacher's noise.")] = 0,
+) -> None:
+    """Simulated participants label the study's bracket through the service layer."""
+    with cli_runtime() as runtime, runtime.sessions() as session:
+        people = simulation.simulate(session, study_id=study, teacher=teacher,
+                                     participants=participants_, noise=noise, seed=seed)
+        for person in people:
+            typer.echo(f"participant {person.id} finished ({teacher})")

@@ -1,0 +1,55 @@
+"""The FastAPI application factory.
+
+``create_app(settings)`` builds an app on an existing database (``acv serve`` applies the
+migrations first); for several workers: ``uvicorn --factory app.main:create_app``, settings
+from the environment.
+"""
+
+from __future__ import annotations
+
+from collections.abc import AsyncIterator
+from contextlib import asynccontextmanager
+from pathlib import Path
+
+import anyio.to_thread
+from fastapi import FastAPI
+from fastapi.staticfiles import StaticFiles
+
+from app.api import api_router, errors, health
+from app.runtime import Runtime
+from app.settings import Settings
+from app.web import router as pages_router
+
+STATIC_DIR = Path(__file__).resolve().parents[1] / "static"
+
+
+def create_app(settings: Settings | None = None) -> FastAPI:
+    """The web app: REST API under ``/api``, ``/healthz``, pages, and ``/static``.
+
+    Args:
+        settings: defaults to the environment's (:class:`Settings`).
+    """
+    runtime = Runtime(settings or Settings())
+
+    @asynccontextmanager
+    async def lifespan(_: FastAPI) -> AsyncIterator[None]:
+        # Few worker threads: requests are short and SQLite takes one writer at a time, so
+        # more threads only fight over the GIL (a lock convoy that multiplies tail latency).
+        anyio.to_thread.current_default_thread_limiter().total_tokens = runtime.settings.threads
+        runtime.resume()  # studies a previous process left half-prepared
+        try:
+            yield
+        finally:
+            runtime.close()
+
+    app = FastAPI(title="ACV", version="0.1.0", lifespan=lifespan,
+                  description="Advice Conformance Verification: studies, invite links and "
+                              "bracket labelling.")
+    app.state.runtime = runtime
+    errors.install(app)
+    app.include_router(health.router)
+    app.include_router(api_router)
+    app.include_router(pages_router)
+    if STATIC_DIR.is_dir():
+        app.mount("/static", StaticFiles(directory=STATIC_DIR), name="static")
+    return app

@@ -1,0 +1,77 @@
+"""What a running app (or a CLI command) shares: settings, database, renderer, jobs.
+
+Study preparation (sampling and rendering, a few seconds) runs on one background worker
+thread, so ``POST /api/studies`` answers at once with status ``preparing``.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from concurrent.futures import Future, ThreadPoolExecutor
+
+from sqlalchemy.orm import Session, sessionmaker
+
+from app.db import make_engine, make_sessions
+from app.services.auth import ensure_admin_token
+from app.services.studies import prepare_study, preparing_study_ids
+from app.settings import Settings
+from engine.render import RenderCache, RenderService
+
+log = logging.getLogger(__name__)
+
+
+class Runtime:
+    """Engine, sessions, admin token, and the lazily started renderer and job thread.
+
+    Args:
+        settings: where the data lives and which database to use.
+    """
+
+    def __init__(self, settings: Settings) -> None:
+        self.settings = settings
+        self.engine = make_engine(settings.sqlalchemy_url)
+        self.sessions: sessionmaker[Session] = make_sessions(self.engine)
+        self.admin_token = ensure_admin_token(settings)
+        self._lock = threading.Lock()
+        self._renderer: RenderService | None = None
+        self._jobs: ThreadPoolExecutor | None = None
+
+    @property
+    def renderer(self) -> RenderService:
+        """The render service, storing images in the data dir (started on first use)."""
+        with self._lock:
+            if self._renderer is None:
+                self._renderer = RenderService(RenderCache(self.settings.images_dir))
+            return self._renderer
+
+    def prepare(self, study_id: int) -> None:
+        """Sample and render a study now, on this thread."""
+        prepare_study(self.sessions, study_id=study_id, renderer=self.renderer,
+                      data_dir=self.settings.data_dir)
+
+    def prepare_later(self, study_id: int) -> Future:
+        """Queue a study's preparation on the background worker."""
+        with self._lock:
+            if self._jobs is None:
+                self._jobs = ThreadPoolExecutor(max_workers=1, thread_name_prefix="acv-jobs")
+            jobs = self._jobs
+        return jobs.submit(self.prepare, study_id)
+
+    def resume(self) -> None:
+        """Queue studies left ``preparing`` by an earlier process."""
+        with self.sessions() as session:
+            for study_id in preparing_study_ids(session):
+                log.info("resuming preparation of study %d", study_id)
+                self.prepare_later(study_id)
+
+    def close(self) -> None:
+        """Finish queued jobs, stop the renderer and close database connections."""
+        with self._lock:
+            jobs, renderer = self._jobs, self._renderer
+            self._jobs = self._renderer = None
+        if jobs is not None:
+            jobs.shutdown(wait=True, cancel_futures=True)
+        if renderer is not None:
+            renderer.close()
+        self.engine.dispose()

@@ -1,0 +1,119 @@
+"""Credentials: the researcher's admin token, participants' invite tokens, and cookies.
+
+Researchers send ``Authorization: Bearer <admin token>`` to the API; pages use an HttpOnly
+SameSite cookie holding an HMAC of the admin token (never the token itself). Participants
+send ``Authorization: Bearer <invite token>``, or carry the cookie that ``/p/<token>`` sets.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import hmac
+import os
+import re
+import secrets
+
+from fastapi import Response
+from sqlalchemy import select
+from sqlalchemy.orm import Session
+
+from app.models import Participant
+from app.services.errors import AuthError
+from app.settings import Settings
+
+ADMIN_TOKEN_FILE = "admin_token"
+RESEARCHER_COOKIE = "acv_researcher"
+PARTICIPANT_COOKIE = "acv_participant"
+COOKIE_MAX_AGE_S = 90 * 24 * 3600
+_MAX_TOKEN_CHARS = 256
+#: What invite tokens look like (URL-safe base64); anything else is not looked up at all.
+_TOKEN_SHAPE = re.compile(r"[A-Za-z0-9_-]{1,256}")
+
+
+def new_token() -> str:
+    """A fresh unguessable token (256 bits, URL-safe)."""
+    return secrets.token_urlsafe(32)
+
+
+def ensure_admin_token(settings: Settings) -> str:
+    """``ACV_ADMIN_TOKEN``, else the token kept in the data dir, made on first call.
+
+    The file is created exclusively with mode 0600, so two processes starting together
+    agree on one token.
+    """
+    if settings.admin_token is not None:
+        return settings.admin_token.get_secret_value()
+    path = settings.data_dir / ADMIN_TOKEN_FILE
+    path.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+    except FileExistsError:
+        return path.read_text(encoding="utf-8").strip()
+    token = new_token()
+    with os.fdopen(fd, "w", encoding="utf-8") as f:
+        f.write(token + "\n")
+    return token
+
+
+def same_secret(given: str | None, expected: str) -> bool:
+    """Constant-time comparison that also accepts non-ASCII input (as bytes)."""
+    if not given or len(given) > _MAX_TOKEN_CHARS:
+        return False
+    return secrets.compare_digest(given.encode(), expected.encode())
+
+
+def bearer_token(authorization: str | None) -> str | None:
+    """The token of an ``Authorization: Bearer <token>`` header, or ``None``."""
+    if not authorization:
+        return None
+    scheme, _, token = authorization.partition(" ")
+    if scheme.lower() != "bearer":
+        return None
+    return token.strip() or None
+
+
+def researcher_cookie_value(admin_token: str) -> str:
+    """What the researcher cookie holds: an HMAC of the admin token, not the token."""
+    return hmac.new(admin_token.encode(), b"acv-researcher-session", hashlib.sha256).hexdigest()
+
+
+def is_researcher(*, admin_token: str, bearer: str | None = None,
+                  cookie: str | None = None) -> bool:
+    """Whether a bearer token or a researcher cookie proves the researcher."""
+    return same_secret(bearer, admin_token) or \
+        same_secret(cookie, researcher_cookie_value(admin_token))
+
+
+def participant_by_token(session: Session, *, token: str | None) -> Participant:
+    """The participant holding invite ``token``.
+
+    Raises:
+        AuthError: missing or unknown token.
+    """
+    if not token:
+        raise AuthError("a participant invite token is required")
+    if not _TOKEN_SHAPE.fullmatch(token):
+        raise AuthError("unknown invite token")
+    participant = session.scalar(select(Participant).where(Participant.token == token))
+    if participant is None:
+        raise AuthError("unknown invite token")
+    return participant
+
+
+def set_researcher_cookie(response: Response, *, admin_token: str, secure: bool) -> None:
+    """Log the browser in as the researcher (HttpOnly, SameSite=Lax)."""
+    response.set_cookie(RESEARCHER_COOKIE, researcher_cookie_value(admin_token),
+                        max_age=COOKIE_MAX_AGE_S, httponly=True, samesite="lax",
+                        secure=secure)
+
+
+def set_participant_cookie(response: Response, *, token: str, secure: bool) -> None:
+    """Remember the participant in this browser, so they can resume (HttpOnly, Lax)."""
+    response.set_cookie(PARTICIPANT_COOKIE, token, max_age=COOKIE_MAX_AGE_S, httponly=True,
+                        samesite="lax", secure=secure)
+
+
+def clear_cookies(response: Response) -> None:
+    """Log out both roles."""
+    response.delete_cookie(RESEARCHER_COOKIE)
+    response.delete_cookie(PARTICIPANT_COOKIE)

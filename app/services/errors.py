@@ -1,0 +1,37 @@
+"""Service-layer failures that are not bad input; each maps to one HTTP status."""
+
+from __future__ import annotations
+
+
+class ServiceError(Exception):
+    """Base class; ``status_code`` is the HTTP status the API answers with."""
+
+    status_code = 400
+
+    def __init__(self, detail: str):
+        super().__init__(detail)
+        self.detail = detail
+
+
+class NotFoundError(ServiceError):
+    """The object does not exist, or is not visible to the caller."""
+
+    status_code = 404
+
+
+class ConflictError(ServiceError):
+    """The request contradicts the stored state (a match decided the other way, ...)."""
+
+    status_code = 409
+
+
+class AuthError(ServiceError):
+    """No valid credentials."""
+
+    status_code = 401
+
+
+class ForbiddenError(ServiceError):
+    """Valid credentials that do not allow this."""
+
+    status_code = 403

@@ -1,0 +1,53 @@
+"""Web-app settings, read from the environment (pydantic-settings).
+
+- ``ACV_DATA_DIR`` (default ``./data``): the SQLite file, rendered images and the generated
+  admin token live here.
+- ``DATABASE_URL``: a SQLAlchemy URL; unset means SQLite in the data dir. ``postgresql://``
+  URLs use the psycopg 3 driver.
+- ``ACV_ADMIN_TOKEN``: the researcher's bearer token; unset means one is generated on first
+  start and kept in the data dir (see :func:`app.services.auth.ensure_admin_token`).
+- ``ACV_PUBLIC_URL``: the base of links printed outside a request (by the CLI; default
+  ``http://127.0.0.1:8000``, or the address ``acv serve`` listens on); the API uses the
+  request's own base URL.
+- ``ACV_THREADS`` (default 8): worker threads for request handlers in one server process.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from pydantic import AliasChoices, Field, SecretStr
+from pydantic_settings import BaseSettings, SettingsConfigDict
+
+SQLITE_FILE = "acv.sqlite3"
+
+
+class Settings(BaseSettings):
+    """Everything the app reads from the environment; frozen once built."""
+
+    model_config = SettingsConfigDict(env_prefix="ACV_", extra="ignore", frozen=True)
+
+    data_dir: Path = Path("data")
+    database_url: str | None = Field(
+        default=None, validation_alias=AliasChoices("DATABASE_URL", "ACV_DATABASE_URL"))
+    admin_token: SecretStr | None = None
+    public_url: str | None = None
+    threads: int = Field(default=8, ge=1, le=256)
+
+    @property
+    def sqlalchemy_url(self) -> str:
+        """The database URL with an explicit driver (psycopg 3 for PostgreSQL)."""
+        return normalise_url(self.database_url or f"sqlite:///{self.data_dir / SQLITE_FILE}")
+
+    @property
+    def images_dir(self) -> Path:
+        """Where rendered candidate images are stored (a content-addressed cache)."""
+        return self.data_dir / "images"
+
+
+def normalise_url(url: str) -> str:
+    """Pick psycopg 3 for bare PostgreSQL URLs (SQLAlchemy's default would be psycopg2)."""
+    for prefix in ("postgresql://", "postgres://"):
+        if url.startswith(prefix):
+            return "postgresql+psycopg://" + url.removeprefix(prefix)
+    return url

@@ -1,0 +1,21 @@
+"""HTML pages (researcher pages, the participant's bracket UI), mounted by
+:func:`app.main.create_app`.
+
+The pages call the service layer (:mod:`app.services`) directly; their scripts (``static/js``)
+use the REST API. No page has inline scripts (a ``script-src 'self'`` policy is sent), form
+posts carry a CSRF token (:mod:`app.web.csrf`), and pages answer errors as HTML.
+"""
+
+from __future__ import annotations
+
+from fastapi import APIRouter
+
+from app.web import auth_pages, downloads, participant_pages, studies_pages
+
+router = APIRouter()
+router.include_router(auth_pages.router)
+router.include_router(participant_pages.router)
+router.include_router(downloads.router)
+router.include_router(studies_pages.router)
+
+__all__ = ["router"]

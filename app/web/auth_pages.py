@@ -1,0 +1,72 @@
+"""Researcher login and logout, and the site root.
+
+The login page takes the admin token in a password field (posted with a CSRF token) and
+sets the researcher cookie, which holds an HMAC of the token, never the token itself. A link
+``/login#token=...`` fills the field from the URL fragment, which browsers never send to the
+server, so the token stays out of access logs.
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import Annotated
+
+from fastapi import APIRouter, Query, Request, Response
+from fastapi.responses import HTMLResponse, RedirectResponse
+
+from app.api.deps import RuntimeDep, SessionDep
+from app.services import auth
+from app.services.errors import AuthError
+from app.web.csrf import CsrfChecked, FormFields
+from app.web.guards import ParticipantCookie, ResearcherCookie, safe_next
+from app.web.rendering import PageRoute, is_https, redirect, render
+
+log = logging.getLogger(__name__)
+router = APIRouter(route_class=PageRoute, include_in_schema=False)
+
+
+@router.get("/")
+def home(runtime: RuntimeDep, session: SessionDep, researcher: ResearcherCookie = None,
+         participant: ParticipantCookie = None) -> RedirectResponse:
+    """The researcher's studies, a participant's bracket, or the login page."""
+    if auth.is_researcher(admin_token=runtime.admin_token, cookie=researcher):
+        return redirect("/studies")
+    if participant:
+        try:
+            auth.participant_by_token(session, token=participant)
+            return redirect("/participate")
+        except AuthError:
+            pass
+    return redirect("/login")
+
+
+@router.get("/login")
+def login_page(request: Request,
+               next_path: Annotated[str | None, Query(alias="next")] = None) -> HTMLResponse:
+    """The researcher login form; ``next`` is where to go after logging in."""
+    return render(request, "login.html", {"next": safe_next(next_path)})
+
+
+@router.post("/login", dependencies=[CsrfChecked])
+def login(request: Request, runtime: RuntimeDep, fields: FormFields) -> Response:
+    """Check the pasted admin token; on success set the researcher cookie and go on."""
+    target = safe_next(fields.get("next"))
+    token = fields.get("token", "").strip()
+    if not auth.is_researcher(admin_token=runtime.admin_token, bearer=token):
+        log.warning("failed researcher login from %s",
+                    request.client.host if request.client else "?")
+        return render(request, "login.html", {"next": target, "error": (
+            "That is not the admin token. It is printed when the server starts, and kept "
+            "in the data directory's admin_token file.")}, status_code=401)
+    response = redirect(target)
+    auth.set_researcher_cookie(response, admin_token=runtime.admin_token,
+                               secure=is_https(request))
+    return response
+
+
+@router.post("/logout", dependencies=[CsrfChecked])
+def logout() -> RedirectResponse:
+    """Forget both roles in this browser."""
+    response = redirect("/login")
+    auth.clear_cookies(response)
+    return response

@@ -1,0 +1,52 @@
+"""Who may see a page: the researcher (cookie set by the login page) or a participant
+(cookie set by their invite link ``/p/<token>``)."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+from fastapi import Cookie, Depends, Request
+
+from app.api.deps import RuntimeDep, SessionDep
+from app.models import Participant
+from app.services import auth
+from app.services.errors import AuthError
+from app.web.rendering import RedirectTo, login_url
+
+DEFAULT_NEXT = "/studies"
+ResearcherCookie = Annotated[str | None, Cookie(alias=auth.RESEARCHER_COOKIE)]
+ParticipantCookie = Annotated[str | None, Cookie(alias=auth.PARTICIPANT_COOKIE)]
+
+
+def researcher_page(request: Request, runtime: RuntimeDep,
+                    cookie: ResearcherCookie = None) -> None:
+    """Let the researcher through; send anyone else to the login page (and back after)."""
+    if not auth.is_researcher(admin_token=runtime.admin_token, cookie=cookie):
+        raise RedirectTo(login_url(request.url.path))
+
+
+ResearcherPage = Depends(researcher_page)
+
+
+def page_participant(session: SessionDep, cookie: ParticipantCookie = None) -> Participant:
+    """The participant whose invite cookie this browser holds.
+
+    Raises:
+        AuthError: no cookie, or its token is no longer valid (an error page says what to do).
+    """
+    try:
+        return auth.participant_by_token(session, token=cookie)
+    except AuthError:
+        raise AuthError("This browser has no valid invitation. Open the invite link you "
+                        "were sent (it looks like /p/...) to start or continue.") from None
+
+
+PageParticipant = Annotated[Participant, Depends(page_participant)]
+
+
+def safe_next(target: str | None) -> str:
+    """``target`` if it is a path on this site, else the study list (no open redirects)."""
+    if not target or not target.startswith("/") or target.startswith("//") \
+            or "\\" in target or not target.isprintable() or len(target) > 500:
+        return DEFAULT_NEXT
+    return target

@@ -1,0 +1,78 @@
+"""Participant pages: the invite link, instructions, one match at a time, and thank you.
+
+``/p/<token>`` stores the invite token in an HttpOnly cookie and sends the participant to
+where they left off; the labelling page (``static/js/label.js``) then talks to the REST API
+(``/api/participants/me/...``, ``/api/matches/{id}/label``) with that cookie.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from fastapi import APIRouter, Request, Response
+from fastapi.responses import HTMLResponse, RedirectResponse
+from sqlalchemy.orm import Session
+
+from app.api.deps import SessionDep
+from app.models import Participant
+from app.services import auth, participants, studies
+from app.services.errors import AuthError, NotFoundError
+from app.web.guards import PageParticipant
+from app.web.rendering import PageRoute, RedirectTo, is_https, redirect, render, thumb_template
+
+router = APIRouter(route_class=PageRoute, include_in_schema=False)
+
+INSTRUCTIONS = "/participate"
+LABEL = "/participate/label"
+THANKS = "/participate/thanks"
+
+
+def _where(progress: participants.Progress) -> str:
+    """Where a participant continues: instructions, the next match, or the thank-you page."""
+    if progress.finished:
+        return THANKS
+    return LABEL if progress.done else INSTRUCTIONS
+
+
+@router.get("/p/{token}")
+def invite_link(token: str, request: Request, session: SessionDep) -> RedirectResponse:
+    """Remember the invitation in this browser and continue where the participant left off."""
+    try:
+        person = auth.participant_by_token(session, token=token)
+    except AuthError:
+        raise NotFoundError("This invite link is not valid. Check that you copied all of it, "
+                            "or ask the researcher for a new one.") from None
+    response = redirect(_where(participants.progress(session, participant=person)))
+    auth.set_participant_cookie(response, token=token, secure=is_https(request))
+    return response
+
+
+def _context(session: Session, person: Participant) -> dict[str, Any]:
+    study = studies.get_study(session, study_id=person.study_id)
+    return {"study": study, "participant": person, "thumb_template": thumb_template(study.id),
+            "progress": participants.progress(session, participant=person)}
+
+
+@router.get(INSTRUCTIONS)
+def instructions(request: Request, session: SessionDep,
+                 person: PageParticipant) -> HTMLResponse:
+    """The study's instructions and a start (or continue) button."""
+    return render(request, "instructions.html", _context(session, person))
+
+
+@router.get(LABEL)
+def label_page(request: Request, session: SessionDep, person: PageParticipant) -> Response:
+    """One match at a time (the page's script fetches and stores the matches)."""
+    context = _context(session, person)
+    if context["progress"].finished:
+        raise RedirectTo(THANKS)
+    return render(request, "label.html", context)
+
+
+@router.get(THANKS)
+def thanks(request: Request, session: SessionDep, person: PageParticipant) -> Response:
+    """Thank you, with the participant's Preference Tree (drawn by ``tree.js``)."""
+    context = _context(session, person)
+    if not context["progress"].finished:
+        raise RedirectTo(LABEL)
+    return render(request, "thanks.html", context)

@@ -1,0 +1,39 @@
+"""Alembic environment: runs migrations on the app's database.
+
+The URL comes from ``config.attributes["url"]`` when called through :mod:`app.db`, else from
+the app's settings (``DATABASE_URL`` / ``ACV_DATA_DIR``) for the plain ``alembic`` command.
+SQLite gets batch mode, since it cannot alter most constraints in place.
+"""
+
+from __future__ import annotations
+
+from logging.config import fileConfig
+
+from alembic import context
+
+from app.db import make_engine
+from app.models import Base
+from app.settings import Settings
+
+config = context.config
+if "url" not in config.attributes and config.config_file_name is not None:
+    fileConfig(config.config_file_name, disable_existing_loggers=False)  # CLI use only
+
+
+def run_migrations_online() -> None:
+    url = config.attributes.get("url") or Settings().sqlalchemy_url
+    engine = make_engine(url)
+    try:
+        with engine.connect() as connection:
+            context.configure(connection=connection, target_metadata=Base.metadata,
+                              render_as_batch=connection.dialect.name == "sqlite",
+                              compare_type=True)
+            with context.begin_transaction():
+                context.run_migrations()
+    finally:
+        engine.dispose()
+
+
+if context.is_offline_mode():
+    raise SystemExit("offline (--sql) migrations are not supported; run them online")
+run_migrations_online()

@@ -1,0 +1,185 @@
+// Labelling page: one match at a time through the REST API, with the invite cookie.
+// Choose with a click or tap on a picture, the Left/Right buttons, or the arrow keys; the
+// response time sent is measured from both pictures being shown to the choice. Undo takes
+// back the latest label while no later match depends on it.
+/* global ACV */
+"use strict";
+
+const API = {
+  me: "/api/participants/me",
+  next: "/api/participants/me/next-match",
+  bracket: "/api/participants/me/bracket",
+  undo: "/api/participants/me/undo",
+  label: (matchId) => `/api/matches/${matchId}/label`,
+};
+
+const state = { match: null, shownAt: null, busy: false, canUndo: false };
+const $ = (id) => document.getElementById(id);
+
+class ApiError extends Error {
+  constructor(result) {
+    super(result.status === 401
+      ? "Your invitation was not recognised: open your invite link again."
+      : ACV.errorText(result));
+    this.status = result.status;
+  }
+}
+
+function setEnabled() {
+  const ready = !state.busy && state.shownAt !== null;
+  for (const id of ["pick-a", "pick-b", "btn-left", "btn-right"]) $(id).disabled = !ready;
+  $("undo").disabled = state.busy || !state.canUndo;
+  $("match").setAttribute("aria-busy", String(!ready));
+  $("match").dataset.ready = String(ready);
+}
+
+function say(text, isError) {
+  $("message").textContent = text || "";
+  $("message").classList.toggle("error", Boolean(isError));
+}
+
+function showStatus(next) {
+  const { done, total } = next.progress;
+  $("round-text").textContent = `Round ${next.round} of ${next.n_rounds}, ` +
+    `match ${next.match_number} of ${next.matches_in_round}`;
+  $("count-text").textContent = `${done} of ${total} decided`;
+  $("progress-bar").style.width = `${total ? (100 * done) / total : 0}%`;
+  $("progress").setAttribute("aria-valuenow", String(done));
+}
+
+// Show the two pictures; the clock starts once both are decoded and on screen.
+async function showMatch(next) {
+  if (state.match && state.match.match_id === next.match_id && state.shownAt !== null) return;
+  state.match = next;
+  state.shownAt = null;
+  const box = $("match");
+  box.classList.add("loading");
+  box.dataset.matchId = String(next.match_id);
+  const images = [[$("img-a"), next.a], [$("img-b"), next.b]];
+  for (const [img, side] of images) {
+    img.src = side.image_url;
+    img.alt = `candidate ${side.candidate_id}`;
+    img.parentElement.classList.remove("chosen");
+  }
+  await Promise.all(images.map(([img]) => img.decode().catch(() => undefined)));
+  if (state.match !== next) return;  // a newer match replaced this one meanwhile
+  box.classList.remove("loading");
+  state.shownAt = performance.now();
+}
+
+// Fetch the next match, the undo state and the live bracket; go to the thank-you page at
+// the end.
+async function refresh() {
+  const [next, me, bracket] = await Promise.all(
+    [ACV.api("GET", API.next), ACV.api("GET", API.me), ACV.api("GET", API.bracket)]);
+  if (next.status === 204) {
+    window.location.assign($("labelling").dataset.thanksUrl);
+    return;
+  }
+  for (const result of [next, me, bracket]) if (result.status !== 200) throw new ApiError(result);
+  state.canUndo = me.data.can_undo;
+  showStatus(next.data);
+  drawBracket(bracket.data.rounds, next.data.match_id);
+  await showMatch(next.data);
+}
+
+// Run one action (label or undo) at a time, then show the new state.
+async function act(action) {
+  state.busy = true;
+  setEnabled();
+  try {
+    await action();
+    await refresh();
+  } catch (err) {
+    say(err.message, true);
+  } finally {
+    state.busy = false;
+    setEnabled();
+  }
+}
+
+function choose(side) {
+  if (state.busy || state.shownAt === null) return;
+  const match = state.match;
+  const responseMs = Math.max(0, Math.round(performance.now() - state.shownAt));
+  $(side === "a" ? "pick-a" : "pick-b").classList.add("chosen");
+  act(async () => {
+    const result = await ACV.api("POST", API.label(match.match_id),
+      { winner: match[side].candidate_id, response_ms: responseMs });
+    if (result.status === 409) say("That match was already decided (in another window?).");
+    else if (result.status !== 201 && result.status !== 200) throw new ApiError(result);
+    else say("");
+  });
+}
+
+function undo() {
+  if (state.busy || !state.canUndo) return;
+  act(async () => {
+    const result = await ACV.api("POST", API.undo);
+    if (result.status !== 200) throw new ApiError(result);
+    state.match = null;  // show the reopened match even if it has the same id
+    say(`Undone: round ${result.data.round} is open again.`);
+  });
+}
+
+function playerChip(id, cell, thumbTemplate) {
+  const chip = document.createElement("span");
+  chip.className = "p";
+  if (id === null) {
+    chip.textContent = "?";
+    return chip;
+  }
+  const img = document.createElement("img");
+  img.src = ACV.thumbUrl(thumbTemplate, id);
+  img.alt = "";
+  chip.append(img, `#${id}`);
+  if (cell.winner !== null && !cell.is_bye) chip.classList.add(cell.winner === id ? "w" : "l");
+  return chip;
+}
+
+// The live bracket: one column per round, one box per match, winners marked.
+function drawBracket(rounds, currentId) {
+  const template = $("labelling").dataset.thumbTemplate;
+  const columns = rounds.map((cells, r) => {
+    const column = document.createElement("div");
+    column.className = "round";
+    const title = document.createElement("div");
+    title.className = "round-title";
+    title.textContent = r === rounds.length - 1 ? "Final" : `Round ${r + 1}`;
+    const boxes = document.createElement("div");
+    boxes.className = "cells";
+    column.append(title, boxes);
+    for (const cell of cells) {
+      const box = document.createElement("div");
+      box.className = "m" + (cell.is_bye ? " bye" : "") +
+        (cell.winner !== null && !cell.is_bye ? " decided" : "") +
+        (cell.match_id !== null && cell.match_id === currentId ? " current" : "");
+      box.append(playerChip(cell.a, cell, template));
+      box.append(cell.is_bye ? Object.assign(document.createElement("span"),
+        { className: "p bye-note", textContent: "bye" }) : playerChip(cell.b, cell, template));
+      boxes.append(box);
+    }
+    return column;
+  });
+  $("mini-bracket").replaceChildren(...columns);
+}
+
+function onKey(event) {
+  if (event.repeat || event.altKey || event.ctrlKey || event.metaKey) return;
+  if (event.key === "ArrowLeft" || event.key === "ArrowRight") {
+    event.preventDefault();
+    choose(event.key === "ArrowLeft" ? "a" : "b");
+  } else if (event.key === "u" || event.key === "U") {
+    undo();
+  }
+}
+
+(function () {
+  if (!$("labelling")) return;
+  for (const el of document.querySelectorAll("#labelling [data-side]")) {
+    el.addEventListener("click", () => choose(el.dataset.side));
+  }
+  $("undo").addEventListener("click", undo);
+  document.addEventListener("keydown", onKey);
+  act(async () => undefined);  // first load
+})();

@@ -1,0 +1,252 @@
+"""A real browser (Playwright driving Debian's Chromium) through the whole product.
+
+The researcher logs in, creates a 6-candidate Humanoid study and invites a participant; the
+participant plays the whole bracket with taps on a phone-sized screen, then (after closing
+the browser) on a desktop with the arrow keys, clicks and one undo; the thank-you page and
+then the researcher's study page show the Preference Tree with thumbnails. The server is
+``acv serve`` in a subprocess on 127.0.0.1 with a fresh SQLite data dir. Screenshots go to
+the test's tmp dir and to ``/tmp/acv_screens``.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import os
+import re
+import shutil
+import socket
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import httpx
+import pytest
+from playwright.sync_api import Browser, BrowserContext, Page, expect, sync_playwright
+
+ADMIN_TOKEN = "browser-test-admin-token-0123456789"
+CHROMIUM = "/usr/bin/chromium"
+CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking"]
+PHONE = {"width": 375, "height": 667}
+DESKTOP = {"width": 1280, "height": 860}
+SCREENS_COPY = Path("/tmp/acv_screens")
+REPO = Path(__file__).resolve().parents[2]
+N_CANDIDATES = 6  # 5 matches in 3 rounds (two byes)
+LOG_LINE = re.compile(r"^(DEBUG|INFO|WARNING|ERROR|CRITICAL)\b")
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _wait_healthy(base: str, proc: subprocess.Popen, timeout_s: float = 120.0) -> None:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        assert proc.poll() is None, f"acv serve exited with {proc.returncode}"
+        try:
+            if httpx.get(f"{base}/healthz", timeout=2).status_code == 200:
+                return
+        except httpx.TransportError:
+            time.sleep(0.2)
+    pytest.fail("acv serve did not become healthy")
+
+
+@pytest.fixture(scope="module")
+def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[str, Path]]:
+    """``acv serve`` on a free port; yields ``(base URL, file with its output and logs)``."""
+    data_dir = tmp_path_factory.mktemp("acv-browser-data")
+    log = data_dir.parent / "server.log"
+    env = {k: v for k, v in os.environ.items() if k != "DATABASE_URL"}
+    env |= {"ACV_DATA_DIR": str(data_dir), "ACV_ADMIN_TOKEN": ADMIN_TOKEN}
+    port = _free_port()
+    with log.open("w") as output:
+        proc = subprocess.Popen(
+            [sys.executable, "-c", "from app.cli import main; main()", "serve",
+             "--host", "127.0.0.1", "--port", str(port)],
+            cwd=REPO, env=env, stdout=output, stderr=subprocess.STDOUT)
+        base = f"http://127.0.0.1:{port}"
+        try:
+            _wait_healthy(base, proc)
+            yield base, log
+        finally:
+            proc.terminate()
+            proc.wait(timeout=60)
+
+
+@pytest.fixture(scope="module")
+def browser() -> Iterator[Browser]:
+    """Debian's Chromium, headless; never a downloaded browser."""
+    with sync_playwright() as playwright:
+        chromium = playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+        yield chromium
+        chromium.close()
+
+
+@pytest.fixture
+def screens(tmp_path: Path) -> Iterator[Path]:
+    """The screenshots folder; copied to ``/tmp/acv_screens`` afterwards."""
+    folder = tmp_path / "screens"
+    folder.mkdir()
+    yield folder
+    SCREENS_COPY.mkdir(parents=True, exist_ok=True)
+    for shot in folder.glob("*.png"):
+        shutil.copy(shot, SCREENS_COPY / shot.name)
+
+
+def watch_errors(page: Page, errors: list[str]) -> Page:
+    """Collect console errors (CSP violations among them) and uncaught script errors."""
+    page.on("console", lambda m: errors.append(f"{m.text} ({m.location.get('url')})")
+            if m.type == "error" else None)
+    page.on("pageerror", lambda exc: errors.append(str(exc)))
+    return page
+
+
+def new_page(browser: Browser, errors: list[str], **context_args) -> tuple[BrowserContext, Page]:
+    context = browser.new_context(**context_args)
+    context.set_default_timeout(30_000)
+    return context, watch_errors(context.new_page(), errors)
+
+
+def create_study_and_invite(page: Page, base: str) -> tuple[str, str]:
+    """Log in by the ``#token=`` link, create a study through the form, invite one person.
+
+    Returns the study page URL and the invite link shown there.
+    """
+    page.goto(f"{base}/login#token={ADMIN_TOKEN}")
+    page.wait_for_url(f"{base}/studies")
+    assert ADMIN_TOKEN not in page.url and ADMIN_TOKEN not in page.content()
+    page.click("text=New study")
+    page.fill("#name", "Browser study")
+    page.fill("#n_candidates", str(N_CANDIDATES))
+    page.fill("#seed", "7")
+    page.click("button:has-text('Create study')")
+    expect(page.locator(".grid figure")).to_have_count(N_CANDIDATES, timeout=90_000)
+    page.fill("#count", "1")
+    page.click("button:has-text('Add participants')")
+    invite = page.locator("td.invite input").first.input_value()
+    assert invite.startswith(f"{base}/p/")
+    return page.url.split("?")[0], invite
+
+
+def wait_for_match(page: Page, previous: str | None = None) -> str:
+    """Wait until a match (other than ``previous``) is shown and choosable; its match id."""
+    page.wait_for_function(
+        """prev => { const m = document.getElementById('match');
+                     return m && m.dataset.ready === 'true' && m.dataset.matchId !== prev; }""",
+        arg=previous or "")
+    return page.get_attribute("#match", "data-match-id")
+
+
+def shown(page: Page, side: str) -> int:
+    """The candidate id shown on ``side`` (``a`` = left)."""
+    return int(page.get_attribute(f"#img-{side}", "alt").removeprefix("candidate "))
+
+
+def decide(page: Page, match: str, how: str, side: str, chosen: dict[int, int]) -> None:
+    """Pick ``side`` of the shown match by a key (``Arrow...``), a tap or a click."""
+    chosen[int(match)] = shown(page, side)
+    if how.startswith("Arrow"):
+        page.keyboard.press(how)
+    elif how.startswith("tap:"):
+        page.tap(how.removeprefix("tap:"))
+    else:
+        page.click(how)
+
+
+def fits_width(page: Page) -> bool:
+    return page.evaluate("document.documentElement.scrollWidth <= window.innerWidth")
+
+
+def in_view(page: Page, selector: str) -> bool:
+    box = page.locator(selector).bounding_box()
+    return box is not None and box["y"] + box["height"] <= page.viewport_size["height"]
+
+
+def test_participant_bracket_and_researcher_tree(server: tuple[str, Path], browser: Browser,
+                                                 screens: Path) -> None:
+    base, log = server
+    errors: list[str] = []
+    researcher, page = new_page(browser, errors, viewport=DESKTOP)
+    study_url, invite = create_study_and_invite(page, base)
+    chosen: dict[int, int] = {}  # match id -> winner the participant picked
+
+    # Phone: instructions, then the first match by a tap; then the browser is closed.
+    phone, p = new_page(browser, errors, viewport=PHONE, is_mobile=True, has_touch=True)
+    p.goto(invite)
+    p.wait_for_url(f"{base}/participate")
+    p.click("#start")
+    match = wait_for_match(p)
+    expect(p.locator("#round-text")).to_have_text("Round 1 of 3, match 1 of 2")
+    assert fits_width(p) and in_view(p, "#btn-right")
+    p.screenshot(path=screens / "match-phone.png")
+    decide(p, match, "tap:#pick-a", "a", chosen)
+    wait_for_match(p, match)
+    phone.close()
+
+    # Desktop: the invite link resumes at the next match; keys, clicks and one undo.
+    desk, d = new_page(browser, errors, viewport=DESKTOP)
+    d.goto(invite)
+    d.wait_for_url(f"{base}/participate/label")
+    match = wait_for_match(d)
+    expect(d.locator("#count-text")).to_have_text(f"1 of {N_CANDIDATES - 1} decided")
+    expect(d.locator("#undo")).to_be_enabled()
+    d.keyboard.press("ArrowLeft")
+    match = wait_for_match(d, match)
+    d.click("#undo")  # takes back the ArrowLeft label: its match is open again
+    expect(d.locator("#count-text")).to_have_text(f"1 of {N_CANDIDATES - 1} decided")
+    match = wait_for_match(d, match)
+    expect(d.locator("#round-text")).to_have_text("Round 1 of 3, match 2 of 2")
+    decide(d, match, "ArrowRight", "b", chosen)
+    match = wait_for_match(d, match)
+    expect(d.locator("#round-text")).to_have_text("Round 2 of 3, match 1 of 2")
+    expect(d.locator("#mini-bracket .m.decided")).to_have_count(2)
+    expect(d.locator("#mini-bracket .m.current")).to_have_count(1)
+    assert fits_width(d) and in_view(d, "#btn-right")
+    d.screenshot(path=screens / "match-desktop.png")
+    decide(d, match, "#btn-left", "a", chosen)
+    match = wait_for_match(d, match)
+    decide(d, match, "ArrowLeft", "a", chosen)
+    match = wait_for_match(d, match)
+    expect(d.locator("#round-text")).to_have_text("Round 3 of 3, match 1 of 1")
+    decide(d, match, "#pick-b", "b", chosen)
+    d.wait_for_url(f"{base}/participate/thanks")
+    expect(d.locator("#my-tree svg.pref-tree g.node")).to_have_count(N_CANDIDATES)
+    expect(d.locator("#my-tree svg.pref-tree image")).to_have_count(N_CANDIDATES)
+    d.screenshot(path=screens / "thanks-desktop.png", full_page=True)
+    desk.close()
+
+    # Researcher: the participant is finished and their tree is drawn with thumbnails.
+    page.goto(study_url)
+    expect(page.locator("table.participants tr.finished")).to_have_count(1)
+    expect(page.locator("table.participants")).to_contain_text(
+        f"{N_CANDIDATES - 1}/{N_CANDIDATES - 1} · finished")
+    tree = page.locator(".tree-box svg.pref-tree")
+    expect(tree.locator("g.node")).to_have_count(N_CANDIDATES)
+    expect(tree.locator("image")).to_have_count(N_CANDIDATES)
+    page.screenshot(path=screens / "study-tree.png", full_page=True)
+    researcher.close()
+
+    assert _stored_labels(base, study_url) == chosen
+    assert errors == []
+    assert log_lines_with(log, ADMIN_TOKEN) == []
+
+
+def log_lines_with(log: Path, secret: str) -> list[str]:
+    """Log lines (access log included) that contain ``secret``; the start-up banner that
+    prints the token on purpose is not a log line."""
+    return [line for line in log.read_text().splitlines()
+            if secret in line and LOG_LINE.match(line)]
+
+
+def _stored_labels(base: str, study_url: str) -> dict[int, int]:
+    """match id -> winner, from the study's labels CSV (every label has a response time)."""
+    study_id = study_url.rstrip("/").rsplit("/", 1)[1]
+    response = httpx.get(f"{base}/api/studies/{study_id}/labels.csv",
+                         headers={"Authorization": f"Bearer {ADMIN_TOKEN}"})
+    rows = list(csv.DictReader(io.StringIO(response.text)))
+    assert all(row["response_ms"] != "" for row in rows)
+    return {int(row["match_id"]): int(row["winner"]) for row in rows}
