@@ -8,6 +8,7 @@ queue on a lock instead of polling in SQLite's busy handler, which sleeps in ste
 
 from __future__ import annotations
 
+import fcntl
 import threading
 import weakref
 from collections.abc import Iterator
@@ -16,7 +17,7 @@ from pathlib import Path
 
 from alembic import command
 from alembic.config import Config
-from sqlalchemy import Engine, create_engine, event
+from sqlalchemy import Connection, Engine, create_engine, event, text
 from sqlalchemy.orm import Session, sessionmaker
 
 from app.settings import normalise_url
@@ -28,6 +29,8 @@ MIGRATIONS = ROOT / "migrations"
 SQLITE_BUSY_TIMEOUT_S = 30.0
 #: Connections per engine: a pool of 10 that may grow to this many.
 POOL_SIZE, POOL_CAPACITY = 10, 40
+#: PostgreSQL advisory-lock key that serialises migrations (any fixed 64-bit number).
+MIGRATION_LOCK_KEY = 0x4143_565F_4D49_4752  # "ACV_MIGR"
 
 _write_locks: weakref.WeakKeyDictionary[Engine, threading.Lock] = weakref.WeakKeyDictionary()
 
@@ -90,6 +93,28 @@ def upgrade(url: str, revision: str = "head") -> None:
     if url.startswith("sqlite:///") and ":memory:" not in url:
         Path(url.removeprefix("sqlite:///")).parent.mkdir(parents=True, exist_ok=True)
     command.upgrade(alembic_config(url), revision)
+
+
+@contextmanager
+def migration_lock(connection: Connection) -> Iterator[None]:
+    """Serialise migrations of one database across processes (``migrations/env.py``).
+
+    Several processes may start at once (web workers, ``acv serve`` twice, a ``migrate``
+    container); the second waits, then finds the schema at head and does nothing.
+    PostgreSQL: a transaction-level advisory lock, released when the migration commits;
+    SQLite: an exclusive ``flock`` on a file next to the database.
+    """
+    database = connection.engine.url.database
+    if connection.dialect.name == "postgresql":
+        connection.execute(text("SELECT pg_advisory_xact_lock(:key)"),
+                           {"key": MIGRATION_LOCK_KEY})
+        yield
+    elif connection.dialect.name == "sqlite" and database and database != ":memory:":
+        with open(f"{database}.migrate-lock", "a") as lock_file:
+            fcntl.flock(lock_file, fcntl.LOCK_EX)  # released when the file is closed
+            yield
+    else:
+        yield
 
 
 def downgrade(url: str, revision: str = "base") -> None:

@@ -16,9 +16,12 @@ from fastapi import FastAPI
 from fastapi.staticfiles import StaticFiles
 
 from app.api import api_router, errors, health
+from app.jobs.worker import start_app_worker
+from app.middleware import BodySizeLimit, SecurityHeaders
 from app.runtime import Runtime
 from app.settings import Settings
 from app.web import router as pages_router
+from app.web.ratelimit import LoginLimiter
 
 STATIC_DIR = Path(__file__).resolve().parents[1] / "static"
 
@@ -37,15 +40,22 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         # more threads only fight over the GIL (a lock convoy that multiplies tail latency).
         anyio.to_thread.current_default_thread_limiter().total_tokens = runtime.settings.threads
         runtime.resume()  # studies a previous process left half-prepared
+        run_worker = start_app_worker(app)  # training runs (app.jobs), unless ACV_RUN_WORKER=0
         try:
             yield
         finally:
+            if run_worker is not None:
+                # Running runs checkpoint and become `interrupted`; the loop stays responsive.
+                await anyio.to_thread.run_sync(run_worker.stop)
             runtime.close()
 
     app = FastAPI(title="ACV", version="0.1.0", lifespan=lifespan,
                   description="Advice Conformance Verification: studies, invite links and "
                               "bracket labelling.")
     app.state.runtime = runtime
+    app.state.login_limiter = LoginLimiter()
+    app.add_middleware(BodySizeLimit)
+    app.add_middleware(SecurityHeaders)  # outermost: 413 answers get the headers too
     errors.install(app)
     app.include_router(health.router)
     app.include_router(api_router)

@@ -8,6 +8,7 @@ database itself refuses a second decision of a match.
 
 from __future__ import annotations
 
+import hashlib
 from datetime import UTC, datetime
 
 from sqlalchemy import (
@@ -25,7 +26,7 @@ from sqlalchemy import (
     Text,
     UniqueConstraint,
 )
-from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column
+from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, validates
 
 STUDY_STATUSES = ("preparing", "ready", "failed")
 RUN_STATUSES = ("queued", "running", "succeeded", "failed", "cancelled", "interrupted")
@@ -113,8 +114,18 @@ class BracketSlot(Base):
     b: Mapped[int | None] = mapped_column(Integer, default=None)
 
 
+def token_digest(token: str) -> str:
+    """SHA-256 of an invite token (hex): what participants are looked up by."""
+    return hashlib.sha256(token.encode()).hexdigest()
+
+
 class Participant(Base):
-    """Someone labelling a study's bracket, known only by their invite token."""
+    """Someone labelling a study's bracket, known only by their invite token.
+
+    Requests are matched by ``token_hash`` and then the token itself is compared in
+    constant time (:func:`app.services.auth.participant_by_token`): an index lookup's timing
+    can tell an attacker about the hash of their guess, never about a real token.
+    """
 
     __tablename__ = "participants"
 
@@ -122,11 +133,17 @@ class Participant(Base):
     study_id: Mapped[int] = mapped_column(
         ForeignKey("studies.id", ondelete="CASCADE"), index=True)
     token: Mapped[str] = mapped_column(String(64), unique=True)
+    token_hash: Mapped[str] = mapped_column(String(64), index=True, unique=True)
     name: Mapped[str | None] = mapped_column(String(200), default=None)
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
     last_active_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True),
                                                             default=None)
     finished_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), default=None)
+
+    @validates("token")
+    def _hash_token(self, _key: str, token: str) -> str:
+        self.token_hash = token_digest(token)
+        return token
 
 
 class Match(Base):

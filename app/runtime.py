@@ -13,6 +13,7 @@ from concurrent.futures import Future, ThreadPoolExecutor
 from sqlalchemy.orm import Session, sessionmaker
 
 from app.db import make_engine, make_sessions
+from app.preflight import check_data_dir
 from app.services.auth import ensure_admin_token
 from app.services.studies import prepare_study, preparing_study_ids
 from app.settings import Settings
@@ -29,6 +30,7 @@ class Runtime:
     """
 
     def __init__(self, settings: Settings) -> None:
+        check_data_dir(settings)  # fail before serving, not at the first write
         self.settings = settings
         self.engine = make_engine(settings.sqlalchemy_url)
         self.sessions: sessionmaker[Session] = make_sessions(self.engine)

@@ -10,6 +10,8 @@
   ``http://127.0.0.1:8000``, or the address ``acv serve`` listens on); the API uses the
   request's own base URL.
 - ``ACV_THREADS`` (default 8): worker threads for request handlers in one server process.
+- ``ACV_MIN_FREE_MB`` (default 64): the server refuses to start with less free space in the
+  data dir (see :mod:`app.preflight`).
 """
 
 from __future__ import annotations
@@ -33,6 +35,7 @@ class Settings(BaseSettings):
     admin_token: SecretStr | None = None
     public_url: str | None = None
     threads: int = Field(default=8, ge=1, le=256)
+    min_free_mb: int = Field(default=64, ge=0)
 
     @property
     def sqlalchemy_url(self) -> str:

@@ -11,7 +11,7 @@ from logging.config import fileConfig
 
 from alembic import context
 
-from app.db import make_engine
+from app.db import make_engine, migration_lock
 from app.models import Base
 from app.settings import Settings
 
@@ -28,7 +28,7 @@ def run_migrations_online() -> None:
             context.configure(connection=connection, target_metadata=Base.metadata,
                               render_as_batch=connection.dialect.name == "sqlite",
                               compare_type=True)
-            with context.begin_transaction():
+            with context.begin_transaction(), migration_lock(connection):
                 context.run_migrations()
     finally:
         engine.dispose()

@@ -4,11 +4,12 @@ from __future__ import annotations
 
 from fastapi import APIRouter
 
-from app.api import health, matches, participants, studies
+from app.api import errors, health, matches, participants, runs, studies
 
-api_router = APIRouter(prefix="/api")
+api_router = APIRouter(prefix="/api", responses=errors.RESPONSES)
 api_router.include_router(studies.router)
 api_router.include_router(participants.router)
 api_router.include_router(matches.router)
+api_router.include_router(runs.router)
 
 __all__ = ["api_router", "health"]

@@ -19,7 +19,7 @@ from app.db import POOL_CAPACITY
 from app.models import Participant
 from app.runtime import Runtime
 from app.services import auth
-from app.services.errors import AuthError
+from app.services.errors import AuthError, ForbiddenError
 from app.settings import Settings
 
 _admin_bearer = HTTPBearer(auto_error=False, scheme_name="AdminToken",
@@ -35,6 +35,21 @@ MAX_SESSIONS = POOL_CAPACITY - 8
 DbId = Annotated[int, Path(ge=1, le=2**31 - 1)]
 #: Candidate ids in paths: ``0 .. N-1`` with ``N <= 128``.
 CandidateId = Annotated[int, Path(ge=0, le=127)]
+#: Header the pages' scripts send on every JSON call (``static/js/api.js``). A cross-site
+#: form cannot set it, so a cookie-authenticated write without it may be forged (CSRF).
+AJAX_HEADER = ("X-Requested-With", "acv")
+_SAFE_METHODS = frozenset({"GET", "HEAD", "OPTIONS"})
+
+
+def check_cookie_write(request: Request) -> None:
+    """Refuse a state-changing call authenticated by a cookie without :data:`AJAX_HEADER`.
+
+    Bearer-token calls are exempt: browsers never attach those on their own.
+    """
+    name, value = AJAX_HEADER
+    if request.method not in _SAFE_METHODS and request.headers.get(name) != value:
+        raise ForbiddenError(f"a {request.method} authenticated by a cookie must send the "
+                             f"header {name}: {value}")
 
 
 async def get_runtime(request: Request) -> Runtime:  # async: no thread hop for a lookup
@@ -83,12 +98,15 @@ def _token(credentials: _Credentials) -> str | None:
 
 
 async def require_researcher(
-        runtime: RuntimeDep, credentials: Annotated[_Credentials, Depends(_admin_bearer)],
+        request: Request, runtime: RuntimeDep,
+        credentials: Annotated[_Credentials, Depends(_admin_bearer)],
         cookie: Annotated[str | None, Cookie(alias=auth.RESEARCHER_COOKIE)] = None) -> Viewer:
-    """The researcher, or 401."""
-    if not auth.is_researcher(admin_token=runtime.admin_token, bearer=_token(credentials),
-                              cookie=cookie):
+    """The researcher, or 401 (403 for a cookie write without :data:`AJAX_HEADER`)."""
+    if auth.is_researcher(admin_token=runtime.admin_token, bearer=_token(credentials)):
+        return Viewer(researcher=True)
+    if not auth.is_researcher(admin_token=runtime.admin_token, cookie=cookie):
         raise AuthError("researcher credentials required (Authorization: Bearer <admin token>)")
+    check_cookie_write(request)
     return Viewer(researcher=True)
 
 
@@ -96,11 +114,15 @@ ResearcherDep = Annotated[Viewer, Depends(require_researcher)]
 
 
 async def invite_token(
-        credentials: Annotated[_Credentials, Depends(_invite_bearer)],
+        request: Request, credentials: Annotated[_Credentials, Depends(_invite_bearer)],
         cookie: Annotated[str | None, Cookie(alias=auth.PARTICIPANT_COOKIE)] = None,
 ) -> str | None:
     """The invite token sent (bearer first, then the cookie), not yet checked."""
-    return _token(credentials) or cookie
+    if (token := _token(credentials)) is not None:
+        return token
+    if cookie:
+        check_cookie_write(request)
+    return cookie
 
 
 #: The unchecked invite token, for hot paths that check it in their own worker thread
@@ -119,13 +141,15 @@ ParticipantDep = Annotated[Participant, Depends(require_participant)]
 
 
 def get_viewer(
-        runtime: RuntimeDep, session: SessionDep,
+        request: Request, runtime: RuntimeDep, session: SessionDep,
         credentials: Annotated[_Credentials, Depends(_admin_bearer)],
         researcher_cookie: Annotated[str | None, Cookie(alias=auth.RESEARCHER_COOKIE)] = None,
         participant_cookie: Annotated[str | None, Cookie(alias=auth.PARTICIPANT_COOKIE)] = None,
 ) -> Viewer:
     """The researcher if their credentials are sent, else the participant, else 401."""
     token = _token(credentials)
+    if token is None and (researcher_cookie or participant_cookie):
+        check_cookie_write(request)
     if auth.is_researcher(admin_token=runtime.admin_token, bearer=token,
                           cookie=researcher_cookie):
         return Viewer(researcher=True)

@@ -11,6 +11,7 @@ from fastapi import FastAPI, Request
 from fastapi.encoders import jsonable_encoder
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
+from pydantic import BaseModel
 from sqlalchemy.exc import DataError, OperationalError
 
 from app.services.errors import AuthError, ServiceError
@@ -19,8 +20,31 @@ from engine.errors import InputError
 log = logging.getLogger(__name__)
 
 
+class ErrorOut(BaseModel):
+    """Every error answer: a message, or the list of validation errors (422)."""
+
+    detail: str | list[dict[str, Any]]
+
+
+#: Error answers any API operation may give, documented in the OpenAPI schema as JSON
+#: (explicitly: a ``model`` would be documented in the route's own media type, e.g. CSV).
+RESPONSES: dict[int | str, dict[str, Any]] = {
+    code: {"description": text,
+           "content": {"application/json": {"schema": ErrorOut.model_json_schema()}}}
+    for code, text in (
+        (400, "The body could not be parsed (malformed JSON, or not UTF-8)."),
+        (401, "No valid credentials for this operation."),
+        (403, "Credentials that do not allow this, or a write authenticated by a cookie "
+              "without the X-Requested-With header."),
+        (404, "No such object, or not visible to the caller."),
+        (409, "The request conflicts with the stored state."),
+        (413, "The request body is too large."),
+        (422, "Invalid input."),
+        (503, "The database is unavailable; try again."))}
+
+
 def _validation_error(_: Request, exc: RequestValidationError) -> JSONResponse:
-    """FastAPI's 422, made safe for inputs JSON cannot hold (NaN, Infinity)."""
+    """FastAPI's 422, made safe for inputs JSON cannot hold (NaN, Infinity, surrogates)."""
     return JSONResponse({"detail": _json_safe(jsonable_encoder(exc.errors()))},
                         status_code=422)
 
@@ -28,6 +52,8 @@ def _validation_error(_: Request, exc: RequestValidationError) -> JSONResponse:
 def _json_safe(value: Any) -> Any:
     if isinstance(value, float) and not math.isfinite(value):
         return repr(value)
+    if isinstance(value, str):  # lone surrogates ("\ud800" in JSON) cannot be UTF-8
+        return value.encode("utf-8", "replace").decode("utf-8")
     if isinstance(value, dict):
         return {k: _json_safe(v) for k, v in value.items()}
     if isinstance(value, list):

@@ -6,9 +6,10 @@ from fastapi import APIRouter
 from sqlalchemy import text
 
 from app.api.deps import SessionDep
+from app.api.errors import RESPONSES
 from app.api.schemas import HealthOut
 
-router = APIRouter(tags=["health"])
+router = APIRouter(tags=["health"], responses={503: RESPONSES[503]})
 
 
 @router.get("/healthz")

@@ -7,7 +7,15 @@ from typing import Any
 from fastapi import APIRouter, Request, Response
 from fastapi.responses import FileResponse
 
-from app.api.deps import CandidateId, DbId, ResearcherDep, RuntimeDep, SessionDep, SettingsDep
+from app.api.deps import (
+    CandidateId,
+    DbId,
+    ResearcherDep,
+    RuntimeDep,
+    SessionDep,
+    SettingsDep,
+    ViewerDep,
+)
 from app.api.schemas import (
     CandidateOut,
     ParticipantBatchCreate,
@@ -60,9 +68,12 @@ def list_candidates(study_id: DbId, session: SessionDep, _: ResearcherDep) -> li
 @router.get("/{study_id}/candidates/{candidate_id}/image", name="candidate_image",
             response_class=FileResponse, responses={200: {"content": {MEDIA_TYPE: {}}}})
 def candidate_image(study_id: DbId, candidate_id: CandidateId, session: SessionDep,
-                    settings: SettingsDep, size: ImageSize = "full") -> FileResponse:
-    """A candidate's rendered image (``size=thumb`` for a small one). Not secret: served
-    without credentials so that ``<img>`` tags work for both roles."""
+                    settings: SettingsDep, viewer: ViewerDep,
+                    size: ImageSize = "full") -> FileResponse:
+    """A candidate's rendered image (``size=thumb`` for a small one), for the researcher and
+    the study's participants (``<img>`` tags send the role's cookie)."""
+    if not viewer.researcher and viewer.participant.study_id != study_id:
+        raise NotFoundError(f"candidate {candidate_id} of study {study_id} not found")
     cand = studies.get_candidate(session, study_id=study_id, candidate_id=candidate_id)
     path = image_file(settings.data_dir, cand.image_path if size == "full" else cand.thumb_path)
     if not path.is_file():

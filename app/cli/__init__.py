@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 import sys
 
-from app.cli import render, serve, study, tournament, train  # noqa: F401  (registers commands)
+from app.cli import render, serve, study, tournament, train, worker  # noqa: F401  (registers commands)
 from app.cli.root import cli
 from engine.errors import InputError
 

@@ -8,11 +8,13 @@ from typing import Annotated
 
 import typer
 import uvicorn
+from pydantic import ValidationError
 from sqlalchemy.exc import ArgumentError, SQLAlchemyError
 
 from app.cli.root import cli, fail
 from app.db import upgrade
 from app.main import create_app
+from app.preflight import check_data_dir
 from app.runtime import Runtime
 from app.services.demo import ensure_demo
 from app.services.errors import ServiceError
@@ -32,14 +34,18 @@ def service_errors() -> Iterator[None]:
         fail(exc.detail)
     except ArgumentError as exc:
         fail(f"bad DATABASE_URL: {exc}")
+    except ValidationError as exc:  # a setting from the environment
+        fail("bad setting: " + "; ".join(f"{'.'.join(map(str, e['loc']))}: {e['msg']}"
+                                         for e in exc.errors()))
     except SQLAlchemyError as exc:
         fail(f"database error: {str(exc).splitlines()[0]}")
 
 
 def migrated_settings() -> Settings:
     """The environment's settings, with the database migrated to the latest schema."""
-    settings = Settings()
     with service_errors():
+        settings = Settings()
+        check_data_dir(settings)
         upgrade(settings.sqlalchemy_url)
     return settings
 

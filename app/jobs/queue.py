@@ -60,7 +60,7 @@ def worker_alive(worker: str) -> bool | None:
     return True
 
 
-def _set(session: Session, where: tuple, **values: Any) -> bool:
+def update_if(session: Session, where: tuple, **values: Any) -> bool:
     """One conditional update in its own transaction; whether it changed a row."""
     with writing(session):
         result = session.execute(update(Run).where(*where).values(**values)
@@ -75,7 +75,7 @@ def claim_next(session: Session, *, worker: str, executor: str) -> int | None:
     session.rollback()  # end the read transaction before writing
     now = utcnow()
     for run_id in queued:
-        if _set(session, (Run.id == run_id, Run.status == "queued"), status="running",
+        if update_if(session, (Run.id == run_id, Run.status == "queued"), status="running",
                 worker=worker, executor=executor, started_at=now, heartbeat_at=now,
                 error=None):
             return run_id
@@ -93,7 +93,7 @@ def heartbeat(session: Session, *, worker: str) -> None:
 def report_progress(session: Session, *, run_id: int, worker: str, timesteps: int,
                     metrics: dict[str, Any]) -> bool:
     """Store a run's progress; False when the run is no longer this worker's to run."""
-    return _set(session, _ours(run_id, worker), progress=timesteps, metrics=metrics,
+    return update_if(session, _ours(run_id, worker), progress=timesteps, metrics=metrics,
                 heartbeat_at=utcnow())
 
 
@@ -111,7 +111,7 @@ def finish(session: Session, *, run_id: int, worker: str, status: str,
            error: str | None = None) -> bool:
     """Move a run this worker is running to its final ``status`` (or ``interrupted``)."""
     finished_at = None if status == "interrupted" else utcnow()
-    return _set(session, _ours(run_id, worker), status=status, error=error,
+    return update_if(session, _ours(run_id, worker), status=status, error=error,
                 finished_at=finished_at)
 
 
@@ -140,7 +140,8 @@ def recover(session: Session, *, alive: Callable[[str], bool | None] = worker_al
             if w is None or alive(w) is False
             or (alive(w) is None and (beat is None or as_utc(beat) < cutoff))]
     return [rid for rid, w in gone
-            if _set(session, (Run.id == rid, Run.status == "running", Run.worker == w),
+            if update_if(session, (Run.id == rid, Run.status == "running",
+                              Run.worker.is_(None) if w is None else Run.worker == w),
                     status="interrupted", error=INTERRUPTED)]
 
 

@@ -7,19 +7,22 @@ send ``Authorization: Bearer <invite token>``, or carry the cookie that ``/p/<to
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import hmac
 import os
 import re
 import secrets
+from pathlib import Path
 
 from fastapi import Response
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from app.models import Participant
+from app.models import Participant, token_digest
 from app.services.errors import AuthError
 from app.settings import Settings
+from engine.errors import InputError
 
 ADMIN_TOKEN_FILE = "admin_token"
 RESEARCHER_COOKIE = "acv_researcher"
@@ -38,21 +41,40 @@ def new_token() -> str:
 def ensure_admin_token(settings: Settings) -> str:
     """``ACV_ADMIN_TOKEN``, else the token kept in the data dir, made on first call.
 
-    The file is created exclusively with mode 0600, so two processes starting together
-    agree on one token.
+    The file appears complete or not at all (written aside with mode 0600, then hard-linked
+    into place, which fails if it exists), so processes starting together (several web
+    workers) agree on one token and none reads a half-written file.
+
+    Raises:
+        InputError: the token is empty (anyone could forge a cookie keyed by it).
     """
     if settings.admin_token is not None:
-        return settings.admin_token.get_secret_value()
-    path = settings.data_dir / ADMIN_TOKEN_FILE
-    path.parent.mkdir(parents=True, exist_ok=True)
-    try:
-        fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
-    except FileExistsError:
-        return path.read_text(encoding="utf-8").strip()
-    token = new_token()
-    with os.fdopen(fd, "w", encoding="utf-8") as f:
-        f.write(token + "\n")
+        token = settings.admin_token.get_secret_value().strip()
+        where = "ACV_ADMIN_TOKEN"
+    else:
+        path = settings.data_dir / ADMIN_TOKEN_FILE
+        path.parent.mkdir(parents=True, exist_ok=True)
+        if not path.exists():
+            _publish(path, new_token())
+        token, where = path.read_text(encoding="utf-8").strip(), str(path)
+    if not token:
+        raise InputError(f"the admin token in {where} is empty")
     return token
+
+
+def _publish(path: Path, token: str) -> None:
+    """Create ``path`` holding ``token`` atomically, unless another process did first."""
+    aside = path.with_name(f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}")
+    fd = os.open(aside, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            f.write(token + "\n")
+            f.flush()
+            os.fsync(f.fileno())
+        with contextlib.suppress(FileExistsError):  # someone else's token won: use theirs
+            os.link(aside, path)
+    finally:
+        aside.unlink(missing_ok=True)
 
 
 def same_secret(given: str | None, expected: str) -> bool:
@@ -94,8 +116,10 @@ def participant_by_token(session: Session, *, token: str | None) -> Participant:
         raise AuthError("a participant invite token is required")
     if not _TOKEN_SHAPE.fullmatch(token):
         raise AuthError("unknown invite token")
-    participant = session.scalar(select(Participant).where(Participant.token == token))
-    if participant is None:
+    participant = session.scalar(select(Participant).where(
+        Participant.token_hash == token_digest(token)))
+    if participant is None or not secrets.compare_digest(token.encode(),
+                                                         participant.token.encode()):
         raise AuthError("unknown invite token")
     return participant
 

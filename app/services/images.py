@@ -11,6 +11,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Literal
 
+from app.services.errors import NotFoundError
 from engine.candidates import Candidate
 from engine.render import RenderCache, RenderService, RenderSpec, cache_key
 
@@ -46,9 +47,13 @@ def _store(cache: RenderCache, data_dir: Path, key: str, spec: RenderSpec, data:
 
 
 def image_file(data_dir: Path, stored_path: str) -> Path:
-    """The file of a stored image path, refusing anything outside the data dir."""
+    """The file of a stored image path, refusing anything outside the data dir.
+
+    Raises:
+        NotFoundError: the path (after symlinks) leads out of the data dir.
+    """
     root = data_dir.resolve()
     path = (root / stored_path).resolve()
     if not path.is_relative_to(root):
-        raise FileNotFoundError(stored_path)
+        raise NotFoundError("the image file is not in the data dir")
     return path

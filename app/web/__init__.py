@@ -10,12 +10,13 @@ from __future__ import annotations
 
 from fastapi import APIRouter
 
-from app.web import auth_pages, downloads, participant_pages, studies_pages
+from app.web import auth_pages, downloads, participant_pages, runs_pages, studies_pages
 
 router = APIRouter()
 router.include_router(auth_pages.router)
 router.include_router(participant_pages.router)
 router.include_router(downloads.router)
 router.include_router(studies_pages.router)
+router.include_router(runs_pages.router)
 
 __all__ = ["router"]

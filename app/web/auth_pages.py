@@ -19,6 +19,7 @@ from app.services import auth
 from app.services.errors import AuthError
 from app.web.csrf import CsrfChecked, FormFields
 from app.web.guards import ParticipantCookie, ResearcherCookie, safe_next
+from app.web.ratelimit import client_address, login_limiter
 from app.web.rendering import PageRoute, is_https, redirect, render
 
 log = logging.getLogger(__name__)
@@ -52,9 +53,17 @@ def login(request: Request, runtime: RuntimeDep, fields: FormFields) -> Response
     """Check the pasted admin token; on success set the researcher cookie and go on."""
     target = safe_next(fields.get("next"))
     token = fields.get("token", "").strip()
+    limiter, address = login_limiter(request), client_address(request)
+    if limiter.blocked(address):  # refused before the token is even compared
+        wait_s = limiter.retry_after_s(address)
+        response = render(request, "login.html", {"next": target, "error": (
+            f"Too many failed logins from this address. Try again in {wait_s} s.")},
+            status_code=429)
+        response.headers["Retry-After"] = str(wait_s)
+        return response
     if not auth.is_researcher(admin_token=runtime.admin_token, bearer=token):
-        log.warning("failed researcher login from %s",
-                    request.client.host if request.client else "?")
+        limiter.failed(address)
+        log.warning("failed researcher login from %s", address)
         return render(request, "login.html", {"next": target, "error": (
             "That is not the admin token. It is printed when the server starts, and kept "
             "in the data directory's admin_token file.")}, status_code=401)

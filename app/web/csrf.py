@@ -17,13 +17,12 @@ from typing import Annotated
 
 from fastapi import Depends, Request, Response
 
+from app.api.deps import AJAX_HEADER as AJAX_HEADER  # re-exported for the pages
 from app.api.deps import RuntimeDep
 from app.services.errors import ForbiddenError
 
 CSRF_COOKIE = "acv_csrf"
 CSRF_FIELD = "csrf_token"
-#: Header the pages' scripts send on every JSON call.
-AJAX_HEADER = ("X-Requested-With", "acv")
 _MAX_CHARS = 256
 
 

@@ -68,8 +68,9 @@ def test_candidates_and_bracket_match_the_engine_for_the_seed(client, admin, stu
 
 
 @pytest.mark.parametrize(("size", "pixels"), [("full", 480), ("thumb", 160)])
-def test_candidate_images_are_jpegs(client, study, size: str, pixels: int) -> None:
-    response = client.get(f"/api/studies/{study['id']}/candidates/4/image?size={size}")
+def test_candidate_images_are_jpegs(client, admin, study, size: str, pixels: int) -> None:
+    response = client.get(f"/api/studies/{study['id']}/candidates/4/image?size={size}",
+                          headers=admin)
     assert response.status_code == 200
     assert response.headers["content-type"] == "image/jpeg"
     assert Image.open(io.BytesIO(response.content)).size == (pixels, pixels)

@@ -1,0 +1,88 @@
+"""Request and response bodies of ``/api/runs`` (pydantic models, shown in ``/docs``)."""
+
+from __future__ import annotations
+
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from app.api.schemas import ProgressOut, UtcDatetime
+from app.models import Run
+from app.services.runs import MAX_TIMESTEPS, RUN_TEACHERS, advice_label
+from engine.rl.config import ALGOS, TrainConfig
+
+RunStatus = Literal["queued", "running", "succeeded", "failed", "cancelled", "interrupted"]
+Algo = Literal[ALGOS]  # type: ignore[valid-type]
+Teacher = Literal[RUN_TEACHERS]  # type: ignore[valid-type]
+Judge = Literal["shaped", "shaping", "value"]
+
+
+class RunCreate(BaseModel):
+    """A new training run. Advice: ``participant_id`` (a finished participant of the study),
+    ``teacher`` (a simulated teacher over the study's bracket) or neither (``ppo`` only)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    study_id: int = Field(ge=1, le=2**31 - 1)
+    participant_id: int | None = Field(None, ge=1, le=2**31 - 1)
+    teacher: Teacher | None = None
+    algo: Algo = "bipars-em"
+    timesteps: int = Field(ge=1, le=MAX_TIMESTEPS, description="Env steps over all envs.")
+    seed: int = Field(0, ge=0, le=2**31 - 1)
+    n_envs: int = Field(4, ge=1, le=64)
+    num_steps: int | None = Field(None, ge=2, le=65_536,
+                                  description="Steps per env per rollout (default 512).")
+    num_minibatches: int | None = Field(None, ge=1, le=4096)
+    update_epochs: int | None = Field(None, ge=1, le=100)
+    checkpoint_every: int | None = Field(
+        None, ge=1, le=MAX_TIMESTEPS,
+        description="Env steps between checkpoints (default: about 10 checkpoints).")
+
+
+class RunCreated(BaseModel):
+    id: int
+    status: RunStatus
+
+
+class RunOut(BaseModel):
+    """A run: what it trains, where it stands, its latest metrics row, its error."""
+
+    id: int
+    study_id: int
+    participant_id: int | None
+    teacher: str | None
+    advice: str
+    algo: str
+    timesteps: int
+    seed: int
+    n_envs: int
+    config: dict[str, Any]
+    status: RunStatus
+    progress: ProgressOut
+    metrics: dict[str, Any] | None
+    error: str | None
+    cancel_requested: bool
+    executor: str | None
+    created_at: UtcDatetime
+    started_at: UtcDatetime | None
+    finished_at: UtcDatetime | None
+
+    @classmethod
+    def of(cls, run: Run) -> RunOut:
+        config = TrainConfig.from_json(run.config)
+        return cls(id=run.id, study_id=run.study_id, participant_id=run.participant_id,
+                   teacher=run.teacher, advice=advice_label(run), algo=run.algo,
+                   timesteps=run.timesteps, seed=run.seed, n_envs=run.n_envs, config=run.config,
+                   status=run.status,
+                   progress=ProgressOut(done=run.progress,
+                                        total=config.num_updates * config.batch_size),
+                   metrics=run.metrics, error=run.error, cancel_requested=run.cancel_requested,
+                   executor=run.executor, created_at=run.created_at, started_at=run.started_at,
+                   finished_at=run.finished_at)
+
+
+class CheckpointOut(BaseModel):
+    """A checkpoint and the metrics row of the update that wrote it (when logged)."""
+
+    checkpoint: int
+    metrics: dict[str, Any] | None

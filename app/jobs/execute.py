@@ -1,0 +1,161 @@
+"""One training run from start to end, wherever it executes (a local process, a Ray task).
+
+The run's row says what to train (config, advice tree, resume flag); :func:`execute_run`
+calls :func:`engine.rl.runner.train` in the run directory, stores every metrics row as the
+run's progress, polls for a cancel (or for the run being taken away, e.g. marked
+``interrupted`` after a restart) after every update, and sets the final state. A stop always
+writes a checkpoint first (``train`` does), so an interrupted or cancelled run can resume.
+"""
+
+from __future__ import annotations
+
+import fcntl
+import logging
+import math
+import os
+import time
+import traceback
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+from sqlalchemy.orm import Session, sessionmaker
+
+from app.db import make_engine, make_sessions
+from app.jobs import queue
+from app.models import Run
+from engine.errors import InputError
+
+log = logging.getLogger(__name__)
+LOCK_FILE = ".lock"
+#: Seconds a run waits for the previous process of the same run directory to let go.
+LOCK_WAIT_S = 60.0
+_SKIPPED_KEYS = ("episode_returns", "episode_shaped_returns")
+
+
+def run_dir(runs_dir: Path | str, run_id: int) -> Path:
+    """``<runs dir>/<id>``: the run's config, metrics, checkpoints and logs."""
+    return Path(runs_dir) / str(run_id)
+
+
+def execute_run(run_id: int, *, database_url: str, runs_dir: str | Path, worker: str,
+                interrupted: Callable[[], bool] | None = None) -> str:
+    """Train run ``run_id``, which ``worker`` has claimed; returns the state it ends in.
+
+    Args:
+        run_id: the run's id.
+        database_url: where the ``runs`` table is.
+        runs_dir: the folder of run directories (shared storage for Ray).
+        worker: the claiming worker's name; the run is abandoned if it changes.
+        interrupted: polled after every update; True stops the run as ``interrupted`` (the
+            local process sets it on SIGTERM or when its worker dies).
+
+    Never raises for a failing run: the error is stored (state ``failed``) and logged.
+    """
+    engine = make_engine(database_url)
+    try:
+        job = _Job(make_sessions(engine), run_id, worker, interrupted or (lambda: False))
+        return job.run(run_dir(runs_dir, run_id))
+    finally:
+        engine.dispose()
+
+
+class _Job:
+    """The state of one execution: why it stopped, if it did."""
+
+    def __init__(self, sessions: sessionmaker[Session], run_id: int, worker: str,
+                 interrupted: Callable[[], bool]) -> None:
+        self.sessions, self.run_id, self.worker = sessions, run_id, worker
+        self.interrupted = interrupted
+        self.reason: str | None = None  # cancel, lost, interrupted
+
+    def run(self, out: Path) -> str:
+        with self.sessions() as session:
+            row = session.get(Run, self.run_id)
+        if row is None or row.worker != self.worker or row.status != "running":
+            return "lost"
+        try:
+            with run_lock(out):
+                _train(row, out, self.progress, self.should_stop)
+        except Exception as exc:  # any failure must end up on the run, not in a log only
+            log.error("run %d failed:\n%s", self.run_id, traceback.format_exc())
+            return self._finish("failed", error_text(exc))
+        final = {None: "succeeded", "cancel": "cancelled", "interrupted": "interrupted"}
+        if self.reason == "lost":
+            return "lost"
+        return self._finish(final[self.reason],
+                            queue.INTERRUPTED if self.reason == "interrupted" else None)
+
+    def _finish(self, status: str, error: str | None = None) -> str:
+        with self.sessions() as session:
+            done = queue.finish(session, run_id=self.run_id, worker=self.worker, status=status,
+                                error=error)
+        return status if done else "lost"
+
+    def progress(self, row: dict[str, Any]) -> None:
+        with self.sessions() as session:
+            ours = queue.report_progress(session, run_id=self.run_id, worker=self.worker,
+                                         timesteps=int(row["timesteps"]),
+                                         metrics=progress_metrics(row))
+        if not ours:
+            self.reason = self.reason or "lost"
+
+    def should_stop(self) -> bool:
+        if self.reason is None and self.interrupted():
+            self.reason = "interrupted"
+        if self.reason is None:
+            with self.sessions() as session:
+                self.reason = queue.stop_reason(session, run_id=self.run_id,
+                                                worker=self.worker)
+        return self.reason is not None
+
+
+def _train(row: Run, out: Path, progress: Callable[[dict[str, Any]], None],
+           should_stop: Callable[[], bool]) -> None:
+    from engine.rl.config import TrainConfig  # torch loads here, in the run's process
+    from engine.rl.runner import train
+    from engine.treefile import tree_from_json
+
+    advice = tree_from_json(row.advice) if row.advice is not None else None
+    train(TrainConfig.from_json(row.config), advice, out, progress=progress,
+          should_stop=should_stop, resume=row.resume)
+
+
+def progress_metrics(row: dict[str, Any]) -> dict[str, Any]:
+    """A metrics row as stored on the run: scalars only, NaN and infinities as null."""
+    return {k: None if isinstance(v, float) and not math.isfinite(v) else v
+            for k, v in row.items()
+            if k not in _SKIPPED_KEYS and (v is None or isinstance(v, int | float))}
+
+
+def error_text(exc: BaseException) -> str:
+    """A failure for people: bad input as its message, anything else with its type."""
+    if isinstance(exc, InputError):
+        return str(exc)
+    return f"{type(exc).__name__}: {exc}"
+
+
+@contextmanager
+def run_lock(out: Path, wait_s: float = LOCK_WAIT_S) -> Iterator[None]:
+    """Hold the run directory's lock file, so that a resumed run never overlaps the process
+    that is still writing its last checkpoint.
+
+    Raises:
+        RuntimeError: another process held the lock for ``wait_s`` seconds.
+    """
+    out.mkdir(parents=True, exist_ok=True)
+    fd = os.open(out / LOCK_FILE, os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        deadline = time.monotonic() + wait_s
+        while True:
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                break
+            except BlockingIOError:
+                if time.monotonic() > deadline:
+                    raise RuntimeError(f"another process is using {out}") from None
+                time.sleep(0.2)
+        yield
+    finally:
+        os.close(fd)  # closing releases the lock

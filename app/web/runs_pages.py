@@ -1,0 +1,175 @@
+"""Researcher pages of training runs: the list, the launch form, a run's live page, and the
+comparisons (one run's Human vs Agent Preference Tree; several runs on the same advice).
+
+The pages call the services directly; their scripts (``static/js/run.js``,
+``static/js/compare.js``) poll and draw from ``/api/runs``. Cancel and resume are form posts
+with the CSRF token.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Any
+
+from fastapi import APIRouter, Query, Request, Response
+from fastapi.responses import HTMLResponse
+from pydantic import ValidationError
+from sqlalchemy.orm import Session
+
+from app.api.deps import DbId, SessionDep
+from app.api.run_schemas import Judge, RunCreate, RunOut
+from app.api.runs import RunsRootDep
+from app.jobs.execute import run_dir
+from app.models import Run
+from app.services import comparison, participants, run_report, runs, studies
+from app.web.csrf import CsrfChecked, FormFields
+from app.web.guards import ResearcherPage
+from app.web.rendering import PageRoute, redirect, render, thumb_template
+from engine.errors import InputError
+from engine.rl.config import ALGOS
+
+router = APIRouter(route_class=PageRoute, include_in_schema=False,
+                   dependencies=[ResearcherPage])
+
+FORM_DEFAULTS = {"advice": "teacher:standing", "algo": "bipars-em", "timesteps": "200000",
+                 "seed": "0", "n_envs": "4", "num_steps": "", "checkpoint_every": ""}
+_OPTIONAL = ("num_steps", "checkpoint_every")
+JUDGE_LABELS = (("shaped", "its shaped reward R + z F"), ("shaping", "the advice part z F"),
+                ("value", "its shaped critic V"))
+
+
+@router.get("/runs")
+def run_list(request: Request, session: SessionDep,
+             study_id: Annotated[int | None, Query(ge=1, le=2**31 - 1)] = None) -> HTMLResponse:
+    """Every run (or one study's), newest first, with a link to launch one."""
+    study = studies.get_study(session, study_id=study_id) if study_id else None
+    return render(request, "runs.html", {
+        "study": study, "runs": [RunOut.of(r) for r in runs.list_runs(session,
+                                                                      study_id=study_id)],
+        "studies": [s for s in studies.list_studies(session) if s.status == "ready"]})
+
+
+def _advice_choices(session: Session, study_id: int) -> list[tuple[str, str]]:
+    finished = [s.participant for s in participants.list_participants(session,
+                                                                      study_id=study_id)
+                if s.progress.finished]
+    return ([(f"participant:{p.id}", f"participant #{p.id}" + (f" ({p.name})" if p.name
+                                                               else "")) for p in finished]
+            + [(f"teacher:{t}", f"simulated teacher: {t}") for t in runs.RUN_TEACHERS]
+            + [("none", "none (ppo only)")])
+
+
+def _form_page(request: Request, session: Session, study_id: int, values: dict[str, str],
+               errors: dict[str, str], status_code: int = 200) -> HTMLResponse:
+    study = studies.get_ready_study(session, study_id=study_id)
+    return render(request, "run_new.html", {
+        "study": study, "values": values, "errors": errors, "algos": ALGOS,
+        "advice_choices": _advice_choices(session, study_id)}, status_code=status_code)
+
+
+@router.get("/runs/new")
+def new_run_form(request: Request, session: SessionDep,
+                 study_id: Annotated[int, Query(ge=1, le=2**31 - 1)]) -> HTMLResponse:
+    """The launch form for a run of ``study_id``."""
+    return _form_page(request, session, study_id, dict(FORM_DEFAULTS), {})
+
+
+def _body(study_id: int, values: dict[str, str]) -> dict[str, Any]:
+    """The ``POST /api/runs`` body a submitted form stands for."""
+    kind, _, who = values["advice"].partition(":")
+    body: dict[str, Any] = {"study_id": study_id, "algo": values["algo"]}
+    if kind == "participant":
+        body["participant_id"] = who
+    elif kind == "teacher":
+        body["teacher"] = who
+    for key in ("timesteps", "seed", "n_envs", *_OPTIONAL):
+        if values[key].strip() or key not in _OPTIONAL:
+            body[key] = values[key].strip()
+    return body
+
+
+@router.post("/runs", dependencies=[CsrfChecked])
+def create_run(request: Request, session: SessionDep, fields: FormFields) -> Response:
+    """Validate like ``POST /api/runs``; errors are shown next to the form's fields."""
+    values = {k: fields.get(k, "") for k in FORM_DEFAULTS}
+    try:
+        study_id = int(fields.get("study_id", ""))
+    except ValueError:
+        raise InputError("the form names no study") from None
+    try:
+        run = runs.create_run(session, **RunCreate.model_validate(
+            _body(study_id, values)).model_dump())
+    except ValidationError as exc:
+        errors = {str(e["loc"][0]) if e["loc"] else "form": e["msg"] for e in exc.errors()}
+        return _form_page(request, session, study_id, values, errors, status_code=422)
+    except InputError as exc:
+        return _form_page(request, session, study_id, values, {"form": str(exc)},
+                          status_code=422)
+    return redirect(f"/runs/{run.id}")
+
+
+@router.get("/runs/{run_id}")
+def run_page(run_id: DbId, request: Request, session: SessionDep,
+             root: RunsRootDep) -> HTMLResponse:
+    """Live progress, metrics, the learning curve and z, the checkpoints, cancel/resume."""
+    run = runs.get_run(session, run_id=run_id)
+    return render(request, "run.html", {
+        "run": RunOut.of(run), "study": studies.get_study(session, study_id=run.study_id),
+        "checkpoints": comparison.checkpoints(run_dir(root, run_id)),
+        "has_advice": run.advice is not None})
+
+
+@router.post("/runs/{run_id}/cancel", dependencies=[CsrfChecked])
+def cancel(run_id: DbId, session: SessionDep) -> Response:
+    runs.cancel_run(session, run_id=run_id)
+    return redirect(f"/runs/{run_id}")
+
+
+@router.post("/runs/{run_id}/resume", dependencies=[CsrfChecked])
+def resume(run_id: DbId, session: SessionDep, root: RunsRootDep) -> Response:
+    runs.resume_run(session, run_id=run_id, runs_dir=root)
+    return redirect(f"/runs/{run_id}")
+
+
+@router.get("/runs/{run_id}/compare")
+def compare_page(run_id: DbId, request: Request, session: SessionDep, root: RunsRootDep,
+                 checkpoint: Annotated[int | None, Query(ge=0)] = None,
+                 judge: Judge = "shaped") -> HTMLResponse:
+    """Human and Agent Preference Tree side by side, the rejected advice, the metrics with a
+    verdict, a checkpoint selector and the conformance curve."""
+    run = runs.get_run(session, run_id=run_id)
+    runs.advice_of(run)  # 409 page for a run without advice
+    steps = comparison.checkpoints(run_dir(root, run_id))
+    return render(request, "compare.html", {
+        "run": RunOut.of(run), "study": studies.get_study(session, study_id=run.study_id),
+        "checkpoints": steps, "who": run_report.who(run), "whose": run_report.whose(run),
+        "selected": checkpoint if checkpoint in steps else (steps[-1] if steps else None),
+        "thumb_template": thumb_template(run.study_id),
+        "image_template": thumb_template(run.study_id).removesuffix("?size=thumb"),
+        "others": len(runs.same_advice_runs(session, run=run)), "judge": judge,
+        "judges": JUDGE_LABELS})
+
+
+@router.get("/runs/{run_id}/compare-runs")
+def compare_runs_page(run_id: DbId, request: Request, session: SessionDep,
+                      root: RunsRootDep) -> HTMLResponse:
+    """Every run on the same advice as ``run_id`` (e.g. ``ppo`` vs ``bipars-em``): metrics at
+    each one's latest checkpoint, side by side, and their conformance curves."""
+    run = runs.get_run(session, run_id=run_id)
+    runs.advice_of(run)
+    rows = [_latest(r, root) for r in runs.same_advice_runs(session, run=run)]
+    return render(request, "compare_runs.html", {
+        "run": RunOut.of(run), "study": studies.get_study(session, study_id=run.study_id),
+        "rows": rows, "whose": run_report.whose(run), "advice": runs.advice_label(run)})
+
+
+def _latest(run: Run, root: Any) -> dict[str, Any]:
+    """A run with its metrics at its latest checkpoint (None before the first one)."""
+    out = run_dir(root, run.id)
+    steps = comparison.checkpoints(out)
+    metrics = None
+    if steps:
+        human = runs.advice_of(run)
+        metrics = comparison.conformance(human, comparison.agent_doc(out, steps[-1], human))
+    last = (run.metrics or {})
+    return {"run": RunOut.of(run), "step": steps[-1] if steps else None, "metrics": metrics,
+            "return_100": last.get("return_100"), "z_mean": last.get("z_mean")}

@@ -1,0 +1,200 @@
+// Comparison pages.
+// One run (#compare): the Human and the Agent Preference Tree side by side (same drawing, same
+// options), the overturned matches highlighted in both and listed as image pairs, the metrics
+// with a one-line verdict, a checkpoint slider, and the conformance curve across training.
+// Several runs on the same advice (#compare-runs): their agreement curves on one chart.
+/* global ACV, ACVTree, ACVChart */
+"use strict";
+
+(function () {
+  const THUMB = 64;
+
+  // "The agent kept 14 of 15 of your choices ..." (as app.services.comparison.verdict).
+  function verdict(m, whose) {
+    const kept = m.n_agree, n = m.n_matches, rejected = n - kept;
+    let text = `The agent kept ${kept} of ${n} of ${whose} choices`;
+    text += rejected === 0 ? " and rejected none." :
+      ` and overturned ${rejected} (${Math.round(100 * rejected / n)}%).`;
+    return `${text} ${m.same_champion ? "It agrees on the champion." :
+      "It crowns a different champion."}`;
+  }
+
+  // States to mark: the human's loser of each overturned match in the human tree, the human's
+  // winner (which the agent ruled against) in the agent's tree.
+  function highlights(m) {
+    const human = new Set(), agent = new Set();
+    for (const r of m.rejected) {
+      human.add(r.human_winner === r.a ? r.b : r.a);
+      agent.add(r.human_winner);
+    }
+    return { human, agent };
+  }
+
+  function figure(url, fullUrl, caption, cls, open) {
+    const fig = document.createElement("figure");
+    fig.className = cls;
+    const img = document.createElement("img");
+    img.src = url;
+    img.alt = caption;
+    img.width = img.height = 128;
+    img.addEventListener("click", () => open(fullUrl, caption));
+    const cap = document.createElement("figcaption");
+    cap.textContent = caption;
+    fig.append(img, cap);
+    return fig;
+  }
+
+  function drawRejected(box, m, who, urls, open) {
+    if (m.rejected.length === 0) {
+      box.innerHTML = "";
+      const p = document.createElement("p");
+      p.textContent = "None: the agent kept every choice at this checkpoint.";
+      box.appendChild(p);
+      return;
+    }
+    const items = m.rejected.map((r) => {
+      const other = r.human_winner === r.a ? r.b : r.a;
+      const agentPick = r.agent_winner === null ? other : r.agent_winner;
+      const item = document.createElement("div");
+      item.className = "pair";
+      item.dataset.round = r.round;
+      const imgs = document.createElement("div");
+      imgs.className = "imgs";
+      imgs.append(
+        figure(urls.thumb(r.human_winner), urls.full(r.human_winner), `#${r.human_winner}`, "human", open),
+        figure(urls.thumb(agentPick), urls.full(agentPick), `#${agentPick}`, "agent", open));
+      const text = document.createElement("p");
+      text.textContent = `Round ${r.round}: ${who} preferred #${r.human_winner}, ` +
+        (r.agent_winner === null ? `the agent could not decide against #${other}.` :
+          `the agent preferred #${r.agent_winner}.`);
+      item.append(imgs, text);
+      return item;
+    });
+    box.replaceChildren(...items);
+  }
+
+  function showMetrics(root, m) {
+    const set = (key, text) => { root.querySelector(`[data-metric="${key}"]`).textContent = text; };
+    set("match_agreement", `${m.n_agree} / ${m.n_matches}`);
+    set("ci", `95% CI ${m.match_agreement_ci[0].toFixed(2)}–${m.match_agreement_ci[1].toFixed(2)}`);
+    set("kendall_tau_b", m.kendall_tau_b === null ? "n/a" : m.kendall_tau_b.toFixed(3));
+    set("tree_edit_distance", m.tree_edit_distance.toFixed(3));
+    set("same_champion", m.same_champion ? "yes" : "no");
+  }
+
+  async function getJson(url) {
+    const result = await ACV.api("GET", url);
+    if (result.status !== 200) throw new Error(ACV.errorText(result));
+    return result.data;
+  }
+
+  function singleRun(root) {
+    const api = root.dataset.api;
+    const steps = root.dataset.checkpoints.split(",").filter(Boolean).map(Number);
+    if (steps.length === 0) return;
+    const urls = {
+      thumb: (id) => ACV.thumbUrl(root.dataset.thumbTemplate, id),
+      full: (id) => ACV.thumbUrl(root.dataset.imageTemplate, id),
+    };
+    const dialog = document.getElementById("preview");
+    const open = (url, caption) => {
+      document.getElementById("preview-img").src = url;
+      document.getElementById("preview-img").alt = caption;
+      document.getElementById("preview-caption").textContent = caption;
+      if (typeof dialog.showModal === "function") dialog.showModal();
+    };
+    const slider = document.getElementById("checkpoint");
+    const judgeBox = document.getElementById("judge");
+    const human = getJson(`${api}/advice-tree`);
+    let curve = null, current = Number(root.dataset.selected), request = 0;
+    const judge = () => judgeBox.value;
+
+    function drawCurve() {
+      if (!curve) return;
+      ACVChart.lineChart(document.getElementById("chart-curve"), [
+        { label: "match agreement", points: curve.map((c) => [c.checkpoint, c.match_agreement]) },
+        { label: "Kendall tau-b", points: curve.map((c) => [c.checkpoint,
+          c.kendall_tau_b === null ? NaN : c.kendall_tau_b]) },
+      ], { xlabel: "timesteps", ylabel: "conformance", yDomain: [-1, 1], selectedX: current,
+        onPick: (x) => select(x) });
+    }
+
+    function exportLinks(step) {
+      for (const a of root.querySelectorAll("#exports a[data-export]")) {
+        const all = a.dataset.all === "1";
+        a.href = `${api}/${a.dataset.export}?judge=${judge()}` +
+          (all ? "" : `&checkpoint=${step}`);
+        if (a.dataset.export !== "report.html") a.setAttribute("download", "");
+      }
+    }
+
+    async function select(step) {
+      const mine = ++request;
+      current = step;
+      slider.value = String(steps.indexOf(step));
+      document.getElementById("checkpoint-value").textContent = String(step);
+      document.getElementById("agent-title").textContent = `(step ${step})`;
+      history.replaceState(null, "", `?checkpoint=${step}&judge=${judge()}`);
+      exportLinks(step);
+      drawCurve();
+      const verdictBox = document.getElementById("verdict");
+      try {
+        const query = `checkpoint=${step}&judge=${judge()}`;
+        const [h, agent, m] = await Promise.all([human, getJson(`${api}/agent-tree?${query}`),
+          getJson(`${api}/conformance?${query}`)]);
+        if (mine !== request) return;  // a later checkpoint was picked meanwhile
+        const marks = highlights(m);
+        const opts = { thumb: THUMB, imageUrl: urls.thumb };
+        const pick = (doc) => (id) => open(urls.full(id), `#${id} (${doc})`);
+        ACVTree.drawPreferenceTree(document.getElementById("human-tree"), h,
+          Object.assign({}, opts, { highlight: marks.human, onSelect: pick("human tree") }));
+        ACVTree.drawPreferenceTree(document.getElementById("agent-tree"), agent,
+          Object.assign({}, opts, { highlight: marks.agent, onSelect: pick("agent tree") }));
+        verdictBox.textContent = verdict(m, root.dataset.whose);
+        verdictBox.classList.toggle("all-kept", m.rejected.length === 0);
+        showMetrics(root, m);
+        drawRejected(document.getElementById("rejected"), m, root.dataset.who, urls, open);
+        root.dataset.loaded = `${step}:${judge()}`;
+      } catch (err) {
+        verdictBox.textContent = `The comparison could not be loaded: ${err.message}`;
+      }
+    }
+
+    slider.addEventListener("input", () => {
+      document.getElementById("checkpoint-value").textContent = String(steps[Number(slider.value)]);
+    });
+    slider.addEventListener("change", () => select(steps[Number(slider.value)]));
+    const loadCurve = () => getJson(`${api}/conformance-curve?judge=${judge()}`)
+      .then((c) => { curve = c; drawCurve(); })
+      .catch((err) => { document.getElementById("chart-curve").textContent = err.message; });
+    judgeBox.addEventListener("change", () => { select(current); loadCurve(); });
+    select(current);
+    loadCurve();
+  }
+
+  async function severalRuns(root) {
+    const rows = [...root.querySelectorAll("tr[data-run-id]")];
+    const series = [];
+    for (const row of rows) {
+      try {
+        const curve = await getJson(`/api/runs/${row.dataset.runId}/conformance-curve`);
+        series.push({ label: row.dataset.label,
+          points: curve.map((c) => [c.checkpoint, c.match_agreement]) });
+      } catch (err) {
+        // A run without checkpoints has no curve yet.
+      }
+    }
+    const box = document.getElementById("chart-runs");
+    if (series.some((s) => s.points.length > 0)) {
+      ACVChart.lineChart(box, series, { xlabel: "timesteps", ylabel: "match agreement",
+        yDomain: [0, 1] });
+    } else {
+      box.textContent = "No run has a checkpoint yet.";
+    }
+  }
+
+  const single = document.getElementById("compare");
+  if (single) singleRun(single);
+  const several = document.getElementById("compare-runs");
+  if (several) severalRuns(several);
+})();

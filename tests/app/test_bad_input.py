@@ -1,0 +1,176 @@
+"""Bad input on every route: malformed ids, huge bodies, wrong content types, non-UTF-8 bytes,
+and path traversal (``..`` and its encodings) in URLs and in stored file paths. Each gets a
+4xx answer, and no file outside the data dir (or the static dir) is ever read.
+
+Runs on SQLite and PostgreSQL (the ``client`` fixture).
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+from typing import Any
+
+import pytest
+from fastapi.routing import iter_route_contexts
+from fastapi.testclient import TestClient
+from sqlalchemy import update
+
+from app.db import make_engine, make_sessions
+from app.middleware import MAX_BODY_BYTES
+from app.models import Candidate
+from tests.app.conftest import ADMIN, ADMIN_TOKEN
+
+CANARY = "acv-canary-outside-the-data-dir"
+MALFORMED_IDS = ["abc", "0", "-1", "1.5", "1e3", "99999999999999999999", "%00", "%ff",
+                 "%2e%2e", "..%2f..%2fetc%2fpasswd", "%E2%80%AE1", "0x10", "1_000"]
+TRAVERSALS = [
+    "/static/../app/settings.py", "/static/%2e%2e/app/settings.py",
+    "/static/..%2fapp%2fsettings.py", "/static/%2e%2e%2f%2e%2e%2f{canary}",
+    "/static/..%5c..%5c{canary}", "/static//{canary_abs}", "/static/%2f{canary_abs}",
+    "/static/js/%2e%2e/%2e%2e/%2e%2e/{canary}", "/static/%252e%252e/app/settings.py",
+    "/api/studies/{sid}/candidates/..%2f..%2f{canary}/image",
+    "/api/studies/{sid}/candidates/0/image?size=..%2f..%2f{canary}",
+    "/p/..%2f..%2f{canary}", "/p/%2e%2e", "/studies/..%2f..%2f{canary}", "//{canary_abs}",
+    "/studies/{sid}/participants/..%2f..%2f{canary}/tree.json",
+]
+
+
+@pytest.fixture(scope="module")
+def canary(settings) -> Path:
+    """A secret file just outside the data dir, which no request may read."""
+    path = settings.data_dir.parent / f"{settings.data_dir.name}-canary.txt"
+    path.write_text(CANARY)
+    return path
+
+
+@pytest.fixture(scope="module")
+def researcher_page(client: TestClient) -> TestClient:
+    page = TestClient(client.app, follow_redirects=False)
+    form = page.get("/login").text
+    token = re.search(r'name="csrf_token" value="([^"]+)"', form).group(1)
+    assert page.post("/login", data={"csrf_token": token, "token": ADMIN_TOKEN}
+                     ).status_code == 303
+    return page
+
+
+def _routes_with_ids(client: TestClient) -> list[tuple[str, str]]:
+    return sorted({(m, r.path) for r in iter_route_contexts(client.app.routes) if r.methods
+                   for m in r.methods if m != "HEAD" and "{" in r.path})
+
+
+def _clean(response) -> None:
+    assert 400 <= response.status_code < 500, (response.url, response.status_code,
+                                               response.text[:300])
+    assert CANARY not in response.text and "Traceback" not in response.text
+
+
+def test_malformed_ids_on_every_route_are_4xx(client, researcher_page, invite) -> None:
+    player = invite()
+    for method, path in _routes_with_ids(client):
+        for bad in MALFORMED_IDS:
+            url = re.sub(r"\{\w+\}", bad, path)
+            if path.startswith("/api/"):
+                for headers in (ADMIN, player.headers):
+                    _clean(client.request(method, url, headers=headers, json={"winner": 0}))
+            else:
+                _clean(researcher_page.request(method, url))
+
+
+@pytest.mark.parametrize("template", TRAVERSALS)
+def test_path_traversal_reads_nothing_outside(client, researcher_page, study, canary,
+                                              template: str) -> None:
+    url = template.format(sid=study["id"], canary=canary.name,
+                          canary_abs=str(canary).lstrip("/"))
+    for asker, headers in ((client, ADMIN), (researcher_page, {})):
+        response = asker.get(url, headers=headers)
+        assert response.status_code in (400, 404, 422) or \
+            (response.status_code in (303, 307) and "canary" not in
+             response.headers["location"]), (url, response.status_code)
+        assert CANARY not in response.text and "BaseSettings" not in response.text
+
+
+@pytest.mark.parametrize("stored", ["../{canary}", "{canary_abs}", "images/../../{canary}",
+                                    "images/link.jpg"])
+def test_stored_image_paths_outside_the_data_dir_are_refused(client, settings, study, canary,
+                                                             stored: str) -> None:
+    """A path in the database (tampered with, or a symlink planted in the data dir) is
+    never followed out of the data dir."""
+    link = settings.data_dir / "images" / "link.jpg"
+    link.unlink(missing_ok=True)
+    link.symlink_to(canary)
+    stored = stored.format(canary=canary.name, canary_abs=str(canary))
+    engine = make_engine(settings.sqlalchemy_url)
+    with make_sessions(engine)() as session:
+        original = session.get(Candidate, (study["id"], 1)).image_path
+        session.execute(update(Candidate).where(Candidate.study_id == study["id"],
+                                                Candidate.id == 1).values(image_path=stored))
+        session.commit()
+    try:
+        _clean(client.get(f"/api/studies/{study['id']}/candidates/1/image", headers=ADMIN))
+    finally:
+        with make_sessions(engine)() as session:
+            session.execute(update(Candidate).where(Candidate.study_id == study["id"],
+                                                    Candidate.id == 1)
+                            .values(image_path=original))
+            session.commit()
+        engine.dispose()
+    assert client.get(f"/api/studies/{study['id']}/candidates/1/image",
+                      headers=ADMIN).status_code == 200
+
+
+BODY_CASES: list[tuple[str, dict[str, Any]]] = [
+    ("text/plain", {"content": b'{"name": "x", "n_candidates": 2}'}),
+    ("application/x-www-form-urlencoded", {"content": b"name=x&n_candidates=2"}),
+    ("application/xml", {"content": b"<study><name>x</name></study>"}),
+    ("multipart/form-data; boundary=zz", {"content": b"--zz\r\nbroken"}),
+    ("application/json", {"content": b"\xff\xfe\x00{\xc3\x28}"}),  # not UTF-8
+    ("application/json; charset=latin-1", {"content": '{"name": "\xe9"}'.encode("latin-1")}),
+    ("application/json", {"content": b'{"name": "x", "n_candidates": 2' + b" " * 1000}),
+    ("application/json", {"content": b"[" * 50_000 + b"]" * 50_000}),  # deep nesting
+    ("application/json", {"content": b'{"name": "\\ud800", "n_candidates": 2}'}),
+    (None, {"content": b"\x00\x01\x02"}),
+]
+
+
+@pytest.mark.parametrize(("content_type", "body"), BODY_CASES)
+@pytest.mark.parametrize("path", ["/api/studies", "/api/studies/{sid}/participants/batch",
+                                  "/api/matches/1/label"])
+def test_wrong_content_types_and_bytes_are_4xx(client, study, invite, path: str,
+                                               content_type: str | None,
+                                               body: dict[str, Any]) -> None:
+    headers = ADMIN if "studies" in path else invite().headers
+    if content_type:
+        headers = headers | {"Content-Type": content_type}
+    _clean(client.post(path.format(sid=study["id"]), headers=headers, **body))
+
+
+@pytest.mark.parametrize("content_type", ["application/json", "text/plain",
+                                          "multipart/form-data; boundary=zz", None])
+def test_form_posts_with_odd_bodies_are_4xx(researcher_page, study, content_type) -> None:
+    headers = {"Content-Type": content_type} if content_type else {}
+    for path in ("/login", "/logout", "/studies", f"/studies/{study['id']}/participants"):
+        for content in (b"\xff\xfe=\xff", b'{"csrf_token": 1}', b"a=" + b"%" * 3000):
+            _clean(researcher_page.post(path, content=content, headers=headers))
+
+
+@pytest.mark.parametrize("path", ["/api/studies", "/login", "/api/matches/1/label"])
+def test_huge_bodies_are_413(client, path: str) -> None:
+    _clean(client.post(path, content=b"x" * (MAX_BODY_BYTES + 1), headers=ADMIN))
+    assert client.post(path, content=b"x" * (MAX_BODY_BYTES + 1)).status_code == 413
+
+
+@pytest.mark.parametrize("header", [b"Bearer \xff\xfe", b"Bearer " + b"a" * 10_000,
+                                    b"Basic Zm9vOmJhcg==", b"Bearer", b"bearer  x y"])
+def test_odd_credentials_are_401(client, header: bytes) -> None:
+    for path in ("/api/studies", "/api/participants/me"):
+        response = client.get(path, headers=[(b"Authorization", header)])
+        assert response.status_code == 401, (path, header)
+
+
+@pytest.mark.parametrize("cookie", ["acv_participant=\xe9\xff", "acv_researcher=" + "x" * 5000,
+                                    "acv_participant=../../etc/passwd", "acv_csrf=%00"])
+def test_odd_cookies_are_refused(client, cookie: str) -> None:
+    headers = [(b"Cookie", cookie.encode("latin-1"))]
+    assert client.get("/api/participants/me", headers=headers).status_code == 401
+    assert client.get("/participate", headers=headers).status_code == 401

@@ -1,0 +1,185 @@
+"""A real browser (Playwright driving Debian's Chromium) on a finished run's pages.
+
+``acv serve`` runs in a subprocess on 127.0.0.1 with a fresh SQLite data dir and its own
+worker. Through the REST API a participant labels an 8-candidate Humanoid bracket the way
+the ``standing`` teacher would, and a short ``bipars-em`` run trains on that advice. The
+researcher's browser then opens the run page and the comparison page: both Preference Trees
+are drawn with thumbnails, the rejected advice is listed as image pairs (as many as the
+metrics say were overturned), the verdict names the kept choices, the checkpoint slider
+redraws the agent's tree, and no script or CSP error occurs. Screenshots go to
+``/tmp/acv_screens`` (``compare.png``, ``compare-value.png``, ``run.png``).
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import socket
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import httpx
+import numpy as np
+import pytest
+from playwright.sync_api import Browser, Page, expect, sync_playwright
+
+from engine.envs import env_model
+from engine.teachers import standing_score
+
+ADMIN_TOKEN = "compare-browser-admin-token-0123456789"
+ADMIN = {"Authorization": f"Bearer {ADMIN_TOKEN}"}
+CHROMIUM = "/usr/bin/chromium"
+CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking"]
+SCREENS = Path("/tmp/acv_screens")
+REPO = Path(__file__).resolve().parents[2]
+N_CANDIDATES = 8
+RUN = {"algo": "bipars-em", "timesteps": 4096, "seed": 1, "n_envs": 1, "num_steps": 256,
+       "num_minibatches": 4, "update_epochs": 2, "checkpoint_every": 1024}
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _wait(predicate, what: str, timeout_s: float = 180.0, every_s: float = 0.3):
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        value = predicate()
+        if value:
+            return value
+        time.sleep(every_s)
+    pytest.fail(f"timed out waiting for {what}")
+
+
+@pytest.fixture(scope="module")
+def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
+    """``acv serve`` (with its run worker) on a free port; yields the base URL."""
+    data_dir = tmp_path_factory.mktemp("acv-compare-data")
+    env = {k: v for k, v in os.environ.items() if k not in ("DATABASE_URL", "ACV_RAY_ADDRESS")}
+    env |= {"ACV_DATA_DIR": str(data_dir), "ACV_ADMIN_TOKEN": ADMIN_TOKEN}
+    port = _free_port()
+    with (data_dir.parent / "server.log").open("w") as log:
+        proc = subprocess.Popen(
+            [sys.executable, "-c", "from app.cli import main; main()", "serve", "--host",
+             "127.0.0.1", "--port", str(port), "--no-access-log"],
+            cwd=REPO, env=env, stdout=log, stderr=subprocess.STDOUT)
+        base = f"http://127.0.0.1:{port}"
+        try:
+            _wait(lambda: proc.poll() is None and _healthy(base), "acv serve", 120)
+            yield base
+        finally:
+            proc.terminate()
+            proc.wait(timeout=60)
+
+
+def _healthy(base: str) -> bool:
+    try:
+        return httpx.get(f"{base}/healthz", timeout=2).status_code == 200
+    except httpx.TransportError:
+        return False
+
+
+def _standing_participant(api: httpx.Client, study_id: int) -> int:
+    """Invite a participant and label every match as the ``standing`` teacher would."""
+    cands = api.get(f"/api/studies/{study_id}/candidates").json()
+    scores = standing_score(np.array([c["qpos"] for c in cands]), env_model("Humanoid-v5"))
+    token = api.post(f"/api/studies/{study_id}/participants").json()["token"]
+    me = {"Authorization": f"Bearer {token}"}
+    while (m := api.get("/api/participants/me/next-match", headers=me)).status_code == 200:
+        a, b = m.json()["a"]["candidate_id"], m.json()["b"]["candidate_id"]
+        winner = a if scores[a] >= scores[b] else b
+        api.post(f"/api/matches/{m.json()['match_id']}/label", headers=me,
+                 json={"winner": winner}).raise_for_status()
+    return api.get("/api/participants/me", headers=me).json()["id"]
+
+
+@pytest.fixture(scope="module")
+def finished_run(server: str) -> dict:
+    """A succeeded ``bipars-em`` run on a standing-advice participant's tree."""
+    with httpx.Client(base_url=server, headers=ADMIN, timeout=60) as api:
+        study = api.post("/api/studies", json={"name": "Standing advice", "env_id": "Humanoid-v5",
+                                               "n_candidates": N_CANDIDATES, "seed": 5}).json()
+        _wait(lambda: api.get(f"/api/studies/{study['id']}").json()["status"] == "ready",
+              "the study")
+        pid = _standing_participant(api, study["id"])
+        created = api.post("/api/runs", json={"study_id": study["id"], "participant_id": pid,
+                                              **RUN})
+        assert created.status_code == 202, created.text
+        run = _wait(lambda: (r := api.get(f"/api/runs/{created.json()['id']}").json())[
+            "status"] not in ("queued", "running") and r, "the run")
+        assert run["status"] == "succeeded", run
+        run["conformance"] = api.get(f"/api/runs/{run['id']}/conformance").json()
+        return run
+
+
+@pytest.fixture(scope="module")
+def page(server: str) -> Iterator[tuple[Page, list[str]]]:
+    """A logged-in researcher's page; collects console errors and uncaught script errors."""
+    with sync_playwright() as playwright:
+        browser: Browser = playwright.chromium.launch(executable_path=CHROMIUM,
+                                                      args=CHROMIUM_ARGS)
+        context = browser.new_context(viewport={"width": 1400, "height": 1000})
+        context.set_default_timeout(60_000)
+        errors: list[str] = []
+        p = context.new_page()
+        p.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
+        p.on("pageerror", lambda exc: errors.append(str(exc)))
+        p.goto(f"{server}/login#token={ADMIN_TOKEN}")
+        p.wait_for_url(f"{server}/studies")
+        yield p, errors
+        browser.close()
+
+
+def test_comparison_page_shows_both_trees_and_the_rejected_advice(
+        server: str, finished_run: dict, page: tuple[Page, list[str]]) -> None:
+    p, errors = page
+    run_id, metrics = finished_run["id"], finished_run["conformance"]
+    p.goto(f"{server}/runs/{run_id}/compare")
+    expect(p.locator("#human-tree svg.pref-tree .node")).to_have_count(N_CANDIDATES)
+    expect(p.locator("#agent-tree svg.pref-tree .node")).to_have_count(N_CANDIDATES)
+    expect(p.locator("#human-tree svg image")).to_have_count(N_CANDIDATES)
+    expect(p.locator("#verdict")).to_have_text(re.compile(
+        rf"The agent kept {metrics['n_agree']} of {N_CANDIDATES - 1} of your choices"))
+    n_rejected = len(metrics["rejected"])
+    expect(p.locator("#rejected .pair")).to_have_count(n_rejected)
+    expect(p.locator("#rejected .pair img")).to_have_count(2 * n_rejected)
+    expect(p.locator("#human-tree .node.rejected")).to_have_count(
+        len({r["b"] if r["human_winner"] == r["a"] else r["a"] for r in metrics["rejected"]}))
+    expect(p.locator("#chart-curve svg circle.dot")).to_have_count(2 * 4)  # 4 checkpoints
+    SCREENS.mkdir(parents=True, exist_ok=True)
+    p.screenshot(path=SCREENS / "compare.png", full_page=True)
+
+    p.locator("#checkpoint").fill("0")  # the slider: the first checkpoint
+    p.locator("#checkpoint").dispatch_event("change")
+    expect(p.locator("#compare")).to_have_attribute("data-loaded", "1024:shaped")
+    expect(p.locator("#agent-title")).to_have_text("(step 1024)")
+    expect(p.locator("#exports a[data-export='report.html']")).to_have_attribute(
+        "href", f"/api/runs/{run_id}/report.html?judge=shaped&checkpoint=1024")
+
+    p.select_option("#judge", "value")  # the shaped critic judges: other picks, same page
+    expect(p.locator("#compare")).to_have_attribute("data-loaded", "1024:value")
+    by_value = httpx.get(f"{server}/api/runs/{run_id}/conformance?checkpoint=1024&judge=value",
+                         headers=ADMIN).json()
+    expect(p.locator("#rejected .pair")).to_have_count(len(by_value["rejected"]))
+    p.screenshot(path=SCREENS / "compare-value.png", full_page=True)
+    assert errors == []
+
+
+def test_run_page_shows_progress_curves_and_checkpoints(
+        server: str, finished_run: dict, page: tuple[Page, list[str]]) -> None:
+    p, errors = page
+    p.goto(f"{server}/runs/{finished_run['id']}")
+    expect(p.locator("#run-status")).to_have_text("succeeded")
+    expect(p.locator("#run-checkpoints li[data-step]")).to_have_count(4)
+    expect(p.locator("#chart-z svg polyline")).to_have_count(1)
+    assert p.locator("#run-progress").get_attribute("value") == "4096"
+    p.screenshot(path=SCREENS / "run.png", full_page=True)
+    p.goto(f"{server}/runs/{finished_run['id']}/compare-runs")
+    expect(p.locator("table.runs-side-by-side tbody tr")).to_have_count(1)
+    expect(p.locator("#chart-runs svg polyline")).to_have_count(1)
+    assert errors == []

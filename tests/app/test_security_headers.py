@@ -1,0 +1,177 @@
+"""Browser-facing defences: cookie flags, CSRF on every form post and on cookie-authenticated
+JSON calls, security headers on every kind of response, and rate-limited logins.
+
+Runs on SQLite and PostgreSQL (the ``client`` fixture); each test uses its own cookie jar.
+"""
+
+from __future__ import annotations
+
+import re
+from http.cookies import SimpleCookie
+from typing import Any
+
+import pytest
+from fastapi.routing import iter_route_contexts
+from fastapi.testclient import TestClient
+
+from app.api.deps import AJAX_HEADER
+from app.middleware import MAX_BODY_BYTES
+from app.web.ratelimit import FAILED_LOGINS_PER_MINUTE
+from tests.app.conftest import ADMIN, ADMIN_TOKEN, Player
+
+CSRF_RE = re.compile(r'name="csrf_token" value="([^"]+)"')
+AJAX = dict([AJAX_HEADER])
+
+
+def browser(client: TestClient, address: str = "testclient", **kwargs: Any) -> TestClient:
+    """A separate cookie jar on the same running app, from client ``address``."""
+    return TestClient(client.app, follow_redirects=False, client=(address, 40000), **kwargs)
+
+
+def csrf_token(page: TestClient, path: str = "/login") -> str:
+    match = CSRF_RE.search(page.get(path).text)
+    assert match, f"no CSRF field on {path}"
+    return match.group(1)
+
+
+def logged_in(client: TestClient, address: str = "testclient") -> TestClient:
+    page = browser(client, address)
+    response = page.post("/login", data={"csrf_token": csrf_token(page), "token": ADMIN_TOKEN})
+    assert response.status_code == 303, response.text
+    return page
+
+
+def cookie_attributes(response, name: str) -> dict[str, str | bool]:
+    """The attributes of the ``Set-Cookie`` header that sets ``name``."""
+    for header in response.headers.get_list("set-cookie"):
+        jar = SimpleCookie()
+        jar.load(header)
+        if name in jar:
+            morsel = jar[name]
+            return {k: morsel[k] for k in ("httponly", "samesite", "secure") if morsel[k]}
+    raise AssertionError(f"{name} is not set: {response.headers.get_list('set-cookie')}")
+
+
+@pytest.mark.parametrize("base_url", ["http://testserver", "https://testserver"])
+def test_every_cookie_is_httponly_and_samesite(client, invite, base_url: str) -> None:
+    secure = {"secure": True} if base_url.startswith("https") else {}
+    page = browser(client, base_url=base_url)
+    assert cookie_attributes(page.get("/login"), "acv_csrf") == \
+        {"httponly": True, "samesite": "strict"} | secure
+    login = page.post("/login", data={"csrf_token": csrf_token(page), "token": ADMIN_TOKEN})
+    assert cookie_attributes(login, "acv_researcher") == \
+        {"httponly": True, "samesite": "lax"} | secure
+    link = browser(client, base_url=base_url).get(f"/p/{invite().token}")
+    assert cookie_attributes(link, "acv_participant") == \
+        {"httponly": True, "samesite": "lax"} | secure
+
+
+def test_cookie_label_needs_the_ajax_header(client, invite) -> None:
+    """A cross-site form can send the participant's cookie but not a custom header."""
+    player: Player = invite()
+    page = browser(client)
+    page.get(f"/p/{player.token}")  # the invite link sets the participant cookie
+    match = player.next_match()
+    url, body = f"/api/matches/{match['match_id']}/label", {"winner": match["a"]["candidate_id"]}
+    forged = page.post(url, json=body)
+    assert forged.status_code == 403 and AJAX_HEADER[0] in forged.json()["detail"]
+    assert player.next_match() == match  # nothing stored
+    assert page.delete(url).status_code == 403
+    assert page.post("/api/participants/me/undo").status_code == 403
+    assert page.get("/api/participants/me/next-match").status_code == 200  # reads are fine
+    assert page.post(url, json=body, headers=AJAX).status_code == 201
+    assert page.post("/api/participants/me/undo", headers=AJAX).status_code == 200
+
+
+def test_cookie_researcher_writes_need_the_ajax_header(client, study) -> None:
+    page = logged_in(client)
+    url = f"/api/studies/{study['id']}/participants"
+    before = len(client.get(url, headers=ADMIN).json())
+    assert page.post(url, json={}).status_code == 403
+    assert page.post("/api/studies", json={"name": "x", "n_candidates": 2}).status_code == 403
+    assert len(client.get(url, headers=ADMIN).json()) == before
+    assert page.get(url).status_code == 200
+    assert page.post(url, json={}, headers=AJAX).status_code == 201
+    assert browser(client).post(url, json={}, headers=ADMIN).status_code == 201  # bearer
+
+
+def _form_routes(client: TestClient) -> list[str]:
+    return sorted({route.path for route in iter_route_contexts(client.app.routes)
+                   if "POST" in (route.methods or ()) and not route.path.startswith("/api/")})
+
+
+def test_every_form_post_needs_a_csrf_token(client, study) -> None:
+    """Every state-changing page route refuses a post without (or with a forged) token, even
+    from a logged-in researcher."""
+    routes = _form_routes(client)
+    assert {"/login", "/logout", "/studies"} <= set(routes)
+    page = logged_in(client)
+    ids = {"study_id": study["id"], "run_id": 2**31 - 1}
+    for path in routes:
+        url = re.sub(r"\{(\w+)\}", lambda m: str(ids[m.group(1)]), path)
+        for fields in ({}, {"csrf_token": "forged"}):
+            response = page.post(url, data={"count": "1", "name": "x", **fields})
+            assert response.status_code == 403, (url, fields, response.text[:200])
+    assert page.get("/studies").status_code == 200  # still logged in: logout was refused
+
+
+def _has_full_page_policy(response) -> None:
+    csp = response.headers["content-security-policy"]
+    directives = dict(d.strip().split(" ", 1) for d in csp.split(";"))
+    assert directives["script-src"] == "'self'" and "unsafe" not in csp
+    assert directives["frame-ancestors"] == "'none'"
+    assert response.headers["x-content-type-options"] == "nosniff"
+
+
+@pytest.mark.parametrize("path", ["/login", "/studies", "/studies/new", "/studies/{id}",
+                                  "/studies/999999", "/studies/0"])
+def test_pages_send_a_strict_policy(client, study, path: str) -> None:
+    _has_full_page_policy(logged_in(client).get(path.format(id=study["id"])))
+
+
+@pytest.mark.parametrize("path", ["/participate", "/participate/label"])
+def test_participant_pages_send_a_strict_policy(client, invite, path: str) -> None:
+    page = browser(client)
+    page.get(f"/p/{invite().token}")
+    _has_full_page_policy(page.get(path))
+
+
+@pytest.mark.parametrize("path", [
+    "/api/studies", "/api/studies/{id}", "/api/studies/{id}/candidates/0/image",
+    "/static/js/api.js", "/static/css/acv.css", "/healthz", "/api/nowhere", "/openapi.json",
+    "/docs"])
+def test_every_other_response_forbids_sniffing_and_framing(client, study, path: str) -> None:
+    response = client.get(path.format(id=study["id"]), headers=ADMIN)
+    assert response.status_code in (200, 404), response.text
+    assert response.headers["x-content-type-options"] == "nosniff"
+    assert response.headers["x-frame-options"] == "DENY"
+    assert "frame-ancestors 'none'" in response.headers["content-security-policy"]
+
+
+def test_oversized_bodies_are_refused_before_reading(client) -> None:
+    big = b"{" + b" " * MAX_BODY_BYTES + b"}"
+    declared = client.post("/api/studies", content=big, headers=ADMIN)
+    streamed = client.post("/api/studies", content=iter([big[:1000], big[1000:]]),
+                           headers=ADMIN)  # chunked: no Content-Length
+    for response in (declared, streamed):
+        assert response.status_code == 413 and "detail" in response.json()
+        assert response.headers["x-content-type-options"] == "nosniff"
+
+
+def test_failed_logins_are_rate_limited_per_address(client) -> None:
+    """After the limit, even the right token is refused (without being compared) until the
+    window frees; other addresses are unaffected."""
+    page = browser(client, "203.0.113.7")
+    token = csrf_token(page)
+    for _ in range(FAILED_LOGINS_PER_MINUTE):
+        assert page.post("/login", data={"csrf_token": token, "token": "guess"}
+                         ).status_code == 401
+    blocked = page.post("/login", data={"csrf_token": token, "token": ADMIN_TOKEN})
+    assert blocked.status_code == 429 and 1 <= int(blocked.headers["retry-after"]) <= 60
+    assert "acv_researcher" not in blocked.headers.get("set-cookie", "")
+    assert logged_in(client, "203.0.113.8").get("/studies").status_code == 200
+
+
+def test_successful_logins_are_not_counted(client) -> None:
+    for _ in range(FAILED_LOGINS_PER_MINUTE + 2):
+        logged_in(client, "203.0.113.9")
