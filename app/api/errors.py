@@ -9,10 +9,14 @@ from typing import Any
 
 from fastapi import FastAPI, Request
 from fastapi.encoders import jsonable_encoder
+from fastapi.exception_handlers import http_exception_handler
 from fastapi.exceptions import RequestValidationError
-from fastapi.responses import JSONResponse
+from fastapi.responses import JSONResponse, Response
+from fastapi.routing import iter_route_contexts
 from pydantic import BaseModel
 from sqlalchemy.exc import DataError, OperationalError
+from starlette.exceptions import HTTPException as StarletteHTTPException
+from starlette.routing import Match
 
 from app.services.errors import AuthError, ServiceError
 from engine.errors import InputError
@@ -61,6 +65,17 @@ def _json_safe(value: Any) -> Any:
     return value
 
 
+async def _http_error(request: Request, exc: StarletteHTTPException) -> Response:
+    """FastAPI's answer, except that a 405 lists every method of the path in ``Allow``
+    (Starlette names the first matching route's only, and FastAPI has a route per method)."""
+    if exc.status_code == 405:
+        methods = sorted({m for route in iter_route_contexts(request.app.routes)
+                          if route.methods and route.matches(request.scope)[0] != Match.NONE
+                          for m in route.methods})
+        exc = StarletteHTTPException(405, exc.detail, headers={"Allow": ", ".join(methods)})
+    return await http_exception_handler(request, exc)
+
+
 def _input_error(_: Request, exc: InputError) -> JSONResponse:
     return JSONResponse({"detail": str(exc)}, status_code=422)
 
@@ -89,6 +104,7 @@ def _unexpected(_: Request, exc: Exception) -> JSONResponse:
 def install(app: FastAPI) -> None:
     """Register the handlers on ``app``."""
     app.add_exception_handler(RequestValidationError, _validation_error)
+    app.add_exception_handler(StarletteHTTPException, _http_error)
     app.add_exception_handler(InputError, _input_error)
     app.add_exception_handler(ServiceError, _service_error)
     app.add_exception_handler(DataError, _unstorable)

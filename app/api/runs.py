@@ -54,7 +54,8 @@ def create_run(body: RunCreate, session: SessionDep, _: ResearcherDep) -> RunCre
 
 @router.get("")
 def list_runs(session: SessionDep, _: ResearcherDep,
-              study_id: Annotated[int | None, Query(ge=1)] = None) -> list[RunOut]:
+              study_id: Annotated[int | None, Query(ge=1, le=2**31 - 1)] = None,
+              ) -> list[RunOut]:
     """All runs, or one study's, newest first."""
     return [RunOut.of(r) for r in runs.list_runs(session, study_id=study_id)]
 

@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 from datetime import datetime
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
-from pydantic import AfterValidator, BaseModel, ConfigDict, Field
+from pydantic import AfterValidator, BaseModel, BeforeValidator, ConfigDict, Field
 
 from app.models import as_utc
 from app.services.labelling import MAX_RESPONSE_MS
@@ -15,6 +15,16 @@ from engine.candidates import MAX_CANDIDATES
 from engine.envs import DEFAULT_ENV_ID
 
 StudyStatus = Literal["preparing", "ready", "failed"]
+
+
+def _json_integer(value: Any) -> Any:
+    if isinstance(value, bool | str):  # pydantic would read true as 1 and "3" as 3
+        raise ValueError("must be a JSON integer")
+    return value
+
+
+#: An integer as JSON Schema defines it: ``3`` or ``3.0``, never ``true`` or ``"3"``.
+JsonInt = Annotated[int, BeforeValidator(_json_integer)]
 #: Stored times are UTC; SQLite hands them back naive.
 UtcDatetime = Annotated[datetime, AfterValidator(as_utc)]
 
@@ -74,7 +84,7 @@ class ParticipantCreate(BaseModel):
 
 
 class ParticipantBatchCreate(ParticipantCreate):
-    count: int = Field(ge=1, le=MAX_BATCH)
+    count: JsonInt = Field(ge=1, le=MAX_BATCH)
 
 
 class ParticipantCreated(BaseModel):
@@ -126,10 +136,10 @@ class NextMatchOut(BaseModel):
 class LabelIn(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
-    winner: int = Field(ge=0, le=2**31 - 1, description="The preferred candidate's id.")
-    response_ms: int | None = Field(None, ge=0, le=MAX_RESPONSE_MS,
-                                    description="Time the participant took; estimated "
-                                                "by the server when absent.")
+    winner: JsonInt = Field(ge=0, le=2**31 - 1, description="The preferred candidate's id.")
+    response_ms: Annotated[int, Field(ge=0, le=MAX_RESPONSE_MS),
+                           BeforeValidator(_json_integer)] | None = Field(
+        None, description="Time the participant took; estimated by the server when absent.")
 
 
 class LabelOut(BaseModel):

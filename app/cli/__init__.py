@@ -5,7 +5,15 @@ from __future__ import annotations
 import json
 import sys
 
-from app.cli import render, serve, study, tournament, train, worker  # noqa: F401  (registers commands)
+from app.cli import (  # noqa: F401  (registers commands)
+    render,
+    reproduce,
+    serve,
+    study,
+    tournament,
+    train,
+    worker,
+)
 from app.cli.root import cli
 from engine.errors import InputError
 

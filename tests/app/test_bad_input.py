@@ -1,6 +1,7 @@
 """Bad input on every route: malformed ids, huge bodies, wrong content types, non-UTF-8 bytes,
 and path traversal (``..`` and its encodings) in URLs and in stored file paths. Each gets a
-4xx answer, and no file outside the data dir (or the static dir) is ever read.
+4xx answer, and no file outside the data dir (or the static dir) is ever read. Corrupt
+checkpoint files and stored trees are refused with a message that names the problem.
 
 Runs on SQLite and PostgreSQL (the ``client`` fixture).
 """
@@ -8,6 +9,7 @@ Runs on SQLite and PostgreSQL (the ``client`` fixture).
 from __future__ import annotations
 
 import re
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -17,8 +19,11 @@ from fastapi.testclient import TestClient
 from sqlalchemy import update
 
 from app.db import make_engine, make_sessions
+from app.jobs.settings import JobSettings
+from app.main import create_app
 from app.middleware import MAX_BODY_BYTES
-from app.models import Candidate
+from app.models import Candidate, Run
+from engine.rl.checkpoint import checkpoint_path
 from tests.app.conftest import ADMIN, ADMIN_TOKEN
 
 CANARY = "acv-canary-outside-the-data-dir"
@@ -174,3 +179,88 @@ def test_odd_cookies_are_refused(client, cookie: str) -> None:
     headers = [(b"Cookie", cookie.encode("latin-1"))]
     assert client.get("/api/participants/me", headers=headers).status_code == 401
     assert client.get("/participate", headers=headers).status_code == 401
+
+
+@pytest.mark.parametrize(("method", "path", "allow"), [
+    ("OPTIONS", "/api/studies", "GET, POST"), ("PUT", "/api/matches/1/label", "DELETE, POST"),
+    ("DELETE", "/api/studies/{sid}/participants", "GET, POST"), ("PATCH", "/login", "GET, POST")])
+def test_wrong_methods_are_405_with_every_allowed_method(client, study, method: str, path: str,
+                                                        allow: str) -> None:
+    response = client.request(method, path.format(sid=study["id"]), headers=ADMIN)
+    assert (response.status_code, response.headers["allow"]) == (405, allow)
+
+
+@pytest.mark.parametrize("body", [
+    lambda a: {"winner": str(a)}, lambda a: {"winner": a, "response_ms": False},
+    lambda a: {"winner": a, "response_ms": "5"}, lambda a: {"winner": a + 0.5}])
+def test_json_numbers_are_not_guessed_from_other_types(client, invite, body) -> None:
+    """``"3"`` or ``false`` where the schema says integer are refused, not coerced (lax
+    parsing would have stored these labels); ``3.0`` is an integer in JSON Schema."""
+    player = invite()
+    match = player.next_match()
+    response = client.post(f"/api/matches/{match['match_id']}/label", headers=player.headers,
+                           json=body(match["a"]["candidate_id"]))
+    assert response.status_code == 422 and player.next_match() == match
+    whole = {"winner": float(match["a"]["candidate_id"])}
+    assert client.post(f"/api/matches/{match['match_id']}/label", headers=player.headers,
+                       json=whole).status_code == 201
+
+
+@pytest.fixture(scope="module")
+def no_worker(settings) -> Iterator[TestClient]:
+    """The app without its training worker: runs stay as the test leaves them."""
+    app = create_app(settings)
+    app.state.job_settings = JobSettings(run_worker=False)
+    with TestClient(app) as client:
+        yield client
+
+
+@pytest.mark.parametrize("content", [b"", b"not a checkpoint", b"PK\x03\x04" + b"\x00" * 64,
+                                     b"\x80\x02garbage"])
+def test_corrupt_checkpoints_are_refused_with_a_clear_message(no_worker, settings, study,
+                                                              content: bytes) -> None:
+    run_id = no_worker.post("/api/runs", headers=ADMIN, json={
+        "study_id": study["id"], "teacher": "good", "algo": "ppo-shaped",
+        "timesteps": 1000}).json()["id"]
+    path = checkpoint_path(settings.data_dir / "runs" / str(run_id), 256)
+    path.parent.mkdir(parents=True)
+    path.write_bytes(content)
+    for url in (f"/api/runs/{run_id}/agent-tree", f"/api/runs/{run_id}/conformance",
+                f"/api/runs/{run_id}/trees/agent.svg"):
+        response = no_worker.get(url, headers=ADMIN)
+        assert response.status_code == 422, (url, response.text)
+        assert "step_256.pt is not" in response.json()["detail"]
+
+
+@pytest.mark.parametrize("advice", [{"format": "acv.tree/9"}, {"not": "a tree"}, []])
+def test_a_corrupt_stored_tree_is_refused_with_a_clear_message(no_worker, settings, study,
+                                                               advice) -> None:
+    run_id = no_worker.post("/api/runs", headers=ADMIN, json={
+        "study_id": study["id"], "teacher": "good", "algo": "ppo-shaped",
+        "timesteps": 1000}).json()["id"]
+    engine = make_engine(settings.sqlalchemy_url)
+    with make_sessions(engine)() as session:
+        session.execute(update(Run).where(Run.id == run_id).values(advice=advice))
+        session.commit()
+    engine.dispose()
+    response = no_worker.get(f"/api/runs/{run_id}/advice-tree", headers=ADMIN)
+    assert response.status_code == 422 and response.json()["detail"], response.text
+
+
+def test_huge_integers_in_every_query_parameter_are_answered(client) -> None:
+    """Integers far past any database column (SQLite raises OverflowError on them): a 4xx,
+    or an answer where the value is only compared (``after`` in a run's metrics)."""
+    schema = client.get("/openapi.json").json()
+    asked = 0
+    for path, operations in schema["paths"].items():
+        for method, operation in operations.items():
+            for param in operation.get("parameters", []):
+                types = {s.get("type") for s in param["schema"].get("anyOf", [param["schema"]])}
+                if param["in"] == "query" and "integer" in types:
+                    url = re.sub(r"\{\w+\}", "1", path)
+                    for huge in (10**22, -(10**22)):
+                        response = client.request(method, url, params={param["name"]: huge},
+                                                  headers=ADMIN)
+                        assert response.status_code < 500, (url, param["name"], huge)
+                        asked += 1
+    assert asked >= 4

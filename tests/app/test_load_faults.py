@@ -50,7 +50,8 @@ def test_labels_survive_kill_9_under_load(request, tmp_path: Path, backend: str)
     assert figures["kills"] == 1 and figures["finished"] == PARTICIPANTS, figures
     assert figures["unexpected"] == [], figures
     assert (figures["lost"], figures["duplicates"], figures["server_errors_5xx"]) == (0, 0, 0)
-    assert figures["labels_stored"] == figures["labels_acknowledged"] == expected
+    # A label whose answer was cut off by the kill is stored but never acknowledged.
+    assert figures["labels_acknowledged"] <= figures["labels_stored"] == expected
     assert figures["races"] > 0 and figures["race_losers_409"] == figures["races"]
     assert figures["conflicts_409"] >= figures["races"]
 

@@ -1,0 +1,1 @@
+"""``acv reproduce``: the paper's experiments and their report."""

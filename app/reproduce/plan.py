@@ -1,0 +1,202 @@
+"""``acv reproduce``: the paper's experiments (section V) on one shared candidate set and bracket.
+
+Four agents ("arms") train on the same env, each with one advice tree over the same bracket:
+
+- ``ppo``: no advice, the baseline;
+- ``case1``: ``bipars-em`` with ``good`` advice (F = R, the paper's Case 1);
+- ``case2``: ``bipars-em`` with ``standing`` advice (the paper's Case 2);
+- ``control``: ``ppo-shaped`` with ``standing`` advice (z = 1: what naive shaping gives).
+
+The output folder holds ``reproduce.json`` (the configuration; a second call with the same
+one resumes), ``advice/{good,standing}.json`` and ``runs/<arm>/seed_<k>/`` (ordinary
+training runs, see :mod:`engine.rl.runner`). Training is resumed from the last checkpoint
+of every unfinished run, so an interrupted reproduction loses at most one checkpoint period.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import asdict, dataclass, fields
+from multiprocessing import get_context
+from pathlib import Path
+
+from engine.envs import DEFAULT_ENV_ID
+from engine.errors import InputError
+from engine.pipeline import replay_with_teacher, run_tournament
+from engine.treefile import TreeDocument, dump_tree, load_tree
+
+CONFIG_FILE = "reproduce.json"
+
+
+@dataclass(frozen=True)
+class Arm:
+    """One agent of the experiment.
+
+    Attributes:
+        name: folder name under ``runs/``.
+        algo: the training algorithm (:data:`engine.rl.config.ALGOS`).
+        advice: ``"good"`` or ``"standing"`` (the advice tree it trains on), or None.
+        title: the label in figures and tables.
+    """
+
+    name: str
+    algo: str
+    advice: str | None
+    title: str
+
+
+ARMS: tuple[Arm, ...] = (
+    Arm("ppo", "ppo", None, "PPO, no advice"),
+    Arm("case1", "bipars-em", "good", "Case 1: BiPaRS-EM, good advice (F = R)"),
+    Arm("case2", "bipars-em", "standing", "Case 2: BiPaRS-EM, standing advice"),
+    Arm("control", "ppo-shaped", "standing", "Control: PPO + standing advice, z = 1"),
+)
+
+
+@dataclass(frozen=True)
+class ReproduceConfig:
+    """What ``acv reproduce`` runs; saved as ``reproduce.json`` and checked on resume."""
+
+    env_id: str = DEFAULT_ENV_ID
+    """Gymnasium MuJoCo env."""
+    timesteps: int = 1_000_000
+    """Env steps per agent and seed."""
+    seeds: int = 1
+    """Training seeds per agent: 0, 1, ..., seeds - 1."""
+    n_envs: int = 4
+    """Parallel envs per run."""
+    num_steps: int = 512
+    """Steps per env per rollout."""
+    checkpoint_every: int = 50_000
+    """Checkpoint period in env steps: the Agent Preference Tree is extracted at each."""
+    candidates: int = 16
+    """Candidate states in the shared bracket."""
+    p: float = 0.9
+    """Braverman-Mossel coin probability of the shared bracket."""
+    bracket_seed: int = 0
+    """Seed of the candidate sampling and bracket seeding."""
+    study_id: int | None = None
+    """With ``participant_id``: a real participant's tree replaces the ``standing`` advice."""
+    participant_id: int | None = None
+    """The participant of ``study_id`` whose Human Preference Tree is used."""
+
+    def __post_init__(self) -> None:
+        for name in ("timesteps", "seeds", "n_envs", "num_steps", "checkpoint_every"):
+            if getattr(self, name) < 1:
+                raise InputError(f"--{name.replace('_', '-')} must be at least 1, "
+                                 f"got {getattr(self, name)}")
+        if self.candidates < 2:
+            raise InputError(f"--candidates must be at least 2, got {self.candidates}")
+        if not 0.0 <= self.p <= 1.0:
+            raise InputError(f"--p must be in [0, 1], got {self.p}")
+        if (self.study_id is None) != (self.participant_id is None):
+            raise InputError("--study and --participant go together")
+
+    def to_json(self) -> dict:
+        return asdict(self)
+
+    @classmethod
+    def from_json(cls, obj: dict) -> ReproduceConfig:
+        known = {f.name for f in fields(cls)}
+        return cls(**{k: v for k, v in obj.items() if k in known})
+
+
+def prepare(out: Path, config: ReproduceConfig,
+            participant_tree: TreeDocument | None = None) -> dict[str, TreeDocument]:
+    """Write or check ``reproduce.json`` and return the advice trees by name.
+
+    Args:
+        participant_tree: the real participant's tree when ``config`` names one.
+
+    Raises:
+        InputError: ``out`` holds a reproduction with another configuration.
+    """
+    out.mkdir(parents=True, exist_ok=True)
+    path = out / CONFIG_FILE
+    if path.is_file():
+        saved = ReproduceConfig.from_json(json.loads(path.read_text()))
+        if saved != config:
+            diff = [k for k, v in config.to_json().items() if saved.to_json()[k] != v]
+            raise InputError(f"{out} holds a reproduction with other settings "
+                             f"({', '.join(diff)}): resume it as it was or choose another --out")
+    else:
+        path.write_text(json.dumps(config.to_json(), indent=1) + "\n")
+    return advice_trees(out, config, participant_tree)
+
+
+def advice_trees(out: Path, config: ReproduceConfig,
+                 participant_tree: TreeDocument | None = None) -> dict[str, TreeDocument]:
+    """``good`` and ``standing`` advice over one bracket (made once, then reloaded)."""
+    folder = out / "advice"
+    if (folder / "standing.json").is_file() and (folder / "good.json").is_file():
+        return {name: load_tree(folder / f"{name}.json") for name in ("good", "standing")}
+    standing = participant_tree or run_tournament(
+        env_id=config.env_id, n_candidates=config.candidates, p=config.p,
+        seed=config.bracket_seed, teacher="standing")
+    trees = {"good": replay_with_teacher(standing, "good"), "standing": standing}
+    folder.mkdir(parents=True, exist_ok=True)
+    for name, doc in trees.items():
+        dump_tree(doc, folder / f"{name}.json")
+    return trees
+
+
+def run_path(out: Path, arm: Arm, seed: int) -> Path:
+    """``<out>/runs/<arm>/seed_<seed>``."""
+    return out / "runs" / arm.name / f"seed_{seed}"
+
+
+def train_config(config: ReproduceConfig, arm: Arm, seed: int):
+    """The :class:`engine.rl.config.TrainConfig` of one arm and seed."""
+    from engine.rl.config import TrainConfig
+
+    return TrainConfig(algo=arm.algo, env_id=config.env_id, total_timesteps=config.timesteps,
+                       seed=seed, n_envs=config.n_envs, num_steps=config.num_steps,
+                       checkpoint_every=config.checkpoint_every)
+
+
+def train_all(out: Path, config: ReproduceConfig, trees: dict[str, TreeDocument],
+              jobs: int = 1) -> None:
+    """Train (or finish training) every arm and seed, ``jobs`` runs at a time."""
+    tasks = [(arm, seed) for seed in range(config.seeds) for arm in ARMS]
+    if jobs <= 1:
+        for i, (arm, seed) in enumerate(tasks):
+            train_arm(out, config, arm, seed, trees, i)
+        return
+    # Runs are independent and single-threaded (torch uses one thread per run): processes
+    # give a near-linear speed-up; spawn, because torch and MuJoCo are not fork-safe.
+    with ProcessPoolExecutor(max_workers=jobs, mp_context=get_context("spawn")) as pool:
+        futures = [pool.submit(train_arm, out, config, arm, seed, trees, i % jobs)
+                   for i, (arm, seed) in enumerate(tasks)]
+        for future in futures:
+            future.result()
+
+
+def train_arm(out: Path, config: ReproduceConfig, arm: Arm, seed: int,
+              trees: dict[str, TreeDocument], position: int = 0) -> None:
+    """Train one arm and seed to the end, resuming from its last checkpoint if it has one."""
+    from tqdm import tqdm
+
+    from engine.rl.checkpoint import list_checkpoints
+    from engine.rl.runner import train
+
+    cfg = train_config(config, arm, seed)
+    path = run_path(out, arm, seed)
+    done = cfg.num_updates * cfg.batch_size
+    found = list_checkpoints(path)
+    if found and max(found) >= done:
+        return
+    if not found and path.exists():  # killed before its first checkpoint: start again
+        shutil.rmtree(path)
+    start = max(found) if found else 0
+    with tqdm(total=done, initial=start, unit="step", position=position, leave=True,
+              desc=f"{arm.name} seed {seed}", dynamic_ncols=True) as bar:
+        def progress(row: dict) -> None:
+            bar.update(row["timesteps"] - bar.n)
+            ret = row.get("return_100")
+            bar.set_postfix(ret="-" if ret is None else f"{ret:.0f}",
+                            z=f"{row['z_mean']:.2f}", refresh=False)
+
+        train(cfg, trees[arm.advice] if arm.advice else None, path, progress=progress,
+              resume=bool(found))
