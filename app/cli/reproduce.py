@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import shlex
+import sys
 from pathlib import Path
 from typing import Annotated
 
@@ -36,19 +38,20 @@ def reproduce(
 ) -> None:
     """Train ppo, Case 1, Case 2 and the naive-shaping control on one bracket; write the
     learning curves, both cases' trees side by side, summary.json and README.md."""
+    from app.cli.serve import service_errors
     from app.reproduce.plan import prepare, train_all
-
-    check_env_id(env)
-    config = ReproduceConfig(env_id=env, timesteps=timesteps, seeds=seeds, n_envs=n_envs,
-                             num_steps=num_steps, checkpoint_every=checkpoint_every,
-                             candidates=candidates, p=p, bracket_seed=bracket_seed,
-                             study_id=study, participant_id=participant)
-    trees = prepare(out, config, _participant_tree(config))
-    train_all(out, config, trees, jobs=jobs)
-    typer.echo("training done; extracting agent trees and drawing figures")
     from app.reproduce.report import write_report
 
-    write_report(out, config, trees)
+    with service_errors():
+        check_env_id(env)
+        config = ReproduceConfig(env_id=env, timesteps=timesteps, seeds=seeds, n_envs=n_envs,
+                                 num_steps=num_steps, checkpoint_every=checkpoint_every,
+                                 candidates=candidates, p=p, bracket_seed=bracket_seed,
+                                 study_id=study, participant_id=participant)
+        trees = prepare(out, config, _participant_tree(config))
+        train_all(out, config, trees, jobs=jobs)
+        typer.echo("training done; extracting agent trees and drawing figures")
+        write_report(out, config, trees, command=shlex.join(["acv", *sys.argv[1:]]))
     typer.echo(f"wrote {out / 'README.md'} and {out / 'summary.json'}")
 
 

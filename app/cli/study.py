@@ -10,12 +10,13 @@ import typer
 
 from app.cli.root import cli, fail
 from app.cli.serve import cli_runtime
-from app.services import participants, studies
+from app.services import participants, studies, trees
 from app.services import simulate as simulation
 from app.services.participants import invite_url
 from engine.candidates import SAMPLING_MODES
 from engine.envs import DEFAULT_ENV_ID
 from engine.teachers import TEACHERS
+from engine.treefile import dump_tree
 
 study_cli = typer.Typer(help="Create and list studies.", no_args_is_help=True)
 participant_cli = typer.Typer(help="Invite participants.", no_args_is_help=True)
@@ -72,6 +73,18 @@ def add(
         base = runtime.settings.public_url or "http://127.0.0.1:8000"
         for person in people:
             typer.echo(invite_url(base, person.token))
+
+
+@participant_cli.command("tree")
+def tree(
+    participant: Annotated[int, typer.Option(help="Participant id.")],
+    out: Annotated[Path, typer.Option(help="Where to write the tree (acv.tree/1).")],
+) -> None:
+    """Write a finished participant's Human Preference Tree (the input of `acv train`)."""
+    with cli_runtime() as runtime, runtime.sessions() as session:
+        doc = trees.participant_tree(session, participant_id=participant)
+    dump_tree(doc, out)
+    typer.echo(f"wrote {out}: {len(doc.candidates)} candidates, champion {doc.tree.root}")
 
 
 @cli.command()

@@ -67,24 +67,71 @@ def tree_figure(doc: TreeDocument, *, thumbs: Mapping[int, np.ndarray] | None = 
                 highlight: frozenset[int] = frozenset(), title: str | None = None,
                 fmt: str = "svg") -> bytes:
     """One Preference Tree as an SVG or PNG file."""
-    pos = tree_layout(doc)
-    width = max(x for x, _ in pos.values()) + 1
-    levels = max(level for _, level in pos.values()) + 1
+    width, levels = _extent(doc)
     fig = Figure(figsize=(max(4.0, 1.1 * width), 0.6 + 1.5 * levels), dpi=100)
     ax = fig.add_axes((0.01, 0.01, 0.98, 0.9 if title else 0.98))
+    draw_tree(ax, doc, thumbs=thumbs, highlight=highlight)
+    if title:
+        fig.suptitle(title, fontsize=11)
+    return _save(fig, fmt)
+
+
+def trees_side_by_side(left: TreeDocument, right: TreeDocument, *,
+                       thumbs: Mapping[int, np.ndarray] | None = None,
+                       highlights: tuple[frozenset[int], frozenset[int]] = (frozenset(),) * 2,
+                       frame_colors: Mapping[int, str] | None = None,
+                       titles: tuple[str, str] = ("", ""), legend: Mapping[str, str] | None = None,
+                       title: str | None = None, fmt: str = "svg") -> bytes:
+    """Two trees over one bracket in one figure, same layout rules (the paper's Figure 4).
+
+    Args:
+        frame_colors: state -> thumbnail frame colour (for example straight vs bent postures).
+        legend: label -> colour, explaining ``frame_colors``.
+    """
+    width, levels = map(max, zip(_extent(left), _extent(right), strict=True))
+    fig = Figure(figsize=(max(8.0, 2.2 * width), 1.0 + 1.5 * levels), dpi=100)
+    for i, (doc, highlight, sub) in enumerate(zip((left, right), highlights, titles,
+                                                  strict=True)):
+        ax = fig.add_axes((0.01 + 0.5 * i, 0.02, 0.48, 0.86 if title else 0.92))
+        draw_tree(ax, doc, thumbs=thumbs, highlight=highlight, frame_colors=frame_colors)
+        ax.set_title(sub, fontsize=10)
+    if title:
+        fig.suptitle(title, fontsize=12)
+    if legend:
+        from matplotlib.patches import Patch
+
+        fig.legend(handles=[Patch(facecolor="white", edgecolor=c, linewidth=2, label=label)
+                            for label, c in legend.items()], loc="lower center",
+                   ncols=len(legend), fontsize=8, frameon=False)
+    return _save(fig, fmt)
+
+
+def _extent(doc: TreeDocument, pos: dict[int, tuple[float, int]] | None = None
+            ) -> tuple[float, int]:
+    """Width in leaves and depth in levels of a tree's layout."""
+    pos = pos or tree_layout(doc)
+    return max(x for x, _ in pos.values()) + 1, max(level for _, level in pos.values()) + 1
+
+
+def draw_tree(ax, doc: TreeDocument, *, thumbs: Mapping[int, np.ndarray] | None = None,
+              highlight: frozenset[int] = frozenset(),
+              frame_colors: Mapping[int, str] | None = None) -> None:
+    """Draw a tree on a matplotlib axis: highlighted states' edges and frames in red, unless
+    ``frame_colors`` gives the frames' colours."""
+    pos = tree_layout(doc)
+    width, levels = _extent(doc, pos)
     for state, node in doc.tree.nodes.items():
         if node.parent is not None:
             _edge(ax, pos[node.parent], pos[state], node.weight, state in highlight)
     for state, node in doc.tree.nodes.items():
-        _node(ax, pos[state], state, node.height, (thumbs or {}).get(state),
-              BAD if state in highlight else GOOD if node.parent is None else EDGE)
+        color = (BAD if state in highlight else GOOD if node.parent is None else EDGE)
+        if frame_colors is not None and state in frame_colors:
+            color = frame_colors[state]
+        _node(ax, pos[state], state, node.height, (thumbs or {}).get(state), color)
     ax.set_xlim(-0.6, width - 0.4)
     ax.set_ylim(-(levels - 1) * 1.5 - 0.75, 0.55)
     ax.set_aspect("equal")
     ax.axis("off")
-    if title:
-        fig.suptitle(title, fontsize=11)
-    return _save(fig, fmt)
 
 
 def _edge(ax, parent: tuple[float, int], child: tuple[float, int], weight: int | None,

@@ -50,7 +50,7 @@ def highlights(metrics: dict[str, Any]) -> tuple[frozenset[int], frozenset[int]]
 def rejected_pairs(metrics: dict[str, Any]) -> list[dict[str, Any]]:
     """Each overturned match as ``{round, human, agent}`` (``agent`` None for a tie)."""
     return [{"round": r["round"], "human": r["human_winner"],
-             "agent": r["agent_winner"] if r["agent_winner"] is not None else None,
+             "agent": r["agent_winner"],
              "other": r["b"] if r["human_winner"] == r["a"] else r["a"]}
             for r in metrics["rejected"]]
 

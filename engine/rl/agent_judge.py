@@ -85,12 +85,7 @@ def agent_scores(trained: TrainedAgent, doc: TreeDocument,
     if doc.env_id != cfg.env_id:
         raise InputError(f"the tree is for {doc.env_id}, but the agent was trained on "
                          f"{cfg.env_id}")
-    env = make_env(doc.env_id)
-    try:
-        obs = np.stack([restore(env, c.qpos, c.qvel) for c in doc.candidates])
-    finally:
-        env.close()
-    x = torch.from_numpy(trained.obs_norm(obs))
+    x = candidate_inputs(trained, doc)
     if judge == "value":
         scores = trained.agent.values(x)[0].double().numpy()
     else:
@@ -100,6 +95,24 @@ def agent_scores(trained: TrainedAgent, doc: TreeDocument,
         reward = np.array([c.env_reward for c in doc.candidates])
         scores = shaping if judge == "shaping" else reward + shaping
     return {c.id: float(s) for c, s in zip(doc.candidates, scores, strict=True)}
+
+
+def candidate_inputs(trained: TrainedAgent, doc: TreeDocument) -> torch.Tensor:
+    """The candidates' observations, normalised as the agent saw them, shape ``(N, obs_dim)``.
+    """
+    env = make_env(doc.env_id)
+    try:
+        obs = np.stack([restore(env, c.qpos, c.qvel) for c in doc.candidates])
+    finally:
+        env.close()
+    return torch.from_numpy(trained.obs_norm(obs))
+
+
+@torch.no_grad()
+def candidate_z(trained: TrainedAgent, doc: TreeDocument) -> dict[int, float]:
+    """The shaping weight z_phi(s) the agent gives each candidate (0 for ``ppo``)."""
+    z = trained.agent.z(candidate_inputs(trained, doc)).double().numpy()
+    return {c.id: float(v) for c, v in zip(doc.candidates, z, strict=True)}
 
 
 def agent_tree(run_dir: Path, step: int | None = None, judge: str = "shaped",

@@ -88,13 +88,13 @@ def _loop(trainer: Trainer, out_dir: Path, logger: RunLogger, progress: Progress
         row = trainer.iterate()
         row["sps"] = (trainer.timesteps - start_steps) / (time.perf_counter() - start_time)
         logger.write(row)
-        if progress is not None:
-            progress(row)
         stop = should_stop is not None and should_stop()
         due = trainer.timesteps // cfg.checkpoint_every > (
             trainer.timesteps - cfg.batch_size) // cfg.checkpoint_every
         if due or stop or trainer.done:
             last_saved = save_checkpoint(trainer.state_dict(), out_dir, trainer.timesteps)
+        if progress is not None:  # after the checkpoint: progress shown is progress kept
+            progress(row)
         if stop:
             break
     return last_saved or find_checkpoint(out_dir)

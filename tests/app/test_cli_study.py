@@ -14,6 +14,7 @@ import pytest
 from typer.testing import CliRunner
 
 from app.cli import cli
+from engine.treefile import load_tree
 
 
 @pytest.fixture
@@ -26,7 +27,7 @@ def run(monkeypatch, backend_url):
     return lambda *args: runner.invoke(cli, list(args))
 
 
-def test_create_invite_simulate_list(run) -> None:
+def test_create_invite_simulate_list(run, tmp_path) -> None:
     created = run("study", "create", "--name", "cli study", "--env", "Hopper-v5",
                   "--candidates", "4", "--seed", "2")
     assert created.exit_code == 0, created.output
@@ -37,6 +38,14 @@ def test_create_invite_simulate_list(run) -> None:
     simulated = run("simulate", "--study", study_id, "--teacher", "standing",
                     "--participants", "3", "--noise", "0.1")
     assert simulated.exit_code == 0 and simulated.output.count("finished (standing)") == 3
+    finished = re.search(r"participant (\d+) finished", simulated.output)[1]
+    tree = tmp_path / "human.json"
+    exported = run("participant", "tree", "--participant", finished, "--out", str(tree))
+    assert exported.exit_code == 0, exported.output
+    assert load_tree(tree).judge == f"participant:{finished}"
+    unfinished = run("participant", "tree", "--participant", str(int(finished) - 1), "--out",
+                     str(tree))
+    assert unfinished.exit_code == 2 and "has not finished the bracket" in unfinished.stderr
     listed = run("study", "list")
     assert re.search(rf"^{study_id}\tready\tHopper-v5\t4\t3/5 finished\tcli study$",
                      listed.output, re.M)
@@ -47,6 +56,8 @@ def test_create_invite_simulate_list(run) -> None:
     (["study", "create", "--name", "x", "--candidates", "200"], "n_candidates"),
     (["participant", "add", "--study", "424242"], "study 424242 not found"),
     (["simulate", "--study", "424242"], "study 424242 not found"),
+    (["participant", "tree", "--participant", "424242", "--out", "x.json"],
+     "participant 424242 not found"),
     (["simulate", "--study", "1", "--teacher", "oracle"], "unknown teacher"),
     (["simulate", "--study", "1", "--noise", "2"], "noise"),
 ])

@@ -1,0 +1,85 @@
+"""The numbers of a reproduction: returns, z, and conformance at every checkpoint.
+
+Everything here reads the run folders :mod:`app.reproduce.plan` trained; nothing is copied
+from the paper. Postures are classed with the ``standing`` teacher's score (DESIGN.md
+section 2): ``straight`` when it is at least :data:`STRAIGHT_SCORE`, else ``bent``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from engine.conformance import compare
+from engine.envs import env_model
+from engine.rl.agent_judge import agent_tree, candidate_z, load_agent
+from engine.rl.checkpoint import find_checkpoint, list_checkpoints
+from engine.rl.logger import read_metrics
+from engine.teachers import standing_score
+from engine.treefile import TreeDocument
+
+#: ``standing`` score from which a posture counts as straight (upright at standing height).
+STRAIGHT_SCORE = 0.5
+
+
+def posture_classes(doc: TreeDocument) -> dict[int, str]:
+    """Candidate id -> ``"straight"`` or ``"bent"``."""
+    qpos = np.stack([c.qpos for c in doc.candidates])
+    scores = standing_score(qpos, env_model(doc.env_id))
+    return {c.id: "straight" if s >= STRAIGHT_SCORE else "bent"
+            for c, s in zip(doc.candidates, scores, strict=True)}
+
+
+def bent_share(doc: TreeDocument, classes: dict[int, str]) -> dict[str, Any]:
+    """Of the matches between a straight and a bent posture, how many the bent one won."""
+    mixed = [(m, w) for m, w in doc.matches if classes[m.a] != classes[m.b]]
+    bent = sum(classes[w] == "bent" for _, w in mixed)
+    return {"matches": len(mixed), "bent_won": bent,
+            "share": bent / len(mixed) if mixed else None}
+
+
+def training_stats(run_dir: Path) -> dict[str, Any]:
+    """Final true return (mean of the last 100 episodes), its best value, and z over training.
+    """
+    rows = read_metrics(run_dir)
+    returns = [r["return_100"] for r in rows if r.get("return_100") is not None]
+    z_means = [r["z_mean"] for r in rows]
+    return {"timesteps": rows[-1]["timesteps"],
+            "final_return_100": returns[-1] if returns else None,  # None: no episode ended
+            "best_return_100": max(returns, default=None), "z_mean_final": rows[-1]["z_mean"],
+            "z_std_final": rows[-1]["z_std"], "z_mean_over_training": float(np.mean(z_means)),
+            "z_min_over_training": float(np.min(z_means)),
+            "z_max_over_training": float(np.max(z_means))}
+
+
+def conformance_curve(run_dir: Path, advice: TreeDocument) -> list[dict[str, Any]]:
+    """Conformance of the Agent Preference Tree (``shaped`` judge) at every checkpoint."""
+    rows = []
+    for step in list_checkpoints(run_dir):
+        c = compare(advice, agent_tree(run_dir, step, "shaped", advice))
+        rows.append({"step": step, "n_agree": c.n_agree, "n_matches": c.n_matches,
+                     "match_agreement": c.match_agreement, "kendall_tau_b": c.kendall_tau_b,
+                     "tree_edit_distance": c.tree_edit_distance,
+                     "same_champion": c.same_champion, "n_rejected": len(c.rejected)})
+    return rows
+
+
+def final_agent(run_dir: Path, advice: TreeDocument,
+                classes: dict[int, str]) -> tuple[TreeDocument, dict[str, Any]]:
+    """The last checkpoint's Agent Preference Tree and its details: the metrics of ``acv
+    compare``, z at the candidates by posture, and the bent share of its decisions."""
+    doc = agent_tree(run_dir, None, "shaped", advice)
+    z = candidate_z(load_agent(find_checkpoint(run_dir)), advice)
+    by_class = {k: [z[i] for i in z if classes[i] == k] for k in ("straight", "bent")}
+    details = {
+        "conformance": compare(advice, doc).to_json(),
+        "champion": doc.tree.root,
+        "z_at_candidates": {str(i): v for i, v in z.items()},
+        "z_mean_straight": float(np.mean(by_class["straight"])) if by_class["straight"]
+        else None,
+        "z_mean_bent": float(np.mean(by_class["bent"])) if by_class["bent"] else None,
+        "bent_share": bent_share(doc, classes),
+    }
+    return doc, details

@@ -1,0 +1,111 @@
+"""``acv reproduce`` end to end on a tiny budget: outputs, resume, a participant's tree."""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+import pytest
+from PIL import Image
+from typer.testing import CliRunner
+
+from app.cli import cli
+from app.reproduce.plan import ARMS
+
+TINY = ["--env", "Hopper-v5", "--timesteps", "256", "--n-envs", "2", "--num-steps", "64",
+        "--checkpoint-every", "128", "--candidates", "6"]
+FIGURES = ["figure3", "figure4-case1", "figure4-case2", "figure4-control", "conformance"]
+
+
+def acv(*args: str):
+    return CliRunner().invoke(cli, [str(a) for a in args])
+
+
+def _mtimes(out: Path) -> dict[str, int]:
+    return {str(p): p.stat().st_mtime_ns for p in (out / "runs").rglob("*.pt")}
+
+
+@pytest.fixture(scope="module")
+def results(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("reproduce") / "results"
+    result = acv("reproduce", "--out", out, *TINY)
+    assert result.exit_code == 0, result.output
+    return out
+
+
+def test_writes_figures_summary_and_readme(results: Path) -> None:
+    for name in FIGURES:
+        with Image.open(results / f"{name}.png") as img:
+            assert img.width > 300 and img.height > 200
+        assert (results / f"{name}.svg").read_text().lstrip().startswith("<?xml")
+    summary = json.loads((results / "summary.json").read_text())
+    assert list(summary["arms"]) == [arm.name for arm in ARMS]
+    for arm in ARMS:
+        seed = summary["arms"][arm.name]["seeds"][0]
+        assert seed["timesteps"] == 256
+        if arm.advice is not None:
+            assert [r["step"] for r in seed["conformance_curve"]] == [128, 256]
+            assert seed["final"]["conformance"]["n_matches"] == 5
+    assert summary["arms"]["ppo"]["seeds"][0]["z_mean_final"] == 0.0
+    assert summary["arms"]["control"]["seeds"][0]["z_mean_final"] == 1.0
+    assert [type(p["holds"]) for p in summary["predictions"]] == [bool] * 4
+    readme = (results / "README.md").read_text()
+    assert "| claim | paper | measured | holds? |" in readme
+    assert all(f"]({name}.png)" in readme for name in FIGURES)
+
+
+def test_both_cases_share_one_bracket(results: Path) -> None:
+    good, standing = (json.loads((results / "advice" / f"{n}.json").read_text())
+                      for n in ("good", "standing"))
+    assert (good["judge"], standing["judge"]) == ("good", "standing")
+    assert good["first_round"] == standing["first_round"]
+    def states(doc: dict) -> list:
+        return [(c["qpos"], c["qvel"], c["env_reward"]) for c in doc["candidates"]]
+
+    assert states(good) == states(standing)
+
+
+def test_a_second_call_resumes_without_retraining(results: Path) -> None:
+    before = _mtimes(results)
+    last = results / "runs" / "case2" / "seed_0" / "checkpoints" / "step_256.pt"
+    last.unlink()  # as if the reproduction had been cut off after step 128
+    result = acv("reproduce", "--out", results, *TINY)
+    assert result.exit_code == 0, result.output
+    after = _mtimes(results)
+    assert last.is_file()
+    assert {k: v for k, v in after.items() if k != str(last)} == \
+        {k: v for k, v in before.items() if k != str(last)}
+
+
+@pytest.mark.parametrize(("args", "message"), [
+    (["--timesteps", "512"], "other settings (timesteps)"),
+    (["--seeds", "0"], "--seeds must be at least 1"),
+    (["--p", "1.5"], "--p must be in [0, 1]"),
+    (["--study", "1"], "--study and --participant go together"),
+    (["--env", "CartPole-v1"], "not a MuJoCo env"),
+])
+def test_bad_input_is_one_line_and_exit_2(results: Path, args: list[str], message: str) -> None:
+    options = dict(zip(TINY[::2], TINY[1::2], strict=True)) | dict(zip(args[::2], args[1::2],
+                                                                       strict=True))
+    result = acv("reproduce", "--out", results, *[x for kv in options.items() for x in kv])
+    assert result.exit_code == 2, result.output
+    assert message in result.stderr and len(result.stderr.strip().splitlines()) == 1
+
+
+def test_a_participants_tree_is_the_case_2_advice(monkeypatch, tmp_path: Path) -> None:
+    monkeypatch.setenv("ACV_DATA_DIR", str(tmp_path / "data"))
+    monkeypatch.setenv("DATABASE_URL", f"sqlite:///{tmp_path / 'acv.sqlite3'}")
+    created = acv("study", "create", "--name", "r", "--env", "Hopper-v5", "--candidates", "6")
+    study = re.search(r"study (\d+) ready", created.output)[1]
+    simulated = acv("simulate", "--study", study, "--teacher", "standing")
+    participant = re.search(r"participant (\d+)", simulated.output)[1]
+    out = tmp_path / "results"
+    result = acv("reproduce", "--out", out, "--study", study, "--participant", participant,
+                 *TINY)
+    assert result.exit_code == 0, result.output
+    advice = json.loads((out / "advice" / "standing.json").read_text())
+    assert advice["judge"] == f"participant:{participant}"
+    wrong = acv("reproduce", "--out", tmp_path / "other", "--study", "99", "--participant",
+                participant, *TINY)
+    assert wrong.exit_code == 2 and "not in study 99" in wrong.stderr
