@@ -56,6 +56,8 @@ class Conformance:
 def compare(human: TreeDocument, agent: TreeDocument) -> Conformance:
     """Conformance of ``agent``'s tree to ``human``'s; both must share one bracket."""
     check_same_bracket(human, agent)
+    if not human.matches:  # binomtest needs n >= 1
+        raise InputError("the trees have no matches to compare (fewer than 2 candidates)")
     rejected, agree = [], 0
     for m, human_winner in human.matches:
         pick = agent_pick(agent, m.round, m.a, m.b)

@@ -1,11 +1,13 @@
 """Gymnasium MuJoCo environments: creation, state snapshots and restoring a stored state.
 
 A *state* is what we need to restore and render a moment of an episode: ``qpos`` and ``qvel``.
-Everything else (observation, reward terms) is derived from them by :func:`restore`.
+Everything else (observation, reward terms) is derived from them by :func:`restore`;
+:func:`snapshot` captures all of it as a :class:`StateSnapshot`.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from functools import lru_cache
 
 import gymnasium as gym
@@ -13,6 +15,7 @@ import mujoco
 import numpy as np
 
 from engine.errors import InputError
+from engine.rewards import reward_terms, total_reward
 
 DEFAULT_ENV_ID = "Humanoid-v5"
 
@@ -37,7 +40,11 @@ def check_env_id(env_id: str) -> None:
     if env_id not in gym.registry:
         raise InputError(f"unknown env {env_id!r}: expected a Gymnasium MuJoCo id such as "
                          f"{DEFAULT_ENV_ID!r} or 'Hopper-v5'")
-    env = gym.make(env_id)
+    try:
+        env = gym.make(env_id)
+    except Exception as exc:  # a missing extra (box2d, ...), a broken entry point
+        raise InputError(f"cannot make env {env_id!r}: {type(exc).__name__}: "
+                         f"{str(exc).splitlines()[0] if str(exc) else 'no details'}") from exc
     try:
         if not hasattr(env.unwrapped, "set_state") or not hasattr(env.unwrapped, "data"):
             raise InputError(f"env {env_id!r} is not a MuJoCo env (no qpos/qvel state)")
@@ -62,6 +69,50 @@ def restore(env: gym.Env, qpos: np.ndarray, qvel: np.ndarray) -> np.ndarray:
     mujoco.mj_rnePostConstraint(base.model, base.data)
     mujoco.mj_subtreeVel(base.model, base.data)
     return np.asarray(base._get_obs(), dtype=np.float64)
+
+
+@dataclass(frozen=True, eq=False)
+class StateSnapshot:
+    """A stored state and what the env derives from it.
+
+    Attributes:
+        qpos: generalised positions, shape ``(nq,)``.
+        qvel: generalised velocities, shape ``(nv,)``.
+        observation: the env's observation in this state, as :func:`restore` returns it in a
+            freshly reset env.
+        reward_terms: the named terms of R(s) (:func:`engine.rewards.reward_terms`).
+    """
+
+    qpos: np.ndarray
+    qvel: np.ndarray
+    observation: np.ndarray
+    reward_terms: dict[str, float]
+
+    @property
+    def reward(self) -> float:
+        """R(s), the sum of the reward terms."""
+        return total_reward(self.reward_terms)
+
+
+def snapshot(env: gym.Env) -> StateSnapshot:
+    """Capture the env's current state; :func:`restore` of its qpos/qvel gives it back.
+
+    Observation and reward terms are computed on scratch MuJoCo data holding only
+    ``(qpos, qvel)``, with zero control and solver warm start, as in a freshly reset env.
+    Humanoid's contact forces (in its observation and contact cost) depend on both, so this
+    makes the snapshot a function of the state alone, the same whichever env or rollout it
+    comes from; the env itself is left untouched, so it may be taken in the middle of a rollout.
+    """
+    base = env.unwrapped
+    live = base.data
+    qpos, qvel = live.qpos.copy(), live.qvel.copy()
+    base.data = mujoco.MjData(base.model)  # the env's methods read `data`: point them here
+    try:
+        observation = restore(env, qpos, qvel)
+        terms = reward_terms(env)
+    finally:
+        base.data = live
+    return StateSnapshot(qpos, qvel, observation, terms)
 
 
 @lru_cache(maxsize=16)

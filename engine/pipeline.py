@@ -7,6 +7,7 @@ import numpy as np
 from engine.bracket import Bracket, make_first_round
 from engine.candidates import SamplingMode, sample_candidates
 from engine.envs import env_model
+from engine.errors import check_seed
 from engine.teachers import make_teacher
 from engine.tournament import Judge, play
 from engine.treefile import TreeDocument, make_document
@@ -19,8 +20,11 @@ def run_tournament(*, env_id: str, n_candidates: int, p: float, seed: int, teach
 
     All randomness comes from one generator seeded with ``seed``, so the same arguments give
     the same document.
+
+    Raises:
+        InputError: a bad argument (negative seed, N < 2, unknown env, teacher or mode).
     """
-    rng = np.random.default_rng(seed)
+    rng = np.random.default_rng(check_seed(seed))
     candidates = sample_candidates(env_id, n_candidates, rng=rng, mode=sampling)
     abilities = np.array([c.env_reward for c in candidates])
     first_round = make_first_round([c.id for c in candidates], abilities, p, rng)

@@ -23,13 +23,29 @@ def state_reward(env: gym.Env, action: np.ndarray | None = None) -> float:
     Returns:
         healthy bonus + forward weight * COM x velocity - contact cost - control cost.
     """
+    return total_reward(reward_terms(env, action))
+
+
+def reward_terms(env: gym.Env, action: np.ndarray | None = None) -> dict[str, float]:
+    """The named terms of R(s) in the env's current state (see :func:`state_reward`).
+
+    Returns:
+        ``healthy`` (bonus), ``forward`` (weight * COM x velocity), ``contact_cost`` and
+        ``control_cost`` (0 without an action); the costs are positive numbers.
+    """
     base = env.unwrapped
-    reward = float(getattr(base, "healthy_reward", 0.0))
-    reward += float(getattr(base, "_forward_reward_weight", 1.0)) * com_x_velocity(base)
-    reward -= float(getattr(base, "contact_cost", 0.0))
+    control = 0.0
     if action is not None and hasattr(base, "control_cost"):
-        reward -= float(base.control_cost(np.asarray(action)))
-    return reward
+        control = float(base.control_cost(np.asarray(action)))
+    return {"healthy": float(getattr(base, "healthy_reward", 0.0)),
+            "forward": float(getattr(base, "_forward_reward_weight", 1.0)) * com_x_velocity(base),
+            "contact_cost": float(getattr(base, "contact_cost", 0.0)),
+            "control_cost": control}
+
+
+def total_reward(terms: dict[str, float]) -> float:
+    """R(s) from :func:`reward_terms` (this order of operations keeps stored values exact)."""
+    return terms["healthy"] + terms["forward"] - terms["contact_cost"] - terms["control_cost"]
 
 
 def com_x_velocity(base: gym.Env) -> float:

@@ -17,7 +17,7 @@ import numpy as np
 
 from engine.bracket import Bracket, FirstRound, Match
 from engine.candidates import Candidate
-from engine.errors import InputError
+from engine.errors import InputError, check_seed
 from engine.preference_tree import PreferenceTree, from_dendrogram
 from engine.tournament import dendrogram
 
@@ -117,7 +117,7 @@ def load_tree(path: str | Path) -> TreeDocument:
         raise InputError(f"cannot read tree file {path}: {exc}") from exc
     try:
         return tree_from_json(json.loads(text))
-    except json.JSONDecodeError as exc:
+    except (json.JSONDecodeError, RecursionError) as exc:
         raise InputError(f"{path} is not an {SCHEMA} document: invalid JSON ({exc})") from exc
     except InputError as exc:
         raise InputError(f"{path}: {exc}") from exc
@@ -129,31 +129,49 @@ def tree_from_json(obj: Any) -> TreeDocument:
         raise InputError(f"not an {SCHEMA} document (missing or wrong 'schema')")
     try:
         doc = _parse(obj)
-    except (KeyError, TypeError, ValueError, IndexError) as exc:
-        if isinstance(exc, InputError):
-            raise
+        _check_tree(doc, obj["tree"])
+    except InputError:
+        raise
+    except KeyError as exc:
+        raise InputError(f"malformed {SCHEMA} document: missing key {exc}") from exc
+    except (TypeError, ValueError, IndexError, AttributeError, OverflowError) as exc:
+        # a value of the wrong type or shape somewhere (a list as an id, text as a reward, ...)
         raise InputError(f"malformed {SCHEMA} document: {type(exc).__name__}: {exc}") from exc
-    _check_tree(doc, obj["tree"])
     return doc
 
 
 def _parse(obj: dict[str, Any]) -> TreeDocument:
-    cands = [Candidate(int(c["id"]), _floats(c["qpos"]), _floats(c["qvel"]),
-                       float(c["env_reward"])) for c in obj["candidates"]]
-    if [c.id for c in cands] != list(range(len(cands))):
-        raise InputError("candidate ids must be 0 .. N-1 in order")
-    scores = ({c["id"]: float(c["score"]) for c in obj["candidates"]}
-              if all("score" in c for c in obj["candidates"]) else None)
+    cands, scores = _candidates(obj["candidates"])
     first_round = [(int(a), None if b is None else int(b)) for a, b in obj["first_round"]]
     bracket = Bracket(first_round)
     if sorted(bracket.players) != list(range(len(cands))):
         raise InputError("first round must hold every candidate exactly once")
     results = _results(bracket, obj["matches"])
     tr = obj["tree_reward"]
-    return make_document(env_id=str(obj["env_id"]), seed=int(obj["seed"]), p=float(obj["p"]),
-                         judge=str(obj["judge"]), candidates=cands, first_round=first_round,
-                         results=results, r_b=float(tr["r_b"]), r_e=float(tr["r_e"]),
-                         scores=scores)
+    return make_document(env_id=str(obj["env_id"]), seed=check_seed(int(obj["seed"])),
+                         p=_probability(obj["p"]), judge=str(obj["judge"]), candidates=cands,
+                         first_round=first_round, results=results, r_b=float(tr["r_b"]),
+                         r_e=float(tr["r_e"]), scores=scores)
+
+
+def _candidates(items: list[dict[str, Any]]) -> tuple[list[Candidate], dict[int, float] | None]:
+    """The candidates, and their judge scores when every one has a ``score``."""
+    cands = [Candidate(int(c["id"]), _floats(c["qpos"]), _floats(c["qvel"]),
+                       float(c["env_reward"])) for c in items]
+    if len(cands) < 2:  # one player means no match: nothing to compare or train on
+        raise InputError(f"a tree needs at least 2 candidates, got {len(cands)}")
+    if [c.id for c in cands] != list(range(len(cands))):
+        raise InputError("candidate ids must be 0 .. N-1 in order")
+    scores = ({c.id: float(item["score"]) for c, item in zip(cands, items, strict=True)}
+              if all("score" in item for item in items) else None)
+    return cands, scores
+
+
+def _probability(value: Any) -> float:
+    p = float(value)
+    if not 0.0 <= p <= 1.0:
+        raise InputError(f"'p' must be in [0, 1], got {p}")
+    return p
 
 
 def _floats(values: Any) -> np.ndarray:
@@ -183,14 +201,24 @@ def _results(bracket: Bracket, matches: list[dict[str, Any]]) -> dict[tuple[int,
     return results
 
 
-def _check_tree(doc: TreeDocument, stored: dict[str, Any]) -> None:
-    nodes = stored["nodes"] if isinstance(stored, dict) else None
-    if not isinstance(nodes, list) or stored.get("root") != doc.tree.root or \
-            len(nodes) != len(doc.tree):
+def _check_tree(doc: TreeDocument, stored: Any) -> None:
+    """The stored ``tree`` block must equal the one rebuilt from the matches."""
+    if not isinstance(stored, dict) or not isinstance(stored.get("nodes"), list):
+        raise InputError("'tree' must be an object with a 'nodes' list")
+    nodes = stored["nodes"]
+    if stored.get("root") != doc.tree.root or len(nodes) != len(doc.tree):
         raise InputError("'tree' does not match the tree built from 'matches'")
     for n in nodes:
-        ref = doc.tree.nodes.get(n.get("state")) if isinstance(n, dict) else None
-        if ref is None or (n.get("parent"), n.get("height"), n.get("depth"), n.get("weight")) \
-                != (ref.parent, ref.height, ref.depth, ref.weight) or \
-                not math.isclose(float(n.get("reward", math.nan)), ref.reward, abs_tol=1e-9):
+        if not isinstance(n, dict) or not _same_node(n, doc.tree):
             raise InputError("'tree' does not match the tree built from 'matches'")
+
+
+def _same_node(n: dict[str, Any], tree: PreferenceTree) -> bool:
+    state = n.get("state")
+    ref = tree.nodes.get(state) if type(state) is int else None  # not a list, bool, float
+    reward = n.get("reward")
+    if ref is None or not isinstance(reward, int | float) or isinstance(reward, bool):
+        return False
+    return (n.get("parent"), n.get("height"), n.get("depth"), n.get("weight")) == (
+        ref.parent, ref.height, ref.depth, ref.weight) and math.isclose(
+        reward, ref.reward, abs_tol=1e-9)

@@ -5,22 +5,42 @@ from __future__ import annotations
 import json
 import sys
 
-from app.cli import (  # noqa: F401  (registers commands)
-    render,
-    reproduce,
-    serve,
-    study,
-    tournament,
-    train,
-    worker,
-)
 from app.cli.root import cli
 from engine.errors import InputError
+from engine.mujoco_gl import check_mujoco_gl
+
+
+def _register_commands() -> None:
+    """Import the command modules, which register their commands (and import mujoco)."""
+    from app.cli import (  # noqa: F401
+        render,
+        reproduce,
+        serve,
+        study,
+        tournament,
+        train,
+        worker,
+    )
+
+
+def _startup_error() -> InputError | None:
+    """A bad ``MUJOCO_GL`` makes importing mujoco raise: report it instead of importing."""
+    try:
+        check_mujoco_gl()
+    except InputError as exc:
+        return exc
+    _register_commands()
+    return None
+
+
+_STARTUP_ERROR = _startup_error()
 
 
 def main() -> None:
     """Console-script entry point: bad input becomes one stderr line and exit code 2."""
     try:
+        if _STARTUP_ERROR is not None:
+            raise _STARTUP_ERROR
         cli()
     except (InputError, json.JSONDecodeError, FileNotFoundError, IsADirectoryError,
             PermissionError, UnicodeDecodeError) as exc:

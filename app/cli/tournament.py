@@ -14,6 +14,7 @@ from app.cli.root import cli, fail
 from engine.candidates import SAMPLING_MODES
 from engine.conformance import Conformance, compare
 from engine.envs import DEFAULT_ENV_ID, check_env_id
+from engine.errors import check_seed
 from engine.pipeline import replay_with_teacher, run_tournament
 from engine.teachers import TEACHERS
 from engine.treefile import TreeDocument, dump_tree, load_tree
@@ -40,14 +41,15 @@ def tournament(
     if replay is not None:
         doc = replay_with_teacher(load_tree(replay), teacher, noise)
     else:
-        _check_new(env, candidates, p, sampling)
+        _check_new(env, candidates, p, seed, sampling)
         doc = run_tournament(env_id=env, n_candidates=candidates, p=p, seed=seed,
                              teacher=teacher, noise=noise, sampling=sampling)
     dump_tree(doc, out)
     typer.echo(f"wrote {out}: {len(doc.candidates)} candidates, champion {doc.tree.root}")
 
 
-def _check_new(env: str, candidates: int, p: float, sampling: str) -> None:
+def _check_new(env: str, candidates: int, p: float, seed: int, sampling: str) -> None:
+    check_seed(seed)
     if candidates < 2:
         fail(f"--candidates must be at least 2, got {candidates}")
     if not 0.0 <= p <= 1.0:

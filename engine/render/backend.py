@@ -4,7 +4,9 @@ MuJoCo's Python bindings pick their GL context class when ``mujoco`` is first im
 ``MUJOCO_GL``; unset, they pick GLFW, which needs a display. Here the choice is made on first
 use instead, and installed into the bindings even if ``mujoco`` was imported earlier (the env
 module imports it). Each candidate is probed in a subprocess: PyOpenGL binds its platform
-once per process, so a failed EGL attempt would rule out OSMesa in the same process.
+once per process, so a failed EGL attempt would rule out OSMesa in the same process. A
+``MUJOCO_GL`` that MuJoCo does not know makes importing ``mujoco`` itself fail: front ends
+check it first with :func:`engine.mujoco_gl.check_mujoco_gl`.
 """
 
 from __future__ import annotations
@@ -14,6 +16,8 @@ import os
 import subprocess
 import sys
 import threading
+
+from engine.mujoco_gl import check_mujoco_gl
 
 #: Backends tried in order when ``MUJOCO_GL`` is unset: EGL is faster, OSMesa more portable.
 AUTO_BACKENDS: tuple[str, ...] = ("egl", "osmesa")
@@ -56,10 +60,12 @@ def select_backend() -> str:
     """The backend to use: ``MUJOCO_GL`` when set, else the first of EGL, OSMesa that works.
 
     Raises:
+        InputError: ``MUJOCO_GL`` is set to a value MuJoCo does not know.
         BackendError: ``MUJOCO_GL`` is unset and neither EGL nor OSMesa works.
     """
     requested = os.environ.get("MUJOCO_GL", "").strip().lower()
     if requested:
+        check_mujoco_gl()
         return requested
     for backend in AUTO_BACKENDS:
         if probe(backend):

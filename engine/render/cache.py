@@ -55,10 +55,10 @@ class RenderCache:
         return self.root / key[:2] / f"{key}.{fmt}"
 
     def get(self, key: str, fmt: str) -> bytes | None:
-        """The cached image bytes, or ``None`` on a miss."""
+        """The cached image bytes, or ``None`` on a miss (or when the cache cannot be read)."""
         try:
             return self.path(key, fmt).read_bytes()
-        except FileNotFoundError:
+        except OSError:  # missing, or an unreadable cache directory: render instead
             return None
 
     def put(self, key: str, fmt: str, data: bytes) -> Path:

@@ -9,6 +9,7 @@ encoding, cache write) on their own threads, which overlaps it with the next ren
 from __future__ import annotations
 
 import atexit
+import logging
 import os
 import queue
 import threading
@@ -31,6 +32,7 @@ State = tuple[np.ndarray, np.ndarray]
 #: Frames rendered ahead of the consumer in a batch (bounds memory at large sizes).
 LOOKAHEAD = 4
 _STOP = None
+log = logging.getLogger(__name__)
 
 
 class RenderService:
@@ -50,6 +52,7 @@ class RenderService:
         self._lock = threading.Lock()
         self._thread: threading.Thread | None = None
         self._closed = False
+        self._cache_warned = False
 
     def render(self, env_id: str, qpos: np.ndarray, qvel: np.ndarray,
                view: str = DEFAULT_VIEW, size: int = DEFAULT_SIZE, fmt: ImageFormat = "jpg",
@@ -137,8 +140,18 @@ class RenderService:
             return hit
         data = encode(job.result(), spec)
         if self.cache is not None:
-            self.cache.put(key, spec.fmt, data)
+            self._store(key, spec.fmt, data)
         return data
+
+    def _store(self, key: str, fmt: str, data: bytes) -> None:
+        """Cache an image if possible: a cache that cannot be written only costs speed."""
+        try:
+            self.cache.put(key, fmt, data)
+        except OSError as exc:
+            if not self._cache_warned:  # once per service: not one line per image
+                self._cache_warned = True
+                log.warning("render cache %s is not writable (%s); rendering without it",
+                            self.cache.root, exc)
 
     def _submit(self, task: Callable[[FrameRenderer], Any]) -> Future:
         """Queue ``task(frame_renderer)`` for the render thread (started on first use)."""

@@ -8,10 +8,12 @@ round) is played again with the higher score winning each match. Judges:
 - ``shaping``: z_phi(s) F(s), the part of it that comes from the advice;
 - ``value``: the shaped critic V(s).
 
-R(s) is the candidate's stored env reward, F the run's advice reward (times
-``advice_scale``), and z_phi and V are evaluated on the candidate's observation (restored with
-:func:`engine.envs.restore`, normalised as in training). ``ppo`` runs have z = 0 and
-``ppo-shaped`` runs z = 1.
+R(s) is the candidate's stored env reward, F the advice reward the agent trained with (built
+from the run's ``advice.json``, times ``advice_scale``), and z_phi and V are evaluated on the
+candidate's observation (restored with :func:`engine.envs.restore`, normalised as in
+training). The tree being replayed supplies only the bracket and the candidates; F comes from
+it only for a run saved without ``advice.json`` (trained with a plain F callable). ``ppo`` runs
+have z = 0 and ``ppo-shaped`` runs z = 1.
 """
 
 from __future__ import annotations
@@ -30,6 +32,7 @@ from engine.rl.config import TrainConfig
 from engine.rl.networks import Agent
 from engine.rl.normalize import ObsNormalizer
 from engine.rl.runner import advice_reward, load_run_advice
+from engine.rl.shaping import AdviceFn
 from engine.tournament import ScoreJudge
 from engine.treefile import TreeDocument
 
@@ -76,9 +79,17 @@ def load_agent(path: Path) -> TrainedAgent:
 
 
 @torch.no_grad()
-def agent_scores(trained: TrainedAgent, doc: TreeDocument,
-                 judge: str = "shaped") -> dict[int, float]:
-    """The agent's score of every candidate of ``doc`` under ``judge``."""
+def agent_scores(trained: TrainedAgent, doc: TreeDocument, judge: str = "shaped",
+                 advice: AdviceFn | None = None) -> dict[int, float]:
+    """The agent's score of every candidate of ``doc`` under ``judge``.
+
+    Args:
+        trained: the checkpoint's networks.
+        doc: the tree whose candidates are scored.
+        judge: one of :data:`JUDGES`.
+        advice: the F the agent trained with; built from ``doc`` when None (right only when
+            ``doc`` is the run's own advice tree).
+    """
     if judge not in JUDGES:
         raise InputError(f"unknown judge {judge!r}: expected one of {', '.join(JUDGES)}")
     cfg = trained.config
@@ -90,8 +101,8 @@ def agent_scores(trained: TrainedAgent, doc: TreeDocument,
         scores = trained.agent.values(x)[0].double().numpy()
     else:
         qpos = np.stack([c.qpos for c in doc.candidates])
-        shaping = trained.agent.z(x).double().numpy() * cfg.advice_scale * advice_reward(
-            cfg, doc)(qpos)
+        f = advice if advice is not None else advice_reward(cfg, doc)
+        shaping = trained.agent.z(x).double().numpy() * cfg.advice_scale * f(qpos)
         reward = np.array([c.env_reward for c in doc.candidates])
         scores = shaping if judge == "shaping" else reward + shaping
     return {c.id: float(s) for c, s in zip(doc.candidates, scores, strict=True)}
@@ -123,15 +134,17 @@ def agent_tree(run_dir: Path, step: int | None = None, judge: str = "shaped",
         run_dir: the training run directory.
         step: checkpoint timesteps; the latest when None.
         judge: one of :data:`JUDGES`.
-        advice: the tree whose bracket is replayed (and whose F is used); by default the
-            run's ``advice.json``.
+        advice: the tree whose bracket is replayed; by default the run's ``advice.json``.
+            The judge's F is always the run's own (see the module docstring).
 
     Raises:
         InputError: no advice tree, no such checkpoint, a damaged checkpoint, another env.
     """
-    doc = advice if advice is not None else load_run_advice(run_dir)
+    own = load_run_advice(run_dir)
+    doc = advice if advice is not None else own
     if doc is None:
         raise InputError(f"{run_dir} was trained without advice: pass the tree to replay")
     trained = load_agent(find_checkpoint(run_dir, step))
-    scores = agent_scores(trained, doc, judge)
+    f = advice_reward(trained.config, own) if own is not None else None
+    scores = agent_scores(trained, doc, judge, f)
     return replay(doc, ScoreJudge(scores), f"agent:{judge}@{trained.timesteps}", scores=scores)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -16,6 +17,10 @@ ADVISED_ALGOS: frozenset[str] = frozenset(ALGOS[1:])
 
 BIPARS_ALGOS: frozenset[str] = frozenset(ALGOS[2:])
 """Algorithms that learn the shaping weight z_phi (Hu et al. 2020)."""
+
+MIN_MINIBATCH = 2
+"""Fewest transitions per minibatch: advantages are normalised by their std over it, and the
+std of one value is NaN (silently NaN training)."""
 
 
 @dataclass(frozen=True)
@@ -90,17 +95,43 @@ class TrainConfig:
         checks = [
             (self.algo in ALGOS, f"unknown algo {self.algo!r}: choose one of {', '.join(ALGOS)}"),
             (self.total_timesteps > 0, f"timesteps must be positive, got {self.total_timesteps}"),
+            (0 <= self.seed < 2**64, f"seed must be in 0 .. 2**64-1, got {self.seed}"),
             (self.n_envs >= 1 and self.num_steps >= 2, "n_envs must be >= 1, num_steps >= 2"),
-            (1 <= self.num_minibatches <= self.batch_size,
-             f"num_minibatches must lie in [1, {self.batch_size}]"),
+            (self.num_minibatches >= 1, "num_minibatches must be >= 1"),
+            (self.num_minibatches < 1 or self.minibatch_size >= MIN_MINIBATCH,
+             self._minibatch_message()),
             (self.update_epochs >= 1 and self.z_epochs >= 1, "epochs must be >= 1"),
             (0 < self.gamma <= 1 and 0 <= self.gae_lambda <= 1, "gamma/gae_lambda out of range"),
             (self.learning_rate > 0 and self.z_learning_rate > 0, "learning rates must be > 0"),
             (self.checkpoint_every > 0, "checkpoint-every must be positive"),
             (0 < abs(self.z_init) < self.z_max, "z_init must satisfy 0 < |z_init| < z_max"),
             (self.advice_scale > 0, f"advice-scale must be positive, got {self.advice_scale}"),
+            *self._advice_checks(),
         ]
         return [message for ok, message in checks if not ok]
+
+    def _advice_checks(self) -> list[tuple[bool, str]]:
+        # deferred: engine.advice loads mujoco and gymnasium; this module stays light
+        from engine.advice import ADVICE_MODES, DEPTH_FACTORS
+
+        return [
+            (self.advice_mode in ADVICE_MODES, f"unknown advice mode {self.advice_mode!r}: "
+                                               f"choose one of {', '.join(ADVICE_MODES)}"),
+            (self.advice_depth_factor in DEPTH_FACTORS,
+             f"unknown advice depth factor {self.advice_depth_factor!r}: choose one of "
+             f"{', '.join(DEPTH_FACTORS)}"),
+            (math.isfinite(self.advice_kappa) and self.advice_kappa > 0,
+             f"advice kappa must be a positive number, got {self.advice_kappa}"),
+        ]
+
+    def _minibatch_message(self) -> str:
+        # the CLI has no --num-minibatches: name the options it does have
+        n = max(self.num_minibatches, 1)
+        return (f"a rollout of n_envs x num_steps = {self.n_envs} x {self.num_steps} = "
+                f"{self.batch_size} transitions split into num_minibatches = {n} leaves "
+                f"{self.batch_size // n} per minibatch (at least {MIN_MINIBATCH} needed): raise "
+                f"--n-envs or --num-steps so that n-envs x num-steps >= {MIN_MINIBATCH * n}, "
+                "or lower num_minibatches where it can be set")
 
     @property
     def batch_size(self) -> int:

@@ -9,6 +9,8 @@ from typing import Any
 
 from torch.utils.tensorboard import SummaryWriter
 
+from engine.errors import InputError
+
 METRICS_FILE = "metrics.jsonl"
 _EPISODE_KEYS = ("episode_returns", "episode_shaped_returns")
 
@@ -17,7 +19,8 @@ class RunLogger:
     """Appends metrics rows and mirrors them to TensorBoard.
 
     On resume, rows written after the checkpoint being resumed from (by the killed process)
-    are dropped, and TensorBoard is told to purge its events after that step.
+    are dropped, a last row cut short by the kill too, and TensorBoard is told to purge its
+    events after that step.
 
     Args:
         run_dir: the run directory.
@@ -33,8 +36,7 @@ class RunLogger:
         if not self.path.exists():
             self.path.touch()
             return
-        keep = [line for line in self.path.read_text().splitlines()
-                if line.strip() and json.loads(line)["timesteps"] <= start]
+        keep = [line for line, row in _parse_lines(self.path) if row["timesteps"] <= start]
         self.path.write_text("".join(line + "\n" for line in keep))
 
     def write(self, row: dict[str, Any]) -> None:
@@ -62,6 +64,24 @@ def _finite(row: dict[str, Any]) -> dict[str, Any]:
 
 
 def read_metrics(run_dir: Path) -> list[dict[str, Any]]:
-    """All rows of a run's ``metrics.jsonl``."""
-    path = Path(run_dir) / METRICS_FILE
-    return [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
+    """All rows of a run's ``metrics.jsonl`` (a torn last line is left out).
+
+    Raises:
+        InputError: a line other than the last is not JSON (the file is damaged).
+    """
+    return [row for _, row in _parse_lines(Path(run_dir) / METRICS_FILE)]
+
+
+def _parse_lines(path: Path) -> list[tuple[str, dict[str, Any]]]:
+    """Each line of a metrics file with its row, without a last line cut short by a kill."""
+    lines = [line for line in path.read_text().splitlines() if line.strip()]
+    rows = []
+    for i, line in enumerate(lines):
+        try:
+            rows.append((line, json.loads(line)))
+        except json.JSONDecodeError as exc:
+            if i == len(lines) - 1:  # kill -9 mid-write: that update was never checkpointed
+                break
+            raise InputError(f"{path} line {i + 1} is not JSON: the metrics file is damaged"
+                             ) from exc
+    return rows

@@ -18,6 +18,7 @@ threads only add synchronisation.
 from __future__ import annotations
 
 import json
+import shutil
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -29,7 +30,7 @@ from engine.advice import AdviceReward
 from engine.errors import InputError
 from engine.rl.checkpoint import find_checkpoint, list_checkpoints, load_checkpoint, save_checkpoint
 from engine.rl.config import TrainConfig
-from engine.rl.logger import RunLogger
+from engine.rl.logger import METRICS_FILE, RunLogger
 from engine.rl.shaping import AdviceFn
 from engine.rl.trainer import Trainer
 from engine.treefile import TreeDocument, dump_tree, load_tree
@@ -64,18 +65,37 @@ def train(config: TrainConfig, advice: TreeDocument | AdviceFn | None, out_dir: 
     if advice is None and resume:
         advice = load_run_advice(out_dir)
     advice_fn = _advice_fn(config, advice)
-    state = _prepare_dir(config, out_dir, resume)
-    if isinstance(advice, TreeDocument) and not resume:
-        dump_tree(advice, out_dir / ADVICE_FILE)
-    trainer = Trainer(config, advice_fn)
-    if state is not None:
-        trainer.load_state_dict(state)
-    logger = RunLogger(out_dir, start=trainer.timesteps)
+    state = _resume_state(config, out_dir) if resume else _check_new_dir(out_dir)
+    trainer, logger = _start(config, advice, advice_fn, out_dir, state)
     try:
         return _loop(trainer, out_dir, logger, progress, should_stop)
     finally:
         logger.close()
         trainer.close()
+
+
+def _start(config: TrainConfig, advice: TreeDocument | AdviceFn | None,
+           advice_fn: AdviceFn | None, out_dir: Path,
+           state: dict[str, Any] | None) -> tuple[Trainer, RunLogger]:
+    """The trainer (restored from ``state`` on resume) and the logger of the run.
+
+    The trainer (envs, networks: what bad input makes fail) is built before anything is
+    written, and a new run's files are removed again if its start fails, so that a failed start
+    never leaves a directory that refuses the next attempt as "already holds a run".
+    """
+    trainer = Trainer(config, advice_fn)
+    existed = out_dir.exists()
+    try:
+        if state is not None:
+            trainer.load_state_dict(state)
+        else:
+            _write_new_run(config, advice, out_dir)
+        return trainer, RunLogger(out_dir, start=trainer.timesteps)
+    except BaseException:
+        trainer.close()
+        if state is None:
+            _undo_new_run(out_dir, existed)
+        raise
 
 
 def _loop(trainer: Trainer, out_dir: Path, logger: RunLogger, progress: Progress | None,
@@ -100,14 +120,32 @@ def _loop(trainer: Trainer, out_dir: Path, logger: RunLogger, progress: Progress
     return last_saved or find_checkpoint(out_dir)
 
 
-def _prepare_dir(config: TrainConfig, out_dir: Path, resume: bool) -> dict[str, Any] | None:
-    """Write ``config.json`` for a new run; load the latest checkpoint for a resumed one."""
-    if not resume:
-        if list_checkpoints(out_dir) or (out_dir / CONFIG_FILE).exists():
-            raise InputError(f"{out_dir} already holds a run: resume it or choose another --out")
-        out_dir.mkdir(parents=True, exist_ok=True)
-        (out_dir / CONFIG_FILE).write_text(json.dumps(config.to_json(), indent=1) + "\n")
-        return None
+def _check_new_dir(out_dir: Path) -> None:
+    """Refuse to start a new run where one exists already."""
+    if list_checkpoints(out_dir) or (out_dir / CONFIG_FILE).exists():
+        raise InputError(f"{out_dir} already holds a run: resume it or choose another --out")
+
+
+def _write_new_run(config: TrainConfig, advice: TreeDocument | AdviceFn | None,
+                   out_dir: Path) -> None:
+    """Create the run directory with ``config.json`` (and ``advice.json`` for a tree)."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    if isinstance(advice, TreeDocument):
+        dump_tree(advice, out_dir / ADVICE_FILE)
+    (out_dir / CONFIG_FILE).write_text(json.dumps(config.to_json(), indent=1) + "\n")
+
+
+def _undo_new_run(out_dir: Path, existed: bool) -> None:
+    """Remove what a failed start wrote, so that the same ``--out`` can be used again."""
+    if not existed:
+        shutil.rmtree(out_dir, ignore_errors=True)
+        return
+    for name in (CONFIG_FILE, ADVICE_FILE, METRICS_FILE):  # never what the caller made
+        (out_dir / name).unlink(missing_ok=True)
+
+
+def _resume_state(config: TrainConfig, out_dir: Path) -> dict[str, Any]:
+    """The latest checkpoint of ``out_dir``, whose config must equal ``config``."""
     state = load_checkpoint(find_checkpoint(out_dir))
     saved = TrainConfig.from_json(state["config"])
     if saved != config:

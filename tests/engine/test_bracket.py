@@ -28,11 +28,29 @@ def test_p0_seeding_follows_env_reward() -> None:
     assert list(ranked) == list(np.argsort(-abilities))
 
 
-def test_p1_seeding_is_uniform() -> None:
+def _seedings(p: float, draws: int = 4800) -> np.ndarray:
+    """``draws`` BM rankings of 4 players of distinct ability, shape (draws, 4)."""
     rng = np.random.default_rng(123)
-    abilities = np.arange(4.0)
-    top = [bm_ranking(abilities, 1.0, rng)[0] for _ in range(4000)]
-    assert chisquare(np.bincount(top, minlength=4)).pvalue > 0.01
+    return np.array([bm_ranking(np.arange(4.0), p, rng) for _ in range(draws)])
+
+
+def _position_pvalues(ranked: np.ndarray) -> list[float]:
+    """Chi-square p-value of "every player equally likely" at each seed position."""
+    return [chisquare(np.bincount(ranked[:, k], minlength=4)).pvalue for k in range(4)]
+
+
+def test_p1_seeding_is_uniform() -> None:
+    ranked = _seedings(1.0)
+    assert min(_position_pvalues(ranked)) > 0.01
+    # and jointly: each of the 4! orders as likely as any other
+    codes = ranked @ np.array([64, 16, 4, 1])
+    counts = np.unique(codes, return_counts=True)[1]
+    assert len(counts) == 24 and chisquare(counts).pvalue > 0.01
+
+
+def test_the_uniformity_check_detects_partial_seeding() -> None:
+    # p = 0.5: the stronger player wins 3/4 of the pairs, so seed 1 favours player 3
+    assert max(_position_pvalues(_seedings(0.5, draws=1200))) < 1e-6
 
 
 @pytest.mark.parametrize("p", [0.0, 0.5, 0.9])

@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
+import gymnasium as gym
 import numpy as np
 import pytest
 
 from engine.candidates import sample_candidates
-from engine.envs import env_model, make_env, restore
+from engine.envs import check_env_id, env_model, make_env, restore, snapshot
 from engine.errors import InputError
 from engine.rewards import posture_features, state_reward
 from engine.teachers import standing_score
@@ -75,3 +76,50 @@ def test_standing_prefers_the_initial_pose_over_a_fallen_one() -> None:
 def test_bad_sampling_arguments(env_id: str, n: int) -> None:
     with pytest.raises(InputError):
         sample_candidates(env_id, n, rng=np.random.default_rng(0))
+
+
+@pytest.mark.parametrize("env_id", ["Humanoid-v5", "Hopper-v5"])
+def test_snapshot_restores_into_a_fresh_env(env_id: str) -> None:
+    env, fresh = make_env(env_id), make_env(env_id)
+    env.reset(seed=3)
+    env.action_space.seed(3)
+    for _ in range(15):  # mid-episode: non-zero control, warm-started contact solver
+        env.step(env.action_space.sample())
+    snap = snapshot(env)
+    np.testing.assert_array_equal(snap.qpos, env.unwrapped.data.qpos)
+    assert set(snap.reward_terms) == {"healthy", "forward", "contact_cost", "control_cost"}
+    fresh.reset(seed=99)
+    np.testing.assert_array_equal(restore(fresh, snap.qpos, snap.qvel), snap.observation)
+    assert snap.reward == state_reward(fresh)
+    assert snapshot(fresh).reward_terms == snap.reward_terms
+    env.close()
+    fresh.close()
+
+
+def test_snapshot_leaves_the_env_untouched() -> None:
+    env = make_env("Humanoid-v5")
+    env.reset(seed=0)
+    env.step(np.full(env.action_space.shape, 0.3))
+    data = env.unwrapped.data
+    before = {name: getattr(data, name).copy() for name in ("qpos", "ctrl", "cfrc_ext", "xipos")}
+    snap = snapshot(env)
+    for name, value in before.items():
+        np.testing.assert_array_equal(getattr(data, name), value)
+    env.step(np.zeros(env.action_space.shape))
+    assert not np.array_equal(snap.qpos, data.qpos)  # a copy, not a view of the live state
+    env.close()
+
+
+def _needs_box2d(**kwargs):
+    raise gym.error.DependencyNotInstalled("Box2D is not installed")
+
+
+def test_env_that_cannot_be_made_is_an_input_error() -> None:
+    gym.register(id="AcvBroken-v0", entry_point=_needs_box2d)
+    try:
+        with pytest.raises(InputError, match="AcvBroken-v0.*DependencyNotInstalled.*Box2D"):
+            check_env_id("AcvBroken-v0")
+        with pytest.raises(InputError, match="AcvBroken-v0"):
+            sample_candidates("AcvBroken-v0", 4, rng=np.random.default_rng(0))
+    finally:
+        del gym.registry["AcvBroken-v0"]

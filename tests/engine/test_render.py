@@ -134,6 +134,21 @@ def test_cache_is_hit_on_second_call(tmp_path: Path, states: list[State]) -> Non
         assert len(list(tmp_path.rglob("*.jpg"))) == 2
 
 
+def test_an_unwritable_cache_only_costs_speed(tmp_path: Path, states: list[State],
+                                              caplog: pytest.LogCaptureFixture) -> None:
+    (tmp_path / "file").write_text("in the way")  # fails for root too, unlike a chmod
+    cache = RenderCache(tmp_path / "file" / "renders")
+    with RenderService() as bare:
+        expected = [bare.render(ENV, *s, size=48) for s in states[:2]]
+    with caplog.at_level("WARNING", logger="engine.render.service"), \
+            RenderService(cache) as service:
+        got = [service.render(ENV, *s, size=48) for s in states[:2]]
+        assert service.render_many(ENV, states[:2], size=48) == expected
+    assert got == expected
+    warnings = [r for r in caplog.records if "not writable" in r.getMessage()]
+    assert len(warnings) == 1 and "file/renders" in warnings[0].getMessage()
+
+
 def test_thumbnail_and_quality_settings(service: RenderService, states: list[State]) -> None:
     spec = RenderSpec.thumbnail(view="three-quarter")
     thumb = decode(next(service.iter_render(ENV, [states[0]], spec)))

@@ -2,9 +2,15 @@
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 
+from engine.errors import InputError
+from engine.mujoco_gl import check_mujoco_gl
 from engine.render import BackendError, RenderService, backend, renderer, select_backend
 
 
@@ -61,3 +67,35 @@ def test_missing_backend_reaches_callers_from_the_render_thread(
         for _ in range(2):  # the thread survives and answers again
             with pytest.raises(BackendError, match="libosmesa6"):
                 service.render("Hopper-v5", np.zeros(6), np.zeros(6), size=32)
+
+
+@pytest.mark.parametrize("value", ["egl", "OSMesa ", "glfw", "", "disable"])
+def test_values_mujoco_accepts_pass_the_check(value: str) -> None:
+    check_mujoco_gl({"MUJOCO_GL": value})
+
+
+@pytest.mark.parametrize("value", ["foo", "e gl", "osmesa6"])
+def test_unknown_mujoco_gl_is_one_clear_input_error(value: str,
+                                                    monkeypatch: pytest.MonkeyPatch) -> None:
+    with pytest.raises(InputError, match=f"invalid MUJOCO_GL={value!r}"):
+        check_mujoco_gl({"MUJOCO_GL": value})
+    monkeypatch.setenv("MUJOCO_GL", value)
+    monkeypatch.setattr(backend, "probe", lambda b: pytest.fail(f"probed {b}"))
+    with pytest.raises(InputError, match="egl or osmesa"):
+        select_backend()
+
+
+def _accepted(value: str) -> bool:
+    try:
+        check_mujoco_gl({"MUJOCO_GL": value})
+    except InputError:
+        return False
+    return True
+
+
+@pytest.mark.parametrize(("value", "accepted"), [("foo", False), ("OSMesa", True)])
+def test_the_check_agrees_with_mujoco_at_import(value: str, accepted: bool) -> None:
+    done = subprocess.run([sys.executable, "-c", "import mujoco"], capture_output=True,
+                          text=True, env={**os.environ, "MUJOCO_GL": value}, timeout=120)
+    assert (done.returncode == 0) == accepted, done.stderr
+    assert _accepted(value) == accepted

@@ -7,9 +7,10 @@ import json
 
 import pytest
 
+from engine.conformance import compare
 from engine.errors import InputError
 from engine.pipeline import run_tournament
-from engine.treefile import dumps, load_tree, tree_from_json, tree_to_json
+from engine.treefile import dumps, load_tree, make_document, tree_from_json, tree_to_json
 
 
 @pytest.fixture(scope="module")
@@ -77,3 +78,52 @@ def test_load_rejects_non_documents(tmp_path, content: bytes) -> None:
 def test_load_missing_file(tmp_path) -> None:
     with pytest.raises(InputError):
         load_tree(tmp_path / "nope.json")
+
+
+def _node(obj, **changes):
+    obj["tree"]["nodes"][0].update(changes)
+
+
+@pytest.mark.parametrize(("tamper", "words"), [
+    (lambda o: o.pop("tree"), "missing key 'tree'"),
+    (lambda o: o["tree"].pop("nodes"), "'nodes' list"),
+    (lambda o: _node(o, state=[0]), "does not match"),
+    (lambda o: _node(o, reward="a lot"), "does not match"),
+    (lambda o: _node(o, reward=None), "does not match"),
+    (lambda o: o.update(seed=-1), "seed must be in 0"),
+    (lambda o: o.update(seed=float("inf")), "OverflowError"),
+    (lambda o: o.update(p=1.5), "'p' must be in [0, 1]"),
+    (lambda o: o["tree_reward"].update(r_b=[1]), "TypeError"),
+], ids=["no-tree", "no-nodes", "list-state", "text-reward", "null-reward", "negative-seed",
+        "infinite-seed", "p", "list-r_b"])
+def test_malformed_documents_are_one_clear_input_error(doc, tamper, words: str) -> None:
+    obj = copy.deepcopy(tree_to_json(doc))
+    tamper(obj)
+    with pytest.raises(InputError) as info:
+        tree_from_json(obj)
+    assert words in str(info.value) and "\n" not in str(info.value)
+
+
+def test_a_one_candidate_tree_is_rejected(doc) -> None:
+    lone = make_document(env_id=doc.env_id, seed=doc.seed, p=doc.p, judge=doc.judge,
+                         candidates=doc.candidates[:1], first_round=[(0, None)], results={})
+    assert len(lone.tree) == 1  # the engine can build it, but there is nothing to compare
+    obj = tree_to_json(lone)
+    with pytest.raises(InputError, match="at least 2 candidates"):
+        tree_from_json(obj)
+    with pytest.raises(InputError, match="no matches"):
+        compare(lone, lone)
+
+
+def test_load_reports_the_file_of_a_malformed_tree(doc, tmp_path) -> None:
+    obj = tree_to_json(doc)
+    obj["tree"]["nodes"][0]["reward"] = "high"
+    path = tmp_path / "bad.json"
+    path.write_text(json.dumps(obj))
+    with pytest.raises(InputError, match="bad.json"):
+        load_tree(path)
+
+
+def test_a_negative_seed_is_an_input_error() -> None:
+    with pytest.raises(InputError, match="seed must be in 0"):
+        run_tournament(env_id="Hopper-v5", n_candidates=4, p=0.9, seed=-1, teacher="good")

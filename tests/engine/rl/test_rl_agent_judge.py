@@ -4,13 +4,15 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 import torch
 
+from engine.advice import AdviceReward
 from engine.conformance import compare
 from engine.errors import InputError
 from engine.pipeline import run_tournament
-from engine.rl.agent_judge import JUDGES, agent_scores, agent_tree, load_agent
+from engine.rl.agent_judge import JUDGES, agent_scores, agent_tree, candidate_z, load_agent
 from engine.rl.checkpoint import find_checkpoint
 from engine.rl.config import TrainConfig
 from engine.rl.runner import train
@@ -77,3 +79,18 @@ def test_bad_inputs(run: Path, tmp_path: Path) -> None:
     torch.save({"weights": torch.zeros(3)}, foreign)
     with pytest.raises(InputError, match="not an ACV checkpoint"):
         load_agent(foreign)
+
+
+def test_the_judge_uses_the_advice_the_agent_trained_on(run: Path,
+                                                         good_tree: TreeDocument) -> None:
+    # another bracket over other candidates: it supplies the players, not the agent's F
+    other = run_tournament(env_id="Hopper-v5", n_candidates=8, p=0.9, seed=7,
+                           teacher="standing")
+    doc = agent_tree(run, judge="shaping", advice=other)
+    qpos = np.stack([c.qpos for c in other.candidates])
+    z = candidate_z(load_agent(find_checkpoint(run)), other)
+    own_f = AdviceReward.from_tree(good_tree)(qpos)  # the run's config: nearest, scale 1
+    other_f = AdviceReward.from_tree(other)(qpos)
+    assert not np.allclose(own_f, other_f)  # the two trees' F really differ here
+    for c, f in zip(other.candidates, own_f, strict=True):
+        assert doc.scores[c.id] == pytest.approx(z[c.id] * f)

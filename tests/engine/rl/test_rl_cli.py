@@ -72,6 +72,12 @@ def test_resume_continues_a_run_and_refuses_other_options(monkeypatch, capsys, t
     (["agent-tree", "--run", "{tmp}", "--out", "{tmp}/a.json"], "no config.json|no advice|"
                                                                   "trained without advice"),
     (["plot", "--runs", "{tmp}/missing"], "not a training run"),
+    (["train", "--algo", "ppo", "--seed", "-1"], "seed must be in 0"),
+    (["train", "--algo", "ppo", "--env", "NoSuchEnv-v0"], "unknown env 'NoSuchEnv-v0'"),
+    (["train", "--algo", "ppo", "--n-envs", "1", "--num-steps", "32"],
+     "raise --n-envs or --num-steps"),
+    (["train", "--algo", "ppo-shaped", "--advice", "{tree}", "--advice-mode", "best"],
+     "unknown advice mode 'best'"),
 ])
 def test_bad_input_exits_2_with_one_line(monkeypatch, capsys, tree: Path, tmp_path: Path,
                                          args: list[str], message: str) -> None:
@@ -82,6 +88,7 @@ def test_bad_input_exits_2_with_one_line(monkeypatch, capsys, tree: Path, tmp_pa
     assert code == 2
     assert err.count("\n") == 1 and err.startswith("acv: error:")
     assert any(m in err for m in message.split("|")), err
+    assert not (tmp_path / "run").exists()  # nothing left that would refuse a retry
 
 
 def test_corrupt_and_foreign_checkpoints_exit_2(monkeypatch, capsys, tree: Path,

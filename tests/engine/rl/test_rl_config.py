@@ -16,6 +16,16 @@ from engine.rl.config import ALGOS, TrainConfig
     ({"checkpoint_every": 0}, "checkpoint-every"),
     ({"z_init": 3.0}, "z_init"),
     ({"num_minibatches": 10**9}, "num_minibatches"),
+    ({"num_minibatches": 0}, "num_minibatches must be >= 1"),
+    # 32 transitions in 32 minibatches: the std of one advantage is NaN
+    ({"n_envs": 1, "num_steps": 32}, r"leaves 1 per minibatch .* raise --n-envs or "
+                                     r"--num-steps so that n-envs x num-steps >= 64"),
+    ({"seed": -1}, "seed must be in 0"),
+    ({"seed": 2**64}, "seed must be in 0"),
+    ({"advice_mode": "maximum"}, "unknown advice mode 'maximum'"),
+    ({"advice_depth_factor": "depth"}, "unknown advice depth factor 'depth'"),
+    ({"advice_kappa": 0.0}, "kappa must be a positive number"),
+    ({"advice_kappa": float("nan")}, "kappa must be a positive number"),
 ])
 def test_bad_values_raise_input_error(kwargs: dict, message: str) -> None:
     with pytest.raises(InputError, match=message):
@@ -39,3 +49,7 @@ def test_derived_sizes() -> None:
     cfg = TrainConfig(n_envs=4, num_steps=512, num_minibatches=32, total_timesteps=5000)
     assert (cfg.batch_size, cfg.minibatch_size, cfg.num_updates) == (2048, 64, 3)
     assert not cfg.uses_advice and TrainConfig(algo="bipars-em").learns_z
+
+
+def test_smallest_valid_minibatch_is_two() -> None:
+    assert TrainConfig(n_envs=1, num_steps=64, num_minibatches=32).minibatch_size == 2

@@ -58,10 +58,20 @@ def test_a_run_writes_all_artefacts(run: Path) -> None:
     assert not list((run / "checkpoints").glob(".tmp-*"))
 
 
-def test_z_and_f_are_logged_in_range(run: Path) -> None:
-    for row in read_metrics(run):
-        assert -2.0 < row["z_mean"] < 2.0 and row["z_std"] >= 0.0
-        assert row["f_mean"] <= 0.0  # F = -|angle|
+@pytest.mark.parametrize(("algo", "z"), [("ppo", 0.0), ("ppo-shaped", 1.0)])
+def test_logged_f_and_z_are_the_runs_own(tmp_path: Path, algo: str, z: float) -> None:
+    """A constant F = -0.25 with advice-scale 2 is logged as f_mean -0.5, f_std 0; z is the
+    algorithm's fixed weight (0 for ppo, which only logs F; 1 for ppo-shaped)."""
+    def constant(qpos: np.ndarray) -> np.ndarray:
+        return np.full(len(qpos), -0.25)
+
+    train(tiny(algo, total_timesteps=256, advice_scale=2.0), constant, tmp_path / algo)
+    for row in read_metrics(tmp_path / algo):
+        assert (row["f_mean"], row["f_std"], row["z_mean"], row["z_std"]) == (-0.5, 0.0, z, 0.0)
+
+
+def test_learned_z_varies_across_states(run: Path) -> None:
+    assert all(row["z_std"] > 0.0 for row in read_metrics(run))
 
 
 @pytest.mark.parametrize("algo", ["bipars-mgl", "ppo"])
@@ -94,6 +104,60 @@ def test_bad_runs_are_refused(run: Path, tmp_path: Path) -> None:
     with pytest.raises(InputError, match="no checkpoints"):
         train(tiny(), advice, tmp_path / "empty", resume=True)
     assert not (tmp_path / "none").exists()
+
+
+def test_resume_drops_a_metrics_line_torn_by_a_kill(run: Path, tmp_path: Path) -> None:
+    out = tmp_path / "torn"
+    shutil.copytree(run, out)
+    (out / "checkpoints" / "step_1024.pt").unlink()
+    with (out / "metrics.jsonl").open("a") as f:
+        f.write('{"timesteps": 1152, "update": 9, "episodic_re')  # kill -9 mid-write
+    assert len(read_metrics(out)) == 8  # readers skip it too
+    train(tiny(), advice, out, resume=True)
+    assert stripped(read_metrics(out)) == stripped(read_metrics(run))
+
+
+def test_a_damaged_metrics_line_before_the_last_is_an_input_error(run: Path,
+                                                                  tmp_path: Path) -> None:
+    out = tmp_path / "damaged"
+    shutil.copytree(run, out)
+    lines = (out / "metrics.jsonl").read_text().splitlines()
+    lines[2] = lines[2][:20]
+    (out / "metrics.jsonl").write_text("\n".join(lines) + "\n")
+    with pytest.raises(InputError, match="line 3 is not JSON"):
+        read_metrics(out)
+
+
+def test_a_failed_start_leaves_nothing_that_blocks_a_retry(tmp_path: Path) -> None:
+    bad = tiny(env_id="NoSuchEnv-v0")
+    with pytest.raises(InputError, match="unknown env"):
+        train(bad, advice, tmp_path / "new")
+    assert not (tmp_path / "new").exists()
+    made = tmp_path / "made"  # a directory the caller created (the web app's worker does)
+    made.mkdir()
+    (made / "note.txt").write_text("mine")
+    with pytest.raises(InputError, match="unknown env"):
+        train(bad, advice, made)
+    assert [p.name for p in made.iterdir()] == ["note.txt"]
+    train(tiny(total_timesteps=128), advice, made)  # not refused as "already holds a run"
+    assert (made / "config.json").is_file()
+
+
+def test_a_start_failing_after_writing_removes_what_it_wrote(tmp_path: Path,
+                                                            monkeypatch) -> None:
+    import engine.rl.runner as runner
+
+    def broken_logger(*args, **kwargs):
+        raise OSError("disk full")
+
+    monkeypatch.setattr(runner, "RunLogger", broken_logger)
+    with pytest.raises(OSError, match="disk full"):
+        train(tiny(), advice, tmp_path / "new")
+    assert not (tmp_path / "new").exists()
+    (tmp_path / "made").mkdir()
+    with pytest.raises(OSError, match="disk full"):
+        train(tiny(), advice, tmp_path / "made")
+    assert not list((tmp_path / "made").iterdir())
 
 
 @pytest.mark.parametrize("content", [b"", b"not a checkpoint", b"PK\x03\x04broken zip"])

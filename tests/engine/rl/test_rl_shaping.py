@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from engine.envs import make_env
 from engine.rl.shaping import reached_qpos
 from engine.rl.vecenv import make_vec_env, restore_vec, snapshot_vec
 
@@ -18,14 +19,25 @@ def test_reached_qpos_of_a_finished_env_comes_from_final_info() -> None:
 
 
 def test_advice_term_is_scaled_f_of_the_reached_state() -> None:
+    """Against single envs stepped alongside: F of the state each step reached, read before
+    any reset (so a finished episode's term is its last state, not the next one's first)."""
     envs = make_vec_env("InvertedPendulum-v5", 3, advice=lambda q: q[:, 1] * 10.0,
                         advice_scale=0.5)
     envs.reset(seed=0)
+    refs = [make_env("InvertedPendulum-v5") for _ in range(3)]
+    for i, ref in enumerate(refs):
+        ref.reset(seed=i)  # the vector env seeds sub-env i with seed + i
+    finished = 0
     for _ in range(40):  # long enough for some episodes to end and autoreset
-        _, reward, term, trunc, info = envs.step(np.full((3, 1), 3.0))
-        qpos = reached_qpos(info, term | trunc)
-        np.testing.assert_allclose(info["advice"], 0.5 * 10.0 * qpos[:, 1])
-        np.testing.assert_array_equal(info["env_reward"], reward)
+        _, reward, _, _, info = envs.step(np.full((3, 1), 3.0))
+        for i, ref in enumerate(refs):
+            _, ref_reward, ref_term, ref_trunc, _ = ref.step(np.array([3.0]))
+            assert info["advice"][i] == 0.5 * 10.0 * ref.unwrapped.data.qpos[1]
+            assert info["env_reward"][i] == reward[i] == ref_reward
+            if ref_term or ref_trunc:
+                finished += 1
+                ref.reset()  # like the vector env's autoreset: the env's own generator
+    assert finished >= 3
     envs.close()
 
 
