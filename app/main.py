@@ -16,11 +16,13 @@ from fastapi import FastAPI
 from fastapi.staticfiles import StaticFiles
 
 from app.api import api_router, errors, health
+from app.api.docs import docs_router
 from app.jobs.worker import start_app_worker
 from app.middleware import BodySizeLimit, SecurityHeaders
 from app.runtime import Runtime
 from app.settings import Settings
 from app.web import router as pages_router
+from app.web.access_log import install_access_log_filter
 from app.web.ratelimit import LoginLimiter
 
 STATIC_DIR = Path(__file__).resolve().parents[1] / "static"
@@ -49,15 +51,19 @@ def create_app(settings: Settings | None = None) -> FastAPI:
                 await anyio.to_thread.run_sync(run_worker.stop)
             runtime.close()
 
-    app = FastAPI(title="ACV", version="0.1.0", lifespan=lifespan,
+    # The docs page is ours (self-hosted Swagger UI, strict policy); no ReDoc.
+    app = FastAPI(title="ACV", version="0.1.0", lifespan=lifespan, docs_url=None,
+                  redoc_url=None,
                   description="Advice Conformance Verification: studies, invite links and "
                               "bracket labelling.")
     app.state.runtime = runtime
     app.state.login_limiter = LoginLimiter()
+    install_access_log_filter()  # invite tokens in /p/<token> paths
     app.add_middleware(BodySizeLimit)
     app.add_middleware(SecurityHeaders)  # outermost: 413 answers get the headers too
     errors.install(app)
     app.include_router(health.router)
+    app.include_router(docs_router(openapi_url=app.openapi_url, title=f"{app.title} API"))
     app.include_router(api_router)
     app.include_router(pages_router)
     if STATIC_DIR.is_dir():

@@ -1,9 +1,9 @@
 """ASGI middleware for every response: a request-body size limit and security headers.
 
-Both are plain ASGI wrappers (no per-request task or body copy on the hot paths). Pages
-already carry their full policy (:data:`app.web.rendering.SECURITY_HEADERS`); everything
-else (the JSON API, images, static files, ``/docs``) gets ``X-Content-Type-Options:
-nosniff``, no framing, and, for non-HTML answers, a policy that allows nothing at all.
+Both are plain ASGI wrappers (no per-request task or body copy on the hot paths). Pages,
+``/docs`` and the run report carry their own policy (:data:`app.web.rendering.CSP`,
+:mod:`app.api.docs`); everything else (the JSON API, images, static files) gets
+``X-Content-Type-Options: nosniff``, no framing, and a policy that allows nothing at all.
 """
 
 from __future__ import annotations
@@ -19,8 +19,9 @@ MAX_BODY_BYTES = 1 << 20
 #: Added where a response does not set its own value.
 DEFAULT_HEADERS = {"X-Content-Type-Options": "nosniff", "X-Frame-Options": "DENY",
                    "Referrer-Policy": "no-referrer"}
-HTML_CSP = "frame-ancestors 'none'"  # /docs needs its inline script: only forbid framing
-OTHER_CSP = "default-src 'none'; frame-ancestors 'none'"
+#: For responses without a policy of their own (HTML included: a page that needs more must
+#: say so itself).
+DEFAULT_CSP = "default-src 'none'; frame-ancestors 'none'"
 
 
 class BodySizeLimit:
@@ -92,10 +93,9 @@ class SecurityHeaders:
         async def send_with_headers(message: Message) -> None:
             if message["type"] == "http.response.start":
                 headers = MutableHeaders(scope=message)
-                html = headers.get("content-type", "").startswith("text/html")
                 for name, value in DEFAULT_HEADERS.items():
                     headers.setdefault(name, value)
-                headers.setdefault("Content-Security-Policy", HTML_CSP if html else OTHER_CSP)
+                headers.setdefault("Content-Security-Policy", DEFAULT_CSP)
             await send(message)
 
         await self.app(scope, receive, send_with_headers)

@@ -4,8 +4,11 @@
   admin token live here.
 - ``DATABASE_URL``: a SQLAlchemy URL; unset means SQLite in the data dir. ``postgresql://``
   URLs use the psycopg 3 driver.
-- ``ACV_ADMIN_TOKEN``: the researcher's bearer token; unset means one is generated on first
-  start and kept in the data dir (see :func:`app.services.auth.ensure_admin_token`).
+- ``ACV_ADMIN_TOKEN``: the researcher's bearer token, at least 32 characters; unset means one
+  is generated on first start and kept in the data dir (see
+  :func:`app.services.auth.ensure_admin_token`).
+- ``ACV_SESSION_HOURS`` (default 12): how long a researcher login (the cookie) lasts; the
+  server refuses older cookies whatever the browser keeps.
 - ``ACV_PUBLIC_URL``: the base of links printed outside a request (by the CLI; default
   ``http://127.0.0.1:8000``, or the address ``acv serve`` listens on); the API uses the
   request's own base URL.
@@ -36,6 +39,12 @@ class Settings(BaseSettings):
     public_url: str | None = None
     threads: int = Field(default=8, ge=1, le=256)
     min_free_mb: int = Field(default=64, ge=0)
+    session_hours: float = Field(default=12.0, gt=0, le=24 * 90)
+
+    @property
+    def session_max_age_s(self) -> int:
+        """Seconds a researcher cookie is accepted after login."""
+        return max(1, round(self.session_hours * 3600))
 
     @property
     def sqlalchemy_url(self) -> str:

@@ -46,7 +46,7 @@ from sqlalchemy import select
 from app.db import make_engine, make_sessions
 from app.models import Label
 
-ADMIN_TOKEN = "fault-benchmark-admin-token"
+ADMIN_TOKEN = "fault-benchmark-admin-token-0123456789"  # >= 32 characters
 ADMIN = {"Authorization": f"Bearer {ADMIN_TOKEN}"}
 REPO = Path(__file__).resolve().parents[1]
 RETRY_S = 0.2  # pause before retrying after a failed request (the server is down)

@@ -44,7 +44,7 @@ from pathlib import Path
 import httpx
 import numpy as np
 
-ADMIN_TOKEN = "benchmark-admin-token"
+ADMIN_TOKEN = "benchmark-admin-token-0123456789abcdef"  # >= 32 characters
 ADMIN = {"Authorization": f"Bearer {ADMIN_TOKEN}"}
 REPO = Path(__file__).resolve().parents[1]
 

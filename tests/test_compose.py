@@ -1,9 +1,11 @@
 """``docker-compose.yml`` and ``Dockerfile`` refer only to things that exist.
 
 No Docker engine here, so this reads them: every service built from this repository runs a
-real console script, subcommand, module or Alembic configuration; its environment holds
-only variables the app's settings read; volumes, dependencies and URLs point at declared
-volumes and services; migrations run once before the web and the worker start.
+real console script, subcommand, module or Alembic configuration (also inside a ``sh -c``
+script); its environment holds only variables the app's settings read; volumes, dependencies
+and URLs point at declared volumes and services; migrations run once before the web and the
+worker start; the worker joins the Ray cluster it submits to; only the web is published on
+every interface (never Ray's dashboard, whose Jobs API runs any code unauthenticated).
 """
 
 from __future__ import annotations
@@ -72,6 +74,10 @@ def assert_runs_something_real(args: list[str]) -> None:
     elif program == "ray":
         assert any(r.startswith("ray") for r in PYPROJECT["project"]["optional-dependencies"]
                    ["ray"]) and importlib.util.find_spec("ray") is not None
+    elif program == "sh":
+        assert rest[0] in ("-c", "-ec") and len(rest) == 2, args
+        for command in shell_commands(rest[1]):
+            assert_runs_something_real(command)
     elif program == "python":
         code = rest[rest.index("-c") + 1]
         for node in ast.walk(ast.parse(code)):
@@ -81,6 +87,39 @@ def assert_runs_something_real(args: list[str]) -> None:
                 assert importlib.util.find_spec(name) is not None, name
     else:
         raise AssertionError(f"unknown program {program!r} in {args}")
+
+
+def shell_commands(script: str) -> list[list[str]]:
+    """The simple commands of a compose ``sh -c`` script (``$$`` is compose's escape of
+    ``$``), without ``if``/``then``/``fi``/``exec`` and ``[ ... ]`` tests."""
+    commands: list[list[str]] = []
+    for line in script.replace("$$", "$").splitlines():
+        lexer = shlex.shlex(line, posix=True, punctuation_chars=";&|")
+        lexer.whitespace_split = True
+        words = [*lexer, ";"]
+        while words:
+            end = next(i for i, w in enumerate(words) if w in (";", "&&", "||", "|"))
+            command, words = words[:end], words[end + 1:]
+            while command and command[0] in ("if", "then", "else", "fi", "exec"):
+                command = command[1:]
+            if command and command[0] != "[":
+                commands.append(command)
+    return commands
+
+
+def published_ports(service: dict[str, Any]) -> list[tuple[str, str]]:
+    """``(host address, container port)`` of each port a service publishes; ``0.0.0.0``
+    (every interface, Docker's default) where the entry names no address."""
+    found = []
+    for entry in service.get("ports", []):
+        if isinstance(entry, dict):  # the long syntax
+            found.append((entry.get("host_ip", "0.0.0.0"), str(entry["target"])))
+            continue
+        spec = interpolated(str(entry)).split("/")[0]
+        match = re.fullmatch(r"(?:(\[[0-9a-f:]+\]|\d+\.\d+\.\d+\.\d+):)?(?:[\d-]*:)?([\d-]+)", spec)
+        assert match, f"unparsed port entry {entry!r}"
+        found.append((match.group(1) or "0.0.0.0", match.group(2)))
+    return found
 
 
 @pytest.mark.parametrize("name", sorted(OURS))
@@ -170,3 +209,43 @@ def test_dockerfile_installs_the_renderer_and_the_package() -> None:
     for needed in ("app", "engine", "migrations", "templates", "static", "alembic.ini",
                    "pyproject.toml", "README.md"):
         assert (REPO / needed).exists() and needed not in ignored, needed
+
+
+def test_the_worker_joins_the_ray_cluster_it_submits_to() -> None:
+    """``ray.init(address="host:6379")`` connects only from a node of the cluster: with
+    ACV_RAY_ADDRESS set, the worker container joins it (``ray start --address``) before it
+    becomes ``acv worker`` (``exec``: it gets the stop signal); ``-e``: a failed join stops
+    the container instead of running a worker that cannot reach Ray."""
+    args = argv(SERVICES["worker"]["command"])
+    assert args[:2] == ["sh", "-ec"]
+    script = args[2]
+    assert "$" not in script.replace("$$", ""), "compose would substitute an unescaped $"
+    assert shell_commands(script) == [["ray", "start", "--address=${ACV_RAY_ADDRESS}"],
+                                      ["acv", "worker"]]
+    assert re.search(r'^if \[ -n "\$\$\{ACV_RAY_ADDRESS\}" \]; then ray start [^\n]*; fi$', script,
+                     re.M), "the join happens only with ACV_RAY_ADDRESS set"
+    assert script.strip().splitlines()[-1] == "exec acv worker"
+    # The address joined is the one the executor connects to: the head's GCS port.
+    assert SERVICES["worker"]["environment"]["ACV_RAY_ADDRESS"] == "${ACV_RAY_ADDRESS:-}"
+    head = argv(SERVICES["ray-head"]["command"])
+    assert head[:3] == ["ray", "start", "--head"] and "--port=6379" in head
+    for doc in ("docker-compose.yml", "docs/scale.md"):
+        assert "ACV_RAY_ADDRESS=ray-head:6379 docker compose --profile ray up" in \
+            (REPO / doc).read_text(), doc
+    assert shell_commands('if [ -n "$$X" ]; then a b; fi\nexec c && d | e') == \
+        [["a", "b"], ["c"], ["d"], ["e"]]
+
+
+def test_only_the_web_is_published_on_every_interface() -> None:
+    """Ray's dashboard (its Jobs API runs any code, unauthenticated), and anything else but
+    the web, is published on the host's loopback at most."""
+    for name, service in SERVICES.items():
+        for address, port in published_ports(service):
+            if (name, port) != ("web", "8000"):
+                assert address in ("127.0.0.1", "[::1]"), (name, address, port)
+    dashboard = [a for a, port in published_ports(SERVICES["ray-head"]) if port == "8265"]
+    assert dashboard in ([], ["127.0.0.1"])
+    assert published_ports({"ports": ["8265:8265", "8265", {"target": 8265},
+                                      "127.0.0.1:8265:8265/tcp", "[::1]:1:2"]}) == [
+        ("0.0.0.0", "8265"), ("0.0.0.0", "8265"), ("0.0.0.0", "8265"), ("127.0.0.1", "8265"),
+        ("[::1]", "2")]

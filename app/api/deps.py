@@ -2,15 +2,20 @@
 
 ``ResearcherDep`` accepts ``Authorization: Bearer <admin token>`` or the researcher cookie;
 ``ParticipantDep`` accepts ``Authorization: Bearer <invite token>`` or the participant
-cookie; ``ViewerDep`` accepts either and says which.
+cookie; ``ViewerDep`` accepts either and says which. A bearer token that is neither the admin
+token nor an invite token counts as a failed login of the client's address
+(:mod:`app.web.ratelimit`); past the limit, researcher bearer tokens are refused with 429
+before being compared.
 """
 
 from __future__ import annotations
 
+import logging
 from collections.abc import AsyncIterator
 from dataclasses import dataclass
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
+import anyio.to_thread
 from fastapi import Cookie, Depends, Path, Request
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 from sqlalchemy.orm import Session
@@ -19,8 +24,13 @@ from app.db import POOL_CAPACITY
 from app.models import Participant
 from app.runtime import Runtime
 from app.services import auth
-from app.services.errors import AuthError, ForbiddenError
+from app.services.errors import AuthError, ForbiddenError, TooManyAttemptsError
 from app.settings import Settings
+
+if TYPE_CHECKING:  # app.web imports this module: no import of it at run time
+    from app.web.ratelimit import LoginLimiter
+
+log = logging.getLogger(__name__)
 
 _admin_bearer = HTTPBearer(auto_error=False, scheme_name="AdminToken",
                            description="The researcher's admin token (ACV_ADMIN_TOKEN).")
@@ -31,8 +41,10 @@ _Credentials = HTTPAuthorizationCredentials | None
 #: Requests holding a database session at once: below the pool's capacity
 #: (:data:`app.db.POOL_CAPACITY`), leaving connections for background jobs.
 MAX_SESSIONS = POOL_CAPACITY - 8
-#: Database ids in paths: positive 32-bit integers (larger ones cannot exist).
-DbId = Annotated[int, Path(ge=1, le=2**31 - 1)]
+#: Largest database id: ids are positive 32-bit integers (larger ones cannot exist).
+MAX_DB_ID = 2**31 - 1
+#: Database ids in paths.
+DbId = Annotated[int, Path(ge=1, le=MAX_DB_ID)]
 #: Candidate ids in paths: ``0 .. N-1`` with ``N <= 128``.
 CandidateId = Annotated[int, Path(ge=0, le=127)]
 #: Header the pages' scripts send on every JSON call (``static/js/api.js``). A cross-site
@@ -97,15 +109,48 @@ def _token(credentials: _Credentials) -> str | None:
     return credentials.credentials if credentials is not None else None
 
 
+_RESEARCHER_REQUIRED = "researcher credentials required (Authorization: Bearer <admin token>)"
+
+
+def _limiter(request: Request) -> tuple[LoginLimiter, str]:
+    """The app's failed-login limiter and the client's address (as the login form counts)."""
+    return request.app.state.login_limiter, request.client.host if request.client else "unknown"
+
+
+def _too_many(limiter: LoginLimiter, address: str) -> TooManyAttemptsError:
+    return TooManyAttemptsError("too many failed researcher credentials from this address; "
+                                "try again later", retry_after_s=limiter.retry_after_s(address))
+
+
+def _failed(limiter: LoginLimiter, address: str) -> None:
+    limiter.failed(address)
+    log.warning("failed researcher bearer token from %s", address)
+
+
+def _is_invite_token(runtime: Runtime, token: str) -> bool:
+    with runtime.sessions() as session:
+        return auth.is_invite_token(session, token=token)
+
+
 async def require_researcher(
         request: Request, runtime: RuntimeDep,
         credentials: Annotated[_Credentials, Depends(_admin_bearer)],
         cookie: Annotated[str | None, Cookie(alias=auth.RESEARCHER_COOKIE)] = None) -> Viewer:
-    """The researcher, or 401 (403 for a cookie write without :data:`AJAX_HEADER`)."""
-    if auth.is_researcher(admin_token=runtime.admin_token, bearer=_token(credentials)):
-        return Viewer(researcher=True)
-    if not auth.is_researcher(admin_token=runtime.admin_token, cookie=cookie):
-        raise AuthError("researcher credentials required (Authorization: Bearer <admin token>)")
+    """The researcher, or 401 (429 after too many failed bearer tokens from this address;
+    403 for a cookie write without :data:`AJAX_HEADER`). A bearer token, when sent, decides."""
+    if (token := _token(credentials)) is not None:
+        limiter, address = _limiter(request)
+        if limiter.blocked(address):  # refused before comparing, or guessing would go on
+            raise _too_many(limiter, address)
+        if auth.is_researcher(admin_token=runtime.admin_token, bearer=token):
+            return Viewer(researcher=True)
+        # A participant's own invite token is a credential of another role, not a guess.
+        if not await anyio.to_thread.run_sync(_is_invite_token, runtime, token):
+            _failed(limiter, address)
+        raise AuthError(_RESEARCHER_REQUIRED)
+    if not auth.is_researcher(admin_token=runtime.admin_token, cookie=cookie,
+                              max_age_s=runtime.settings.session_max_age_s):
+        raise AuthError(_RESEARCHER_REQUIRED)
     check_cookie_write(request)
     return Viewer(researcher=True)
 
@@ -146,14 +191,27 @@ def get_viewer(
         researcher_cookie: Annotated[str | None, Cookie(alias=auth.RESEARCHER_COOKIE)] = None,
         participant_cookie: Annotated[str | None, Cookie(alias=auth.PARTICIPANT_COOKIE)] = None,
 ) -> Viewer:
-    """The researcher if their credentials are sent, else the participant, else 401."""
-    token = _token(credentials)
-    if token is None and (researcher_cookie or participant_cookie):
-        check_cookie_write(request)
-    if auth.is_researcher(admin_token=runtime.admin_token, bearer=token,
-                          cookie=researcher_cookie):
-        return Viewer(researcher=True)
-    participant = auth.participant_by_token(session, token=token or participant_cookie)
+    """The researcher if their credentials are sent, else the participant, else 401. A
+    bearer token, when sent, decides; past the failed-login limit only invite tokens work."""
+    if (token := _token(credentials)) is not None:
+        limiter, address = _limiter(request)
+        blocked = limiter.blocked(address)
+        if not blocked and auth.is_researcher(admin_token=runtime.admin_token, bearer=token):
+            return Viewer(researcher=True)
+        try:
+            participant = auth.participant_by_token(session, token=token)
+        except AuthError:
+            if blocked:
+                raise _too_many(limiter, address) from None
+            _failed(limiter, address)
+            raise
+    else:
+        if researcher_cookie or participant_cookie:
+            check_cookie_write(request)
+        if auth.is_researcher(admin_token=runtime.admin_token, cookie=researcher_cookie,
+                              max_age_s=runtime.settings.session_max_age_s):
+            return Viewer(researcher=True)
+        participant = auth.participant_by_token(session, token=participant_cookie)
     session.commit()  # as in require_participant
     return Viewer(researcher=False, participant=participant)
 

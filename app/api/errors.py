@@ -18,7 +18,7 @@ from sqlalchemy.exc import DataError, OperationalError
 from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.routing import Match
 
-from app.services.errors import AuthError, ServiceError
+from app.services.errors import AuthError, ServiceError, TooManyAttemptsError
 from engine.errors import InputError
 
 log = logging.getLogger(__name__)
@@ -44,6 +44,7 @@ RESPONSES: dict[int | str, dict[str, Any]] = {
         (409, "The request conflicts with the stored state."),
         (413, "The request body is too large."),
         (422, "Invalid input."),
+        (429, "Too many failed researcher credentials from this address; see Retry-After."),
         (503, "The database is unavailable; try again."))}
 
 
@@ -82,6 +83,8 @@ def _input_error(_: Request, exc: InputError) -> JSONResponse:
 
 def _service_error(_: Request, exc: ServiceError) -> JSONResponse:
     headers = {"WWW-Authenticate": "Bearer"} if isinstance(exc, AuthError) else None
+    if isinstance(exc, TooManyAttemptsError):
+        headers = {"Retry-After": str(exc.retry_after_s)}
     return JSONResponse({"detail": exc.detail}, status_code=exc.status_code, headers=headers)
 
 

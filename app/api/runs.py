@@ -25,6 +25,9 @@ from engine.treefile import tree_to_json
 router = APIRouter(prefix="/runs", tags=["runs"])
 Step = Annotated[int | None, Query(ge=0, description="Checkpoint timesteps (default: latest).")]
 JudgeQuery = Annotated[Judge, Query(description="How the agent scores states.")]
+#: The report inlines its styles and images and runs nothing; nobody may frame it.
+REPORT_CSP = ("default-src 'none'; img-src data:; style-src 'unsafe-inline'; base-uri 'none'; "
+              "form-action 'none'; frame-ancestors 'none'")
 
 
 def get_runs_root(request: Request) -> Path:
@@ -183,8 +186,7 @@ def report(run_id: DbId, session: SessionDep, settings: SettingsDep, root: RunsR
     step = comparison.pick_checkpoint(out, checkpoint)
     html = run_report.report_html(run, study_name=study.name, out=out, step=step, judge=judge,
                                   thumbs=thumbs)
-    headers = {"Content-Security-Policy": "default-src 'none'; img-src data:; style-src "
-                                          "'unsafe-inline'"}
+    headers = {"Content-Security-Policy": REPORT_CSP}
     if download:
         headers["Content-Disposition"] = f'attachment; filename="run-{run_id}-report.html"'
     return HTMLResponse(html, headers=headers)

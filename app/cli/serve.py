@@ -16,6 +16,7 @@ from app.db import upgrade
 from app.main import create_app
 from app.preflight import check_data_dir
 from app.runtime import Runtime
+from app.services.auth import ADMIN_TOKEN_FILE
 from app.services.demo import ensure_demo
 from app.services.errors import ServiceError
 from app.services.participants import invite_url
@@ -86,15 +87,25 @@ def serve(
         demo_lines = _demo_lines(runtime, base) if demo else []
     typer.echo(f"ACV on {base}  (data: {settings.data_dir.resolve()}, database: "
                f"{runtime.engine.url.render_as_string(hide_password=True)})")
-    # A URL fragment: browsers never send it, so the token stays out of access logs.
-    typer.echo(f"  researcher login: {base}/login#token={runtime.admin_token}")
-    typer.echo(f"  admin token:      {runtime.admin_token}"
-               + ("" if settings.admin_token else "  (kept in the data dir)"))
+    for line in _login_lines(settings, runtime.admin_token, base):
+        typer.echo(line)
     for line in demo_lines:
         typer.echo(line)
     typer.echo(f"  API docs:         {base}/docs")
     uvicorn.run(app, host=host, port=port, access_log=access_log, log_level="info",
                 timeout_graceful_shutdown=10)
+
+
+def _login_lines(settings: Settings, admin_token: str, base: str) -> list[str]:
+    """How to log in. A configured token (ACV_ADMIN_TOKEN) is never printed: this output
+    often ends up in journald or docker logs. A generated one is, in a URL fragment (which
+    browsers never send, so it stays out of access logs); it is kept in the data dir."""
+    if settings.admin_token is not None:
+        return [f"  researcher login: {base}/login  (with the admin token set in "
+                "ACV_ADMIN_TOKEN)"]
+    return [f"  researcher login: {base}/login#token={admin_token}",
+            f"  admin token:      {admin_token}  (kept in "
+            f"{(settings.data_dir / ADMIN_TOKEN_FILE).resolve()})"]
 
 
 def _demo_lines(runtime: Runtime, base: str) -> list[str]:

@@ -5,6 +5,12 @@ it reports to the database (which every node must reach: PostgreSQL at scale) an
 run directory under ``ACV_RUNS_DIR``, which must be storage every node and the web server
 can reach. Tasks are never retried by Ray: a run whose task dies is ``failed`` with Ray's
 error, and can be resumed from its last checkpoint.
+
+``ray.init(address="host:6379")`` connects a driver that runs on a node of the cluster: the
+machine of ``acv worker`` must have joined it first (``ray start --address=host:6379``, as
+the compose ``worker`` service does). Ray Client (``ray://host:10001``) is not used: it
+needs ``ray[client]`` and ends the tasks of a driver whose connection drops for 30 s, while
+runs last hours.
 """
 
 from __future__ import annotations
@@ -23,7 +29,8 @@ class RayExecutor:
     """Submits claimed runs as Ray tasks.
 
     Args:
-        address: the cluster's address (``host:port``), as for ``ray.init``.
+        address: the cluster's GCS address (``host:port``), as for ``ray.init``; this
+            machine must be a node of that cluster.
         database_url: the database the tasks report to.
         runs_dir: the shared folder of run directories.
     """

@@ -1,7 +1,8 @@
 """Settings of the training workers, read from the environment (``ACV_`` prefix).
 
 - ``ACV_RAY_ADDRESS``: a Ray cluster address (``host:port``); when set, each run is a Ray task
-  on the cluster (the ``ray`` executor), else a process on this machine (``local``).
+  on the cluster (the ``ray`` executor), else a process on this machine (``local``). The
+  worker's machine must have joined that cluster (``ray start --address=host:port``).
 - ``ACV_RUNS_DIR`` (default ``ACV_DATA_DIR/runs``): run directories (``<runs dir>/<id>``);
   with Ray it must be storage that every node and the web server can reach (NFS, ...).
 - ``ACV_WORKER_SLOTS`` (default 1): runs one worker trains at the same time.

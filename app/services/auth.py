@@ -1,8 +1,9 @@
 """Credentials: the researcher's admin token, participants' invite tokens, and cookies.
 
 Researchers send ``Authorization: Bearer <admin token>`` to the API; pages use an HttpOnly
-SameSite cookie holding an HMAC of the admin token (never the token itself). Participants
-send ``Authorization: Bearer <invite token>``, or carry the cookie that ``/p/<token>`` sets.
+SameSite cookie holding a login time and a random nonce signed with a key derived from the
+admin token (never the token itself), accepted for ``ACV_SESSION_HOURS``. Participants send
+``Authorization: Bearer <invite token>``, or carry the cookie that ``/p/<token>`` sets.
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ import hmac
 import os
 import re
 import secrets
+import time
 from pathlib import Path
 
 from fastapi import Response
@@ -27,7 +29,11 @@ from engine.errors import InputError
 ADMIN_TOKEN_FILE = "admin_token"
 RESEARCHER_COOKIE = "acv_researcher"
 PARTICIPANT_COOKIE = "acv_participant"
-COOKIE_MAX_AGE_S = 90 * 24 * 3600
+PARTICIPANT_COOKIE_MAX_AGE_S = 90 * 24 * 3600
+#: Shortest admin token accepted: ~190 bits as URL-safe base64, beyond brute force.
+MIN_ADMIN_TOKEN_CHARS = 32
+#: Seconds a researcher cookie may claim to come from the future (clocks of several hosts).
+CLOCK_SKEW_S = 60
 _MAX_TOKEN_CHARS = 256
 #: What invite tokens look like (URL-safe base64); anything else is not looked up at all.
 _TOKEN_SHAPE = re.compile(r"[A-Za-z0-9_-]{1,256}")
@@ -46,7 +52,8 @@ def ensure_admin_token(settings: Settings) -> str:
     workers) agree on one token and none reads a half-written file.
 
     Raises:
-        InputError: the token is empty (anyone could forge a cookie keyed by it).
+        InputError: the token is empty or shorter than :data:`MIN_ADMIN_TOKEN_CHARS` (it
+            could be guessed, and the cookies and CSRF tokens are keyed by it).
     """
     if settings.admin_token is not None:
         token = settings.admin_token.get_secret_value().strip()
@@ -59,6 +66,11 @@ def ensure_admin_token(settings: Settings) -> str:
         token, where = path.read_text(encoding="utf-8").strip(), str(path)
     if not token:
         raise InputError(f"the admin token in {where} is empty")
+    if len(token) < MIN_ADMIN_TOKEN_CHARS:
+        raise InputError(
+            f"the admin token in {where} has {len(token)} characters; use at least "
+            f"{MIN_ADMIN_TOKEN_CHARS}, e.g. python3 -c 'import secrets; "
+            f"print(secrets.token_urlsafe(32))'")
     return token
 
 
@@ -94,16 +106,50 @@ def bearer_token(authorization: str | None) -> str | None:
     return token.strip() or None
 
 
-def researcher_cookie_value(admin_token: str) -> str:
-    """What the researcher cookie holds: an HMAC of the admin token, not the token."""
-    return hmac.new(admin_token.encode(), b"acv-researcher-session", hashlib.sha256).hexdigest()
+def _session_key(admin_token: str) -> bytes:
+    return hmac.new(admin_token.encode(), b"acv-researcher-session", hashlib.sha256).digest()
 
 
-def is_researcher(*, admin_token: str, bearer: str | None = None,
-                  cookie: str | None = None) -> bool:
-    """Whether a bearer token or a researcher cookie proves the researcher."""
-    return same_secret(bearer, admin_token) or \
-        same_secret(cookie, researcher_cookie_value(admin_token))
+def _sign(admin_token: str, payload: str) -> str:
+    return hmac.new(_session_key(admin_token), payload.encode(), hashlib.sha256).hexdigest()
+
+
+def researcher_cookie_value(*, admin_token: str, issued_at: float | None = None) -> str:
+    """A new researcher cookie: ``<login time>.<nonce>.<signature>``, never the token; the
+    nonce makes every login's cookie different."""
+    issued = int(time.time() if issued_at is None else issued_at)
+    payload = f"{issued}.{secrets.token_urlsafe(12)}"
+    return f"{payload}.{_sign(admin_token, payload)}"
+
+
+def valid_researcher_cookie(*, cookie: str | None, admin_token: str, max_age_s: float,
+                            now: float | None = None) -> bool:
+    """Whether ``cookie`` was signed with this admin token less than ``max_age_s`` ago."""
+    if not cookie or len(cookie) > _MAX_TOKEN_CHARS or cookie.count(".") != 2:
+        return False
+    issued, nonce, signature = cookie.split(".")
+    if not (issued.isascii() and issued.isdigit() and len(issued) <= 12) or \
+            not same_secret(signature, _sign(admin_token, f"{issued}.{nonce}")):
+        return False
+    age = (time.time() if now is None else now) - int(issued)
+    return -CLOCK_SKEW_S <= age <= max_age_s
+
+
+def is_researcher(*, admin_token: str, bearer: str | None = None, cookie: str | None = None,
+                  max_age_s: float | None = None) -> bool:
+    """Whether a bearer token, or a researcher cookie younger than ``max_age_s`` (the
+    session length; without it no cookie counts), proves the researcher."""
+    return same_secret(bearer, admin_token) or (max_age_s is not None and valid_researcher_cookie(
+        cookie=cookie, admin_token=admin_token, max_age_s=max_age_s))
+
+
+def is_invite_token(session: Session, *, token: str) -> bool:
+    """Whether ``token`` is some participant's invite token (a credential, not a guess)."""
+    try:
+        participant_by_token(session, token=token)
+    except AuthError:
+        return False
+    return True
 
 
 def participant_by_token(session: Session, *, token: str | None) -> Participant:
@@ -124,17 +170,18 @@ def participant_by_token(session: Session, *, token: str | None) -> Participant:
     return participant
 
 
-def set_researcher_cookie(response: Response, *, admin_token: str, secure: bool) -> None:
-    """Log the browser in as the researcher (HttpOnly, SameSite=Lax)."""
-    response.set_cookie(RESEARCHER_COOKIE, researcher_cookie_value(admin_token),
-                        max_age=COOKIE_MAX_AGE_S, httponly=True, samesite="lax",
-                        secure=secure)
+def set_researcher_cookie(response: Response, *, admin_token: str, max_age_s: int,
+                          secure: bool) -> None:
+    """Log the browser in as the researcher for ``max_age_s`` (HttpOnly, SameSite=Lax; the
+    server enforces the age too, see :func:`valid_researcher_cookie`)."""
+    response.set_cookie(RESEARCHER_COOKIE, researcher_cookie_value(admin_token=admin_token),
+                        max_age=max_age_s, httponly=True, samesite="lax", secure=secure)
 
 
 def set_participant_cookie(response: Response, *, token: str, secure: bool) -> None:
     """Remember the participant in this browser, so they can resume (HttpOnly, Lax)."""
-    response.set_cookie(PARTICIPANT_COOKIE, token, max_age=COOKIE_MAX_AGE_S, httponly=True,
-                        samesite="lax", secure=secure)
+    response.set_cookie(PARTICIPANT_COOKIE, token, max_age=PARTICIPANT_COOKIE_MAX_AGE_S,
+                        httponly=True, samesite="lax", secure=secure)
 
 
 def clear_cookies(response: Response) -> None:

@@ -35,3 +35,13 @@ class ForbiddenError(ServiceError):
     """Valid credentials that do not allow this."""
 
     status_code = 403
+
+
+class TooManyAttemptsError(ServiceError):
+    """Too many failed credentials from this address; try again in ``retry_after_s``."""
+
+    status_code = 429
+
+    def __init__(self, detail: str, *, retry_after_s: int):
+        super().__init__(detail)
+        self.retry_after_s = retry_after_s

@@ -10,6 +10,7 @@ children. SVG output embeds the thumbnails, so a file stands alone.
 from __future__ import annotations
 
 import io
+import logging
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -20,6 +21,7 @@ from PIL import Image
 
 from engine.treefile import TreeDocument
 
+log = logging.getLogger(__name__)
 BAD, GOOD, EDGE, MUTED = "#c93c3c", "#1f8a4c", "#9aa5b4", "#5f6b7a"
 FORMATS = {"svg": "image/svg+xml", "png": "image/png"}
 _THUMB = 0.8  # thumbnail size in layout units (siblings are 1 apart)
@@ -54,12 +56,15 @@ def tree_layout(doc: TreeDocument) -> dict[int, tuple[float, int]]:
 
 
 def load_thumbs(paths: Mapping[int, Path]) -> dict[int, np.ndarray]:
-    """Thumbnail images as RGB arrays (missing files are left out)."""
+    """Thumbnail images as RGB arrays. Missing or unreadable files (corrupt, truncated, not
+    an image) are left out: their nodes are drawn without a picture rather than failing."""
     thumbs = {}
     for cid, path in paths.items():
-        if path.is_file():
+        try:
             with Image.open(path) as img:
                 thumbs[cid] = np.asarray(img.convert("RGB"))
+        except (OSError, ValueError, Image.DecompressionBombError) as exc:
+            log.warning("thumbnail of candidate %d left out (%s): %s", cid, path.name, exc)
     return thumbs
 
 

@@ -1,9 +1,9 @@
 """Researcher login and logout, and the site root.
 
 The login page takes the admin token in a password field (posted with a CSRF token) and
-sets the researcher cookie, which holds an HMAC of the token, never the token itself. A link
-``/login#token=...`` fills the field from the URL fragment, which browsers never send to the
-server, so the token stays out of access logs.
+sets the researcher cookie, a signed login time (never the token itself) that the server
+accepts for ``ACV_SESSION_HOURS``. A link ``/login#token=...`` fills the field from the URL
+fragment, which browsers never send to the server, so the token stays out of access logs.
 """
 
 from __future__ import annotations
@@ -30,7 +30,8 @@ router = APIRouter(route_class=PageRoute, include_in_schema=False)
 def home(runtime: RuntimeDep, session: SessionDep, researcher: ResearcherCookie = None,
          participant: ParticipantCookie = None) -> RedirectResponse:
     """The researcher's studies, a participant's bracket, or the login page."""
-    if auth.is_researcher(admin_token=runtime.admin_token, cookie=researcher):
+    if auth.is_researcher(admin_token=runtime.admin_token, cookie=researcher,
+                          max_age_s=runtime.settings.session_max_age_s):
         return redirect("/studies")
     if participant:
         try:
@@ -69,6 +70,7 @@ def login(request: Request, runtime: RuntimeDep, fields: FormFields) -> Response
             "in the data directory's admin_token file.")}, status_code=401)
     response = redirect(target)
     auth.set_researcher_cookie(response, admin_token=runtime.admin_token,
+                               max_age_s=runtime.settings.session_max_age_s,
                                secure=is_https(request))
     return response
 

@@ -21,7 +21,8 @@ ParticipantCookie = Annotated[str | None, Cookie(alias=auth.PARTICIPANT_COOKIE)]
 def researcher_page(request: Request, runtime: RuntimeDep,
                     cookie: ResearcherCookie = None) -> None:
     """Let the researcher through; send anyone else to the login page (and back after)."""
-    if not auth.is_researcher(admin_token=runtime.admin_token, cookie=cookie):
+    if not auth.is_researcher(admin_token=runtime.admin_token, cookie=cookie,
+                              max_age_s=runtime.settings.session_max_age_s):
         raise RedirectTo(login_url(request.url.path))
 
 

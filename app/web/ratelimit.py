@@ -1,8 +1,10 @@
 """Rate limiting of failed researcher logins, per client address (the ``limits`` library).
 
-An address may fail :data:`FAILED_LOGINS_PER_MINUTE` times in any moving minute; after that
-the login form answers 429 without looking at the token until the oldest failure is a
-minute old. Successful logins are not counted.
+Failures are wrong tokens posted to the login form and API bearer tokens that are neither the
+admin token nor an invite token (:mod:`app.api.deps`). An address may fail
+:data:`FAILED_LOGINS_PER_MINUTE` times in any moving minute; after that the login form and
+researcher bearer tokens get 429 without the token being compared, until the oldest failure
+is a minute old. Successful logins are not counted.
 
 The counts live in this process's memory. With several web workers (``uvicorn --workers
 N``) each worker counts on its own, so an address may fail up to N times the limit, and

@@ -12,10 +12,10 @@ from typing import Annotated, Any
 
 from fastapi import APIRouter, Query, Request, Response
 from fastapi.responses import HTMLResponse
-from pydantic import ValidationError
+from pydantic import TypeAdapter, ValidationError
 from sqlalchemy.orm import Session
 
-from app.api.deps import DbId, SessionDep
+from app.api.deps import MAX_DB_ID, DbId, SessionDep
 from app.api.run_schemas import Judge, RunCreate, RunOut
 from app.api.runs import RunsRootDep
 from app.jobs.execute import run_dir
@@ -33,13 +33,14 @@ router = APIRouter(route_class=PageRoute, include_in_schema=False,
 FORM_DEFAULTS = {"advice": "teacher:standing", "algo": "bipars-em", "timesteps": "200000",
                  "seed": "0", "n_envs": "4", "num_steps": "", "checkpoint_every": ""}
 _OPTIONAL = ("num_steps", "checkpoint_every")
+_DB_ID = TypeAdapter(DbId)
 JUDGE_LABELS = (("shaped", "its shaped reward R + z F"), ("shaping", "the advice part z F"),
                 ("value", "its shaped critic V"))
 
 
 @router.get("/runs")
 def run_list(request: Request, session: SessionDep,
-             study_id: Annotated[int | None, Query(ge=1, le=2**31 - 1)] = None) -> HTMLResponse:
+             study_id: Annotated[int | None, Query(ge=1, le=MAX_DB_ID)] = None) -> HTMLResponse:
     """Every run (or one study's), newest first, with a link to launch one."""
     study = studies.get_study(session, study_id=study_id) if study_id else None
     return render(request, "runs.html", {
@@ -68,7 +69,7 @@ def _form_page(request: Request, session: Session, study_id: int, values: dict[s
 
 @router.get("/runs/new")
 def new_run_form(request: Request, session: SessionDep,
-                 study_id: Annotated[int, Query(ge=1, le=2**31 - 1)]) -> HTMLResponse:
+                 study_id: Annotated[int, Query(ge=1, le=MAX_DB_ID)]) -> HTMLResponse:
     """The launch form for a run of ``study_id``."""
     return _form_page(request, session, study_id, dict(FORM_DEFAULTS), {})
 
@@ -91,9 +92,9 @@ def _body(study_id: int, values: dict[str, str]) -> dict[str, Any]:
 def create_run(request: Request, session: SessionDep, fields: FormFields) -> Response:
     """Validate like ``POST /api/runs``; errors are shown next to the form's fields."""
     values = {k: fields.get(k, "") for k in FORM_DEFAULTS}
-    try:
-        study_id = int(fields.get("study_id", ""))
-    except ValueError:
+    try:  # bounded here: the error page looks the study up, and SQLite overflows past int64
+        study_id = _DB_ID.validate_python(fields.get("study_id", ""))
+    except ValidationError:
         raise InputError("the form names no study") from None
     try:
         run = runs.create_run(session, **RunCreate.model_validate(

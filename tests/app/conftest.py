@@ -35,7 +35,7 @@ from app.db import upgrade
 from app.main import create_app
 from app.settings import Settings
 
-ADMIN_TOKEN = "test-admin-token"
+ADMIN_TOKEN = "test-admin-token-0123456789abcdefghij"  # >= 32 characters
 ADMIN = {"Authorization": f"Bearer {ADMIN_TOKEN}"}
 BACKENDS = ("sqlite", "postgresql")
 

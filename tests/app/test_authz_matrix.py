@@ -4,9 +4,13 @@ Callers: anonymous, participant A (study S1, bracket finished), participant B (s
 and the researcher. Each API route is asked with bearer tokens and again with the role's
 cookies (as the pages' scripts do); each page with cookies. :data:`RULES` says who may use
 a route (first match wins, and anything unlisted is the researcher's alone), so a new route
-is covered, deny-by-default, the moment it exists. Denied means 401/403/404 or a redirect
-to the login page; allowed means no 401/403, no login redirect and no 5xx (a 404 or 409
-from the handler is fine: runs are named by an id that does not exist, so none trains).
+is covered, deny-by-default, the moment it exists. Ids name real objects: A's study, match
+and tree, and a finished run (a tiny one, trained once). Allowed means no 401/403, no login
+redirect and no 5xx (a 409 from the handler is fine). Denied means 401/403 or a redirect to
+the login page. A 404 counts as denied only where the researcher gets 404 for the same URL
+too, or for a participant asking for what belongs to another participant or study (which
+they are not told exists): a researcher route that lost its check cannot pass by "not
+finding" a run.
 """
 
 from __future__ import annotations
@@ -26,12 +30,13 @@ from app.api.deps import AJAX_HEADER
 from app.db import make_engine, make_sessions, upgrade
 from app.services import auth
 from tests.app.conftest import ADMIN, ADMIN_TOKEN, Player
+from tests.app.runs_support import TINY, create_run, wait_run
 
 ANON, A, B, RESEARCHER = "anonymous", "participant A", "participant B", "researcher"
 EVERYONE = frozenset({ANON, A, B, RESEARCHER})
 #: (method or "*", path pattern, who may use it); first match wins.
 RULES: list[tuple[str, str, frozenset[str]]] = [
-    ("GET", r"/|/login|/p/\{token\}|/healthz|/openapi\.json|/docs.*|/redoc", EVERYONE),
+    ("GET", r"/|/login|/p/\{token\}|/healthz|/openapi\.json|/docs", EVERYONE),
     ("*", r"/api/participants/me(/.*)?|/participate(/.*)?", frozenset({A, B})),
     ("*", r"/api/matches/\{match_id\}/label", frozenset({A})),  # A's match
     ("GET", r"/api/participants/\{participant_id\}/tree", frozenset({A, RESEARCHER})),
@@ -49,6 +54,9 @@ BODIES: dict[tuple[str, str], dict[str, Any]] = {
                            "p": "0.9", "seed": "0", "sampling": "uniform", "instructions": ""},
     ("POST", "/studies/{study_id}/participants"): {"count": "1"},
 }
+
+#: Query strings of routes that need one to name something real.
+QUERIES = {("GET", "/runs/new"): "?study_id={study_id}"}
 
 
 @dataclass(frozen=True)
@@ -74,8 +82,9 @@ def app_routes(app) -> list[tuple[str, str]]:
     return sorted(pairs - CREDENTIAL_FORMS, key=lambda p: (p[0] != "GET", p[1], p[0]))
 
 
-def denied(response) -> bool:
-    if response.status_code in (401, 403, 404):
+def denied(response, *, may_hide: bool) -> bool:
+    """Refused: 401, 403 or a login redirect; also 404 where ``may_hide``."""
+    if response.status_code in (401, 403) or (may_hide and response.status_code == 404):
         return True
     return response.status_code in (302, 303, 307) and \
         response.headers["location"].startswith("/login")
@@ -107,8 +116,11 @@ def world(client: TestClient, study: dict[str, Any], make_study) -> dict[str, An
     ]
     last_match = client.get("/api/participants/me/bracket", headers=a.headers).json()
     final = last_match["rounds"][-1][0]
+    run_id = create_run(client, study_id=study["id"], teacher="good", algo="bipars-em",
+                        timesteps=256, checkpoint_every=128, **TINY)
+    assert wait_run(client, run_id)["status"] == "succeeded"  # every run route has data
     params = {"study_id": study["id"], "candidate_id": 0, "participant_id": a.id,
-              "token": a.token, "match_id": final["match_id"], "run_id": 2**31 - 1,
+              "token": a.token, "match_id": final["match_id"], "run_id": run_id,
               "which": "human", "fmt": "svg"}
     return {"callers": callers, "params": params, "form_token": form_token, "a": a, "b": b,
             "label": {"winner": final["winner"]}}
@@ -121,7 +133,8 @@ def _invite(client: TestClient, study_id: int) -> Player:
 
 def _ask(client: TestClient, method: str, path: str, caller: Caller, world: dict[str, Any],
          *, cookies: bool):
-    url = path.format(**world["params"])
+    url = path.format(**world["params"]) + QUERIES.get((method, path), "").format(
+        **world["params"])
     body = BODIES.get((method, path), world["label"] if "label" in path else None)
     headers = {} if cookies else dict(caller.headers)
     if cookies:
@@ -146,13 +159,19 @@ def test_every_route_is_in_the_matrix_and_enforced(client, world) -> None:
         assert not missing, f"{method} {path}: give the matrix a value for {missing}"
         who = rule_for(method, path)
         modes = (True,) if not path.startswith("/api/") else (False, True)
-        for caller in world["callers"]:
-            for cookies in modes:
+        researcher_first = sorted(world["callers"], key=lambda c: c.name != RESEARCHER)
+        for cookies in modes:
+            missing = False  # the researcher gets 404: the URL names nothing
+            for caller in researcher_first:
                 response = _ask(asker, method, path, caller, world, cookies=cookies)
+                if caller.name == RESEARCHER:
+                    missing = response.status_code == 404
                 if who == EVERYONE:  # e.g. ``/`` sends strangers to the login page
                     ok = response.status_code < 400
                 else:
-                    ok = allowed(response) if caller.name in who else denied(response)
+                    others = caller.name in (A, B) and bool(who & {A, B})  # not theirs
+                    ok = allowed(response) if caller.name in who else \
+                        denied(response, may_hide=missing or others)
                 if not ok:
                     failures.append(f"{method} {path} as {caller.name} "
                                     f"({'cookie' if cookies else 'bearer'}): "

@@ -159,6 +159,49 @@ def test_form_posts_with_odd_bodies_are_4xx(researcher_page, study, content_type
             _clean(researcher_page.post(path, content=content, headers=headers))
 
 
+def _attr(tag: str, name: str) -> str | None:
+    found = re.search(rf'\b{name}="([^"]*)"', tag)
+    return found.group(1) if found else None
+
+
+def page_forms(page: TestClient, study_id: int) -> list[tuple[str, dict[str, str], list[str]]]:
+    """``(action, fields as the page fills them, integer fields)`` of the researcher's forms
+    with an integer field (number inputs, numeric hidden ones); empty text fields get a
+    value, so that only the integer field is wrong."""
+    forms = []
+    for path in ("/studies/new", f"/runs/new?study_id={study_id}", f"/studies/{study_id}"):
+        for attrs, body in re.findall(r'<form ([^>]*method="post"[^>]*)>(.*?)</form>',
+                                      page.get(path).text, re.DOTALL):
+            fields, integers = {}, []
+            for tag in re.findall(r"<input [^>]*name=[^>]*>", body):
+                name, value, kind = _attr(tag, "name"), _attr(tag, "value"), _attr(tag, "type")
+                fields[name] = value or ("x" if kind in (None, "text") else "")
+                value = value or ""
+                if (kind == "number" and _attr(tag, "step") != "any") or \
+                        (kind == "hidden" and value.isdigit()):
+                    integers.append(name)
+            for name, options in re.findall(r'<select [^>]*name="([^"]+)"[^>]*>(.*?)</select>',
+                                            body, re.DOTALL):
+                fields[name] = re.findall(r'<option value="([^"]*)"', options)[0]
+            if integers:
+                forms.append((_attr(attrs, "action"), fields, integers))
+    return forms
+
+
+def test_huge_and_negative_integers_in_every_page_form_are_4xx(researcher_page, study) -> None:
+    """Integers past any database column (SQLite raises OverflowError on them), or below
+    zero, in any integer field of any form: the form again with its errors, or an error
+    page; never a 500."""
+    forms = page_forms(researcher_page, study["id"])
+    checked = {(action, name) for action, _, integers in forms for name in integers}
+    assert {("/runs", "study_id"), ("/runs", "timesteps"), ("/studies", "n_candidates"),
+            (f"/studies/{study['id']}/participants", "count")} <= checked
+    for action, fields, integers in forms:
+        for name in integers:
+            for bad in ("99999999999999999999", "-99999999999999999999", "-1"):
+                _clean(researcher_page.post(action, data=fields | {name: bad}))
+
+
 @pytest.mark.parametrize("path", ["/api/studies", "/login", "/api/matches/1/label"])
 def test_huge_bodies_are_413(client, path: str) -> None:
     _clean(client.post(path, content=b"x" * (MAX_BODY_BYTES + 1), headers=ADMIN))

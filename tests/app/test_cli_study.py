@@ -97,3 +97,21 @@ def test_serve_migrates_a_fresh_database_and_prints_the_login_url(tmp_path) -> N
         server.terminate()
         output = server.communicate(timeout=30)[0]
     assert f"researcher login: http://127.0.0.1:{port}/login#token={token}" in output
+
+
+def test_serve_never_prints_a_configured_admin_token(monkeypatch, tmp_path) -> None:
+    """ACV_ADMIN_TOKEN ends up in journald or docker logs if printed: only the /login URL
+    is shown (a generated token is printed in the #token= link, see above)."""
+    import uvicorn
+
+    token = "configured-admin-token-0123456789abcdef"
+    monkeypatch.setattr(uvicorn, "run", lambda *_, **__: None)  # print the banner, serve nothing
+    for name in [k for k in os.environ if k.startswith("ACV_") or k == "DATABASE_URL"]:
+        monkeypatch.delenv(name)
+    monkeypatch.setenv("ACV_DATA_DIR", str(tmp_path))
+    monkeypatch.setenv("ACV_ADMIN_TOKEN", token)
+    result = CliRunner().invoke(cli, ["serve", "--port", "8123"])
+    assert result.exit_code == 0, result.output
+    assert token not in result.output and "#token=" not in result.output
+    assert "researcher login: http://127.0.0.1:8123/login  (with the admin token set in " \
+           "ACV_ADMIN_TOKEN)" in result.output

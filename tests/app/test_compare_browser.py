@@ -2,12 +2,14 @@
 
 ``acv serve`` runs in a subprocess on 127.0.0.1 with a fresh SQLite data dir and its own
 worker. Through the REST API a participant labels an 8-candidate Humanoid bracket the way
-the ``standing`` teacher would, and a short ``bipars-em`` run trains on that advice. The
-researcher's browser then opens the run page and the comparison page: both Preference Trees
-are drawn with thumbnails, the rejected advice is listed as image pairs (as many as the
-metrics say were overturned), the verdict names the kept choices, the checkpoint slider
-redraws the agent's tree, and no script or CSP error occurs. Screenshots go to
-``/tmp/acv_screens`` (``compare.png``, ``compare-value.png``, ``run.png``).
+the ``standing`` teacher would; a short ``bipars-em`` run and a tiny ``ppo`` baseline train
+on that advice. The researcher's browser then opens the run page and the comparison page:
+both Preference Trees are drawn with thumbnails, the rejected advice is listed as image
+pairs (as many as the metrics say were overturned, and at least one on a view that overturns
+some), the verdict names the kept choices, the checkpoint slider redraws the agent's tree,
+the two runs on the same advice are compared side by side, and no script or CSP error
+occurs. Screenshots go to ``/tmp/acv_screens`` (``compare.png``, ``compare-value.png``,
+``run.png``, ``compare-runs.png``).
 """
 
 from __future__ import annotations
@@ -38,6 +40,8 @@ REPO = Path(__file__).resolve().parents[2]
 N_CANDIDATES = 8
 RUN = {"algo": "bipars-em", "timesteps": 4096, "seed": 1, "n_envs": 1, "num_steps": 256,
        "num_minibatches": 4, "update_epochs": 2, "checkpoint_every": 1024}
+#: The baseline on the same advice: two checkpoints, a few seconds.
+BASELINE = RUN | {"algo": "ppo", "timesteps": 512, "checkpoint_every": 256}
 
 
 def _free_port() -> int:
@@ -100,20 +104,25 @@ def _standing_participant(api: httpx.Client, study_id: int) -> int:
 
 @pytest.fixture(scope="module")
 def finished_run(server: str) -> dict:
-    """A succeeded ``bipars-em`` run on a standing-advice participant's tree."""
+    """A succeeded ``bipars-em`` run on a standing-advice participant's tree, and (id under
+    ``baseline``) a succeeded ``ppo`` run on the same advice."""
     with httpx.Client(base_url=server, headers=ADMIN, timeout=60) as api:
         study = api.post("/api/studies", json={"name": "Standing advice", "env_id": "Humanoid-v5",
                                                "n_candidates": N_CANDIDATES, "seed": 5}).json()
         _wait(lambda: api.get(f"/api/studies/{study['id']}").json()["status"] == "ready",
               "the study")
         pid = _standing_participant(api, study["id"])
-        created = api.post("/api/runs", json={"study_id": study["id"], "participant_id": pid,
-                                              **RUN})
-        assert created.status_code == 202, created.text
-        run = _wait(lambda: (r := api.get(f"/api/runs/{created.json()['id']}").json())[
-            "status"] not in ("queued", "running") and r, "the run")
-        assert run["status"] == "succeeded", run
+        ids = []
+        for body in (RUN, BASELINE):
+            created = api.post("/api/runs", json={"study_id": study["id"],
+                                                  "participant_id": pid, **body})
+            assert created.status_code == 202, created.text
+            ids.append(created.json()["id"])
+        run, baseline = (_wait(lambda i=i: (r := api.get(f"/api/runs/{i}").json())[
+            "status"] not in ("queued", "running") and r, f"run {i}") for i in ids)
+        assert run["status"] == baseline["status"] == "succeeded", (run, baseline)
         run["conformance"] = api.get(f"/api/runs/{run['id']}/conformance").json()
+        run["baseline"] = baseline["id"]
         return run
 
 
@@ -148,6 +157,9 @@ def test_comparison_page_shows_both_trees_and_the_rejected_advice(
     n_rejected = len(metrics["rejected"])
     expect(p.locator("#rejected .pair")).to_have_count(n_rejected)
     expect(p.locator("#rejected .pair img")).to_have_count(2 * n_rejected)
+    if n_rejected == 0:
+        expect(p.locator("#rejected")).to_have_text(
+            "None: the agent kept every choice at this checkpoint.")
     expect(p.locator("#human-tree .node.rejected")).to_have_count(
         len({r["b"] if r["human_winner"] == r["a"] else r["a"] for r in metrics["rejected"]}))
     expect(p.locator("#chart-curve svg circle.dot")).to_have_count(2 * 4)  # 4 checkpoints
@@ -163,9 +175,17 @@ def test_comparison_page_shows_both_trees_and_the_rejected_advice(
 
     p.select_option("#judge", "value")  # the shaped critic judges: other picks, same page
     expect(p.locator("#compare")).to_have_attribute("data-loaded", "1024:value")
-    by_value = httpx.get(f"{server}/api/runs/{run_id}/conformance?checkpoint=1024&judge=value",
-                         headers=ADMIN).json()
-    expect(p.locator("#rejected .pair")).to_have_count(len(by_value["rejected"]))
+    rejected = httpx.get(f"{server}/api/runs/{run_id}/conformance?checkpoint=1024&judge=value",
+                         headers=ADMIN).json()["rejected"]
+    # This view overturns some advice (3 of 7 with this seed): the list must show it.
+    assert len(rejected) >= 1, "no overturned match to list: change the seed or the view"
+    pairs = p.locator("#rejected .pair")
+    expect(pairs).to_have_count(len(rejected))
+    for pair, r in zip(pairs.all(), rejected, strict=True):
+        expect(pair.locator("img")).to_have_count(2)
+        expect(pair.locator("img").first).to_have_attribute(
+            "src", re.compile(rf"/candidates/{r['human_winner']}/image\?size=thumb$"))
+        expect(pair).to_contain_text(f"Round {r['round']}: you preferred #{r['human_winner']}")
     p.screenshot(path=SCREENS / "compare-value.png", full_page=True)
     assert errors == []
 
@@ -179,7 +199,16 @@ def test_run_page_shows_progress_curves_and_checkpoints(
     expect(p.locator("#chart-z svg polyline")).to_have_count(1)
     assert p.locator("#run-progress").get_attribute("value") == "4096"
     p.screenshot(path=SCREENS / "run.png", full_page=True)
+    p.goto(f"{server}/runs/{finished_run['id']}/compare")
+    expect(p.locator(f"a[href='/runs/{finished_run['id']}/compare-runs']")).to_have_text(
+        "compare the 2 runs on this advice")
     p.goto(f"{server}/runs/{finished_run['id']}/compare-runs")
-    expect(p.locator("table.runs-side-by-side tbody tr")).to_have_count(1)
-    expect(p.locator("#chart-runs svg polyline")).to_have_count(1)
+    rows = p.locator("table.runs-side-by-side tbody tr")
+    expect(rows).to_have_count(2)  # bipars-em and the ppo baseline, oldest first
+    for row, (run_id, algo) in zip(rows.all(), [(finished_run["id"], "bipars-em"),
+                                                (finished_run["baseline"], "ppo")], strict=True):
+        expect(row).to_have_attribute("data-run-id", str(run_id))
+        expect(row.locator("td").nth(1)).to_have_text(algo)
+    expect(p.locator("#chart-runs svg polyline")).to_have_count(2)  # one curve per run
+    p.screenshot(path=SCREENS / "compare-runs.png", full_page=True)
     assert errors == []

@@ -16,6 +16,7 @@ from typing import Any
 import pytest
 from fastapi.testclient import TestClient
 
+from app.services import figures, run_report
 from engine.conformance import compare
 from engine.pipeline import replay_with_teacher
 from engine.rl.checkpoint import list_checkpoints
@@ -141,7 +142,11 @@ def test_exports(client: TestClient, runs: dict[str, dict]) -> None:
     one = list(csv.DictReader(io.StringIO(
         api(client, f"/api/runs/{run_id}/conformance.csv?checkpoint=512").text)))
     assert one == [rows[1]]
-    report = api(client, f"/api/runs/{run_id}/report.html?checkpoint=768").text
+    report_response = api(client, f"/api/runs/{run_id}/report.html?checkpoint=768")
+    policy = report_response.headers["content-security-policy"]
+    assert "default-src 'none'" in policy and "frame-ancestors 'none'" in policy
+    assert "script-src" not in policy
+    report = report_response.text
     assert "<script" not in report and "<link" not in report
     assert not re.search(r'(src|href)="(?!data:|#)', report)  # nothing to fetch
     rejected = api(client, f"/api/runs/{run_id}/conformance?checkpoint=768")["rejected"]
@@ -149,6 +154,27 @@ def test_exports(client: TestClient, runs: dict[str, dict]) -> None:
     assert report.count('<img src="data:image/jpeg;base64,') == 2 * len(rejected)
     assert bool(rejected) != ("the agent kept every choice" in report)
     assert report.count("<svg") == 4  # two trees and two curves, inline
+
+
+def test_a_corrupt_thumbnail_is_drawn_without_its_picture(client: TestClient, settings,
+                                                         study: dict, runs: dict) -> None:
+    """A thumbnail PIL cannot read (not an image, truncated) leaves its node without a
+    picture instead of failing the exports."""
+    with client.app.state.runtime.sessions() as session:
+        thumbs = run_report.thumb_paths(session, data_dir=settings.data_dir,
+                                        study_id=study["id"])
+    original, run_id = thumbs[0].read_bytes(), runs["em"]["id"]
+    try:
+        for content in (b"not an image", original[:len(original) // 2]):
+            thumbs[0].write_bytes(content)
+            assert sorted(figures.load_thumbs(thumbs)) == sorted(set(thumbs) - {0})
+            assert b"<svg" in api(client, f"/api/runs/{run_id}/trees/human.svg").content
+            assert api(client, f"/api/runs/{run_id}/trees/agent.png").content.startswith(
+                b"\x89PNG")
+            assert "The agent kept" in api(client, f"/api/runs/{run_id}/report.html").text
+    finally:
+        thumbs[0].write_bytes(original)
+    assert sorted(figures.load_thumbs(thumbs)) == sorted(thumbs)
 
 
 def test_cancel_a_running_teacher_run_then_resume_it(client: TestClient, study: dict,

@@ -64,6 +64,15 @@ def launched(client: TestClient, page: TestClient, study: dict, participant: int
     return run_id
 
 
+@pytest.fixture(scope="module")
+def baseline(client: TestClient, study: dict, participant: int, launched: int) -> int:
+    """A tiny ``ppo`` run on the same participant's advice as ``launched``, finished."""
+    run_id = create_run(client, study_id=study["id"], participant_id=participant, algo="ppo",
+                        timesteps=256, **TINY)
+    assert wait_run(client, run_id)["status"] == "succeeded"
+    return run_id
+
+
 @pytest.mark.parametrize("path", ["/runs", "/runs/new?study_id=1", "/runs/1",
                                   "/runs/1/compare", "/runs/1/compare-runs"])
 def test_run_pages_send_strangers_to_login(client: TestClient, path: str) -> None:
@@ -94,7 +103,20 @@ def test_a_launched_run_has_its_pages(client: TestClient, page: TestClient, laun
     assert 'id="run-status">succeeded' in run_page and 'data-step="256"' in run_page
     compare = page.get(f"/runs/{launched}/compare?checkpoint=128").text
     assert 'data-checkpoints="128,256"' in compare and 'data-selected="128"' in compare
-    assert f'<tr data-run-id="{launched}"' in page.get(f"/runs/{launched}/compare-runs").text
+
+
+def test_runs_on_the_same_advice_are_compared(page: TestClient, launched: int,
+                                              baseline: int) -> None:
+    """Both runs, oldest first: a row each with its metrics, and a curve each (the script
+    draws one line per id in ``data-runs``)."""
+    assert "compare the 2 runs on this advice" in page.get(f"/runs/{launched}/compare").text
+    for run_id in (launched, baseline):
+        html = page.get(f"/runs/{run_id}/compare-runs").text
+        assert audit(html) == []
+        rows = re.findall(r'<tr data-run-id="(\d+)"[^>]*>(.*?)</tr>', html, re.DOTALL)
+        assert [int(r) for r, _ in rows] == [launched, baseline]
+        assert all(re.search(r"\d+ of 4</td>", cells) for _, cells in rows)  # metrics, each
+        assert f'data-runs="{launched},{baseline}"' in html
 
 
 @pytest.mark.parametrize(("fields", "where", "words"), [

@@ -1,12 +1,16 @@
 """Browser-facing defences: cookie flags, CSRF on every form post and on cookie-authenticated
-JSON calls, security headers on every kind of response, and rate-limited logins.
+JSON calls, security headers on every kind of response (the self-hosted API docs included),
+researcher sessions that expire on the server, and rate-limited logins and bearer tokens.
 
 Runs on SQLite and PostgreSQL (the ``client`` fixture); each test uses its own cookie jar.
 """
 
 from __future__ import annotations
 
+import base64
+import hashlib
 import re
+import time
 from http.cookies import SimpleCookie
 from typing import Any
 
@@ -16,6 +20,7 @@ from fastapi.testclient import TestClient
 
 from app.api.deps import AJAX_HEADER
 from app.middleware import MAX_BODY_BYTES
+from app.services import auth
 from app.web.ratelimit import FAILED_LOGINS_PER_MINUTE
 from tests.app.conftest import ADMIN, ADMIN_TOKEN, Player
 
@@ -175,3 +180,71 @@ def test_failed_logins_are_rate_limited_per_address(client) -> None:
 def test_successful_logins_are_not_counted(client) -> None:
     for _ in range(FAILED_LOGINS_PER_MINUTE + 2):
         logged_in(client, "203.0.113.9")
+
+
+def test_failed_bearer_tokens_are_rate_limited_per_address(client, invite) -> None:
+    """Wrong bearer tokens count as failed logins of the address: past the limit even the
+    admin token gets 429 (without being compared), on researcher and shared routes, and the
+    login form is closed too. Invite tokens are credentials, not guesses: never counted,
+    never refused. Other addresses are unaffected."""
+    api, player = browser(client, "203.0.113.20"), invite()
+    player.play()
+    tree, guess = f"/api/participants/{player.id}/tree", {"Authorization": "Bearer guess"}
+    for _ in range(FAILED_LOGINS_PER_MINUTE + 2):  # another role's token on a researcher route
+        assert api.get("/api/studies", headers=player.headers).status_code == 401
+    assert api.get("/api/studies", headers=ADMIN).status_code == 200
+    for i in range(FAILED_LOGINS_PER_MINUTE):
+        assert api.get(tree if i % 2 else "/api/studies", headers=guess).status_code == 401
+    for path in ("/api/studies", tree):
+        blocked = api.get(path, headers=ADMIN)
+        assert blocked.status_code == 429 and "detail" in blocked.json(), path
+        assert 1 <= int(blocked.headers["retry-after"]) <= 60
+    assert api.get(tree, headers=player.headers).status_code == 200
+    assert api.post("/login", data={"csrf_token": csrf_token(api), "token": ADMIN_TOKEN}
+                    ).status_code == 429
+    assert browser(client, "203.0.113.21").get("/api/studies", headers=ADMIN).status_code == 200
+
+
+def test_researcher_sessions_expire_on_the_server(client) -> None:
+    """The cookie holds a signed login time; the server refuses it after the session length
+    (whatever the browser keeps), and a cookie whose time was moved is refused at once."""
+    max_age = client.app.state.runtime.settings.session_max_age_s
+    assert max_age == 12 * 3600
+    page = browser(client)
+    login = page.post("/login", data={"csrf_token": csrf_token(page), "token": ADMIN_TOKEN})
+    assert [h for h in login.headers.get_list("set-cookie")
+            if h.startswith(auth.RESEARCHER_COOKIE) and f"Max-Age={max_age};" in h]
+    fresh = auth.researcher_cookie_value(admin_token=ADMIN_TOKEN)
+    stale = auth.researcher_cookie_value(admin_token=ADMIN_TOKEN,
+                                         issued_at=time.time() - max_age - 5)
+    issued, rest = stale.split(".", 1)
+    moved = f"{int(issued) + 600}.{rest}"
+    for cookie, valid in ((fresh, True), (stale, False), (moved, False)):
+        headers = {"Cookie": f"{auth.RESEARCHER_COOKIE}={cookie}"}
+        page = browser(client).get("/studies", headers=headers)
+        assert (page.status_code == 200) is valid, (cookie, page.status_code)
+        assert page.status_code == 200 or page.headers["location"].startswith("/login")
+        api = browser(client).get("/api/studies", headers=headers)
+        assert api.status_code == (200 if valid else 401)
+
+
+def test_api_docs_run_only_this_origins_code(client) -> None:
+    """Swagger UI comes from static/vendor; its one inline script is allowed by its hash, and
+    nothing else inline or from elsewhere; ReDoc is not served."""
+    response = client.get("/docs")
+    assert response.status_code == 200
+    directives = dict(d.strip().split(" ", 1) for d in
+                      response.headers["content-security-policy"].split(";"))
+    inline = re.findall(r"<script>(.*?)</script>", response.text, re.DOTALL)
+    assert len(inline) == 1
+    digest = base64.b64encode(hashlib.sha256(inline[0].encode()).digest()).decode()
+    assert directives["script-src"] == f"'self' 'sha256-{digest}'"
+    assert directives["default-src"] == "'none'" and directives["frame-ancestors"] == "'none'"
+    assert "unsafe" not in response.headers["content-security-policy"]
+    assets = re.findall(r'(?:src|href)="([^"]+)"', response.text)
+    assert {"/static/vendor/swagger-ui-bundle.js", "/static/vendor/swagger-ui.css"} <= \
+        set(assets)
+    for asset in assets:
+        assert asset.startswith("/static/") and client.get(asset).status_code == 200, asset
+    assert "Apache License" in client.get("/static/vendor/swagger-ui.LICENSE").text
+    assert client.get("/redoc").status_code == 404

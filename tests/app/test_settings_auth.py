@@ -3,17 +3,23 @@
 from __future__ import annotations
 
 import stat
+import time
 
 import pytest
 
 from app.services.auth import (
     ADMIN_TOKEN_FILE,
+    MIN_ADMIN_TOKEN_CHARS,
     bearer_token,
     ensure_admin_token,
     is_researcher,
     researcher_cookie_value,
+    valid_researcher_cookie,
 )
 from app.settings import Settings, normalise_url
+from engine.errors import InputError
+
+ADM = "adm-0123456789abcdefghijklmnopqrstuvwxyz"
 
 
 def test_settings_come_from_the_environment(monkeypatch, tmp_path) -> None:
@@ -52,8 +58,19 @@ def test_admin_token_is_generated_once_and_kept_private(monkeypatch, tmp_path) -
 
 
 def test_explicit_admin_token_wins(tmp_path) -> None:
-    assert ensure_admin_token(Settings(data_dir=tmp_path, admin_token="given")) == "given"
+    assert ensure_admin_token(Settings(data_dir=tmp_path, admin_token=ADM)) == ADM
     assert not (tmp_path / ADMIN_TOKEN_FILE).exists()
+
+
+@pytest.mark.parametrize("short", ["a", "x" * (MIN_ADMIN_TOKEN_CHARS - 1),
+                                   " " + "y" * (MIN_ADMIN_TOKEN_CHARS - 1) + " "])
+def test_short_admin_tokens_are_refused(tmp_path, short: str) -> None:
+    with pytest.raises(InputError, match=f"at least {MIN_ADMIN_TOKEN_CHARS}"):
+        ensure_admin_token(Settings(data_dir=tmp_path, admin_token=short))
+    (tmp_path / ADMIN_TOKEN_FILE).write_text(short.strip() + "\n")  # a hand-edited file too
+    with pytest.raises(InputError, match=ADMIN_TOKEN_FILE):
+        ensure_admin_token(Settings(data_dir=tmp_path))
+    assert ensure_admin_token(Settings(data_dir=tmp_path, admin_token="z" * 32)) == "z" * 32
 
 
 @pytest.mark.parametrize(("header", "token"), [
@@ -65,10 +82,39 @@ def test_bearer_token(header: str | None, token: str | None) -> None:
 
 
 def test_researcher_proof() -> None:
-    cookie = researcher_cookie_value("adm")
-    assert cookie != "adm"
-    assert is_researcher(admin_token="adm", bearer="adm")
-    assert is_researcher(admin_token="adm", cookie=cookie)
-    assert not is_researcher(admin_token="adm", bearer="ad")
-    assert not is_researcher(admin_token="adm", cookie="adm")  # the raw token is no cookie
-    assert not is_researcher(admin_token="adm", bearer="\u00e9")
+    cookie = researcher_cookie_value(admin_token=ADM)
+    assert ADM not in cookie and cookie != researcher_cookie_value(admin_token=ADM)  # nonce
+    assert is_researcher(admin_token=ADM, bearer=ADM)
+    assert is_researcher(admin_token=ADM, cookie=cookie, max_age_s=60)
+    assert not is_researcher(admin_token=ADM, cookie=cookie)  # no session length: no cookie
+    assert not is_researcher(admin_token=ADM, bearer=ADM[:-1])
+    assert not is_researcher(admin_token=ADM, cookie=ADM, max_age_s=60)  # the raw token
+    assert not is_researcher(admin_token=ADM, bearer="\u00e9")
+    assert not is_researcher(admin_token=ADM + "x", cookie=cookie, max_age_s=60)  # new token
+
+
+def test_researcher_cookies_expire_on_the_server() -> None:
+    now = time.time()
+    cookie = researcher_cookie_value(admin_token=ADM, issued_at=now - 3600)
+    for age_limit, accepted in ((3601, True), (3599, False)):
+        assert valid_researcher_cookie(cookie=cookie, admin_token=ADM, max_age_s=age_limit,
+                                       now=now) is accepted
+    future = researcher_cookie_value(admin_token=ADM, issued_at=now + 3600)
+    assert not valid_researcher_cookie(cookie=future, admin_token=ADM, max_age_s=10**9, now=now)
+
+
+def test_tampered_researcher_cookies_are_refused() -> None:
+    now = time.time()
+    issued, nonce, signature = researcher_cookie_value(admin_token=ADM,
+                                                       issued_at=now - 100).split(".")
+    flipped = signature[:-1] + ("1" if signature[-1] == "0" else "0")
+
+    def accepted(value: str) -> bool:
+        return valid_researcher_cookie(cookie=value, admin_token=ADM, max_age_s=3600, now=now)
+
+    assert accepted(f"{issued}.{nonce}.{signature}")
+    for forged in (f"{int(now)}.{nonce}.{signature}",  # a renewed login time
+                   f"{issued}.{nonce}x.{signature}", f"{issued}.{nonce}.{flipped}",
+                   f"{issued}.{nonce}", f"{issued}.{nonce}.{signature}.x", f"-5.{nonce}.x",
+                   f"\u0661\u0662.{nonce}.{signature}", "", "x" * 300):
+        assert not accepted(forged), forged

@@ -141,6 +141,8 @@ def test_unreachable_postgresql(serve_here, tmp_path: Path) -> None:
 
 @pytest.mark.parametrize(("env", "needle"), [
     ({"ACV_ADMIN_TOKEN": "  "}, "admin token"), ({"ACV_THREADS": "many"}, "threads"),
+    ({"ACV_ADMIN_TOKEN": "a"}, "ACV_ADMIN_TOKEN has 1 characters; use at least 32"),
+    ({"ACV_ADMIN_TOKEN": "x" * 31}, "at least 32"), ({"ACV_SESSION_HOURS": "0"}, "session_hours"),
     ({"DATABASE_URL": "nosuchdb://x"}, "DATABASE_URL")])
 def test_bad_settings(serve_here, tmp_path: Path, env: dict[str, str], needle: str) -> None:
     serve_here({"ACV_DATA_DIR": str(tmp_path)} | env, needle)

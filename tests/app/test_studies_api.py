@@ -141,7 +141,7 @@ def test_participant_token_is_not_a_researcher_token(client, study, invite) -> N
 def test_researcher_cookie_from_services_is_accepted(client, study) -> None:
     from app.services.auth import RESEARCHER_COOKIE, researcher_cookie_value
 
-    cookie = researcher_cookie_value(client.app.state.runtime.admin_token)
+    cookie = researcher_cookie_value(admin_token=client.app.state.runtime.admin_token)
     response = client.get("/api/studies", headers={"Cookie": f"{RESEARCHER_COOKIE}={cookie}"})
     assert response.status_code == 200
 

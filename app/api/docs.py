@@ -1,0 +1,55 @@
+"""``/docs``: Swagger UI from this origin under a strict Content-Security-Policy.
+
+FastAPI's default page loads Swagger UI from a CDN and starts it with an inline script, so it
+could only be served without a script policy, on the app's origin (where the researcher's
+cookie lives). Here the bundle and its CSS are vendored in ``static/vendor`` (swagger-ui-dist,
+with its licence), and the one inline script is allowed by its SHA-256 hash alone. ReDoc is
+not served: it would need another bundle and more policy exceptions for the same schema.
+"""
+
+from __future__ import annotations
+
+import base64
+import hashlib
+import re
+
+from fastapi import APIRouter
+from fastapi.openapi.docs import get_swagger_ui_html
+from fastapi.responses import HTMLResponse
+
+SWAGGER_JS = "/static/vendor/swagger-ui-bundle.js"
+SWAGGER_CSS = "/static/vendor/swagger-ui.css"
+FAVICON = "/static/favicon.svg"
+_INLINE_SCRIPT = re.compile(rb"<script>(.*?)</script>", re.DOTALL)
+
+
+def docs_policy(html: bytes) -> str:
+    """The page's policy: this origin only, plus the hash of its one inline script.
+
+    Raises:
+        ValueError: the page does not have exactly one inline script (FastAPI changed it).
+    """
+    scripts = _INLINE_SCRIPT.findall(html)
+    if len(scripts) != 1:
+        raise ValueError(f"expected one inline script in the docs page, found {len(scripts)}")
+    digest = base64.b64encode(hashlib.sha256(scripts[0]).digest()).decode()
+    return "; ".join((
+        "default-src 'none'", f"script-src 'self' 'sha256-{digest}'", "style-src 'self'",
+        "img-src 'self' data:", "connect-src 'self'", "base-uri 'none'", "form-action 'none'",
+        "frame-ancestors 'none'"))
+
+
+def docs_router(*, openapi_url: str, title: str) -> APIRouter:
+    """A router serving Swagger UI for ``openapi_url`` at ``/docs`` (the page is built once)."""
+    html = get_swagger_ui_html(
+        openapi_url=openapi_url, title=title, swagger_js_url=SWAGGER_JS,
+        swagger_css_url=SWAGGER_CSS, swagger_favicon_url=FAVICON,
+        swagger_ui_parameters={"validatorUrl": None}).body  # no badge from swagger.io
+    headers = {"Content-Security-Policy": docs_policy(html), "Referrer-Policy": "no-referrer"}
+    router = APIRouter(include_in_schema=False)
+
+    @router.get("/docs")
+    async def swagger_ui() -> HTMLResponse:
+        return HTMLResponse(html, headers=headers)
+
+    return router
