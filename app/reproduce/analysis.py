@@ -54,16 +54,27 @@ def training_stats(run_dir: Path) -> dict[str, Any]:
             "z_max_over_training": float(np.max(z_means))}
 
 
-def conformance_curve(run_dir: Path, advice: TreeDocument) -> list[dict[str, Any]]:
-    """Conformance of the Agent Preference Tree (``shaped`` judge) at every checkpoint."""
+def conformance_curve(run_dir: Path, advice: TreeDocument,
+                      classes: dict[int, str]) -> list[dict[str, Any]]:
+    """Conformance of the Agent Preference Tree (``shaped`` judge) at every checkpoint, with
+    the bent share of its straight-vs-bent matches and z at each posture class."""
     rows = []
-    for step in list_checkpoints(run_dir):
-        c = compare(advice, agent_tree(run_dir, step, "shaped", advice))
+    for step, path in list_checkpoints(run_dir).items():
+        doc = agent_tree(run_dir, step, "shaped", advice)
+        c = compare(advice, doc)
+        z = candidate_z(load_agent(path), advice)
         rows.append({"step": step, "n_agree": c.n_agree, "n_matches": c.n_matches,
                      "match_agreement": c.match_agreement, "kendall_tau_b": c.kendall_tau_b,
                      "tree_edit_distance": c.tree_edit_distance,
-                     "same_champion": c.same_champion, "n_rejected": len(c.rejected)})
+                     "same_champion": c.same_champion, "n_rejected": len(c.rejected),
+                     "bent_share": bent_share(doc, classes)["share"], **z_by_class(z, classes)})
     return rows
+
+
+def z_by_class(z: dict[int, float], classes: dict[int, str]) -> dict[str, float | None]:
+    """Mean z_phi over the straight and over the bent candidates (None for an empty class)."""
+    by_class = {k: [v for i, v in z.items() if classes[i] == k] for k in ("straight", "bent")}
+    return {f"z_mean_{k}": float(np.mean(v)) if v else None for k, v in by_class.items()}
 
 
 def final_agent(run_dir: Path, advice: TreeDocument,
@@ -72,14 +83,11 @@ def final_agent(run_dir: Path, advice: TreeDocument,
     compare``, z at the candidates by posture, and the bent share of its decisions."""
     doc = agent_tree(run_dir, None, "shaped", advice)
     z = candidate_z(load_agent(find_checkpoint(run_dir)), advice)
-    by_class = {k: [z[i] for i in z if classes[i] == k] for k in ("straight", "bent")}
     details = {
         "conformance": compare(advice, doc).to_json(),
         "champion": doc.tree.root,
         "z_at_candidates": {str(i): v for i, v in z.items()},
-        "z_mean_straight": float(np.mean(by_class["straight"])) if by_class["straight"]
-        else None,
-        "z_mean_bent": float(np.mean(by_class["bent"])) if by_class["bent"] else None,
+        **z_by_class(z, classes),
         "bent_share": bent_share(doc, classes),
     }
     return doc, details

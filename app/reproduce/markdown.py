@@ -66,10 +66,13 @@ def _tree_row(arm: dict[str, Any]) -> list[str]:
 def _curve(name: str, arm: dict[str, Any]) -> str:
     rows = [[f"{r['step']:,}", f"{r['n_agree']}/{r['n_matches']}",
              "undefined" if r["kendall_tau_b"] is None else f"{r['kendall_tau_b']:.2f}",
-             f"{r['tree_edit_distance']:.2f}", "yes" if r["same_champion"] else "no"]
+             f"{r['tree_edit_distance']:.2f}", "yes" if r["same_champion"] else "no",
+             "n/a" if r["bent_share"] is None else f"{100 * r['bent_share']:.0f}%",
+             f"{_num(r['z_mean_straight'], 2)} / {_num(r['z_mean_bent'], 2)}"]
             for r in arm["seeds"][0]["conformance_curve"]]
     return (f"<details><summary>{arm['title']}: every checkpoint</summary>\n\n"
-            + _table(["step", "kept", "tau-b", "TED", "same champion"], rows)
+            + _table(["step", "kept", "tau-b", "TED", "same champion",
+                      "bent won (straight vs bent)", "z straight / bent"], rows)
             + "\n</details>\n")
 
 

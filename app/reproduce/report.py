@@ -67,7 +67,7 @@ def _arm_summary(out: Path, config: ReproduceConfig, arm: Arm, trees: dict[str, 
         if arm.advice is not None:
             advice = trees[arm.advice]
             agent_doc, entry["final"] = final_agent(run, advice, classes)
-            entry["conformance_curve"] = conformance_curve(run, advice)
+            entry["conformance_curve"] = conformance_curve(run, advice, classes)
             dump_tree(agent_doc, out / "trees" / f"{arm.name}-seed{seed}.json")
             if seed == 0:
                 _draw_trees(out, arm, advice, agent_doc, entry["final"], classes, thumbs)
@@ -138,6 +138,8 @@ def predictions(summary: dict[str, Any]) -> list[dict[str, Any]]:
     human_bent = summary["advice"]["standing"]["bent_share"]["share"]
     agent_bent = case2["bent_share"]["share"]
     control = arms["control"]["final_return_mean"]
+    bent_at = [r for r in arms["case2"]["seeds"][0]["conformance_curve"]
+               if r["bent_share"] is not None and r["bent_share"] > 0.5]
     return [
         {"claim": "Case 1: the Agent Preference Tree matches the Human Preference Tree",
          "paper": "the trees are the same",
@@ -151,6 +153,14 @@ def predictions(summary: dict[str, Any]) -> list[dict[str, Any]]:
                      "matches kept",
          "holds": agent_bent is not None and agent_bent > 0.5,
          "rule": "bent wins most straight-vs-bent matches in the agent's tree"},
+        {"claim": "Case 2, anytime: the agent prefers bent postures at some checkpoint",
+         "paper": "(the paper shows the trees at one point of training)",
+         "measured": f"bent won most straight-vs-bent matches at {len(bent_at)} of "
+                     f"{len(arms['case2']['seeds'][0]['conformance_curve'])} checkpoints"
+                     + (f" (steps {bent_at[0]['step']:,} to {bent_at[-1]['step']:,})"
+                        if bent_at else ""),
+         "holds": bool(bent_at),
+         "rule": "bent wins most straight-vs-bent matches at one checkpoint or more"},
         {"claim": "Case 2: the return is close to the no-advice baseline",
          "paper": "BiPaRS with bad advice reaches about the PPO return",
          "measured": f"{_num(case2_return)} vs {_num(ppo)} ("

@@ -45,11 +45,16 @@ def test_writes_figures_summary_and_readme(results: Path) -> None:
         seed = summary["arms"][arm.name]["seeds"][0]
         assert seed["timesteps"] == 256
         if arm.advice is not None:
-            assert [r["step"] for r in seed["conformance_curve"]] == [128, 256]
+            curve = seed["conformance_curve"]
+            assert [r["step"] for r in curve] == [128, 256]
+            assert all(set(r) >= {"bent_share", "z_mean_straight", "z_mean_bent"}
+                       for r in curve)
+            if arm.algo == "ppo-shaped":  # z is fixed at 1 wherever a class has candidates
+                assert {r["z_mean_straight"] for r in curve} <= {1.0, None}
             assert seed["final"]["conformance"]["n_matches"] == 5
     assert summary["arms"]["ppo"]["seeds"][0]["z_mean_final"] == 0.0
     assert summary["arms"]["control"]["seeds"][0]["z_mean_final"] == 1.0
-    assert [type(p["holds"]) for p in summary["predictions"]] == [bool] * 4
+    assert [type(p["holds"]) for p in summary["predictions"]] == [bool] * 5
     readme = (results / "README.md").read_text()
     assert "| claim | paper | measured | holds? |" in readme
     assert all(f"]({name}.png)" in readme for name in FIGURES)
