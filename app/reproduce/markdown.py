@@ -30,13 +30,21 @@ def readme(summary: dict[str, Any]) -> str:
                [_tree_row(a) for a in summary["arms"].values() if a["advice"]]),
         "Frames: blue = straight posture, orange = bent (the `standing` score >= 0.5); red "
         "edges = matches the agent decided the other way.\n",
-        *[f"![{name}](figure4-{name}.png)\n" for name, a in summary["arms"].items()
-          if a["advice"]],
+        *[_figure4(name, a) for name, a in summary["arms"].items() if a["advice"]],
         "## Conformance across training\n",
         "![conformance](conformance.png)\n",
         *[_curve(name, a) for name, a in summary["arms"].items() if a["advice"]],
     ]
     return "\n".join(parts)
+
+
+def _figure4(name: str, arm: dict[str, Any]) -> str:
+    """The arm's trees at the last checkpoint, and where it kept the fewest matches."""
+    step = arm["seeds"][0].get("least_conformant_step")
+    least = "" if step is None else (
+        f"\nAt step {step:,}, where it kept the fewest matches:\n\n"
+        f"![{name} at step {step}](figure4-{name}-least.png)\n")
+    return f"![{name}](figure4-{name}.png)\n{least}"
 
 
 def _table(header: list[str], rows: list[list[str]]) -> str:

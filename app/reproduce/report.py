@@ -28,6 +28,8 @@ from app.reproduce.markdown import readme
 from app.reproduce.plan import ARMS, Arm, ReproduceConfig, run_path
 from app.services import figures
 from app.services.run_report import highlights
+from engine.conformance import compare
+from engine.rl.agent_judge import agent_tree
 from engine.rl.plot import plot_runs
 from engine.treefile import TreeDocument, dump_tree
 
@@ -70,7 +72,10 @@ def _arm_summary(out: Path, config: ReproduceConfig, arm: Arm, trees: dict[str, 
             entry["conformance_curve"] = conformance_curve(run, advice, classes)
             dump_tree(agent_doc, out / "trees" / f"{arm.name}-seed{seed}.json")
             if seed == 0:
-                _draw_trees(out, arm, advice, agent_doc, entry["final"], classes, thumbs)
+                _draw_trees(out, f"figure4-{arm.name}", arm.title, advice, agent_doc,
+                            entry["final"]["conformance"], classes, thumbs)
+                entry["least_conformant_step"] = _draw_least_conformant(
+                    out, arm, run, advice, entry["conformance_curve"], classes, thumbs)
         seeds.append(entry)
     finals = [s["final_return_100"] for s in seeds if s["final_return_100"] is not None]
     return {"title": arm.title, "algo": arm.algo, "advice": arm.advice, "seeds": seeds,
@@ -94,10 +99,25 @@ def render_thumbs(out: Path, doc: TreeDocument) -> dict[int, np.ndarray]:
     return thumbs
 
 
-def _draw_trees(out: Path, arm: Arm, advice: TreeDocument, agent: TreeDocument,
-                final: dict[str, Any], classes: dict[int, str],
+def _draw_least_conformant(out: Path, arm: Arm, run: Path, advice: TreeDocument,
+                           curve: list[dict[str, Any]], classes: dict[int, str],
+                           thumbs: dict[int, np.ndarray]) -> int | None:
+    """Figure 4 at the checkpoint where the agent kept the fewest matches (the earliest of
+    equals), when it kept fewer there than at the last one: "anytime" verification shows
+    the whole path, not only where it ended."""
+    least = min(curve, key=lambda r: (r["match_agreement"], r["step"]))
+    if least["match_agreement"] >= curve[-1]["match_agreement"]:
+        return None
+    doc = agent_tree(run, least["step"], "shaped", advice)
+    _draw_trees(out, f"figure4-{arm.name}-least", f"{arm.title}, step {least['step']:,}",
+                advice, doc, compare(advice, doc).to_json(), classes, thumbs)
+    return least["step"]
+
+
+def _draw_trees(out: Path, name: str, title: str, advice: TreeDocument, agent: TreeDocument,
+                c: dict[str, Any], classes: dict[int, str],
                 thumbs: dict[int, np.ndarray]) -> None:
-    c = final["conformance"]
+    """``<name>.png`` and ``.svg``: the two trees side by side, framed by posture class."""
     for fmt in ("png", "svg"):
         data = figures.trees_side_by_side(
             advice, agent, thumbs=thumbs, highlights=highlights(c),
@@ -106,9 +126,9 @@ def _draw_trees(out: Path, arm: Arm, advice: TreeDocument, agent: TreeDocument,
                     f"Agent Preference Tree ({agent.judge})"),
             legend={"straight posture": POSTURE_COLORS["straight"],
                     "bent posture": POSTURE_COLORS["bent"]},
-            title=f"{arm.title}: the agent kept {c['n_agree']} of {c['n_matches']} matches",
+            title=f"{title}: the agent kept {c['n_agree']} of {c['n_matches']} matches",
             fmt=fmt)
-        (out / f"figure4-{arm.name}.{fmt}").write_bytes(data)
+        (out / f"{name}.{fmt}").write_bytes(data)
 
 
 def _draw_curves(out: Path, arms: dict[str, Any]) -> None:

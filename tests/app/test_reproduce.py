@@ -11,7 +11,10 @@ from PIL import Image
 from typer.testing import CliRunner
 
 from app.cli import cli
-from app.reproduce.plan import ARMS
+from app.reproduce.analysis import posture_classes
+from app.reproduce.plan import ARMS, run_path
+from app.reproduce.report import _draw_least_conformant
+from engine.treefile import load_tree
 
 TINY = ["--env", "Hopper-v5", "--timesteps", "256", "--n-envs", "2", "--num-steps", "64",
         "--checkpoint-every", "128", "--candidates", "6"]
@@ -49,6 +52,11 @@ def test_writes_figures_summary_and_readme(results: Path) -> None:
             assert [r["step"] for r in curve] == [128, 256]
             assert all(set(r) >= {"bent_share", "z_mean_straight", "z_mean_bent"}
                        for r in curve)
+            least = min(curve, key=lambda r: (r["match_agreement"], r["step"]))
+            expected = None if least["match_agreement"] >= curve[-1]["match_agreement"] \
+                else least["step"]
+            assert seed["least_conformant_step"] == expected
+            assert (results / f"figure4-{arm.name}-least.png").is_file() == (expected is not None)
             if arm.algo == "ppo-shaped":  # z is fixed at 1 wherever a class has candidates
                 assert {r["z_mean_straight"] for r in curve} <= {1.0, None}
             assert seed["final"]["conformance"]["n_matches"] == 5
@@ -58,6 +66,22 @@ def test_writes_figures_summary_and_readme(results: Path) -> None:
     readme = (results / "README.md").read_text()
     assert "| claim | paper | measured | holds? |" in readme
     assert all(f"]({name}.png)" in readme for name in FIGURES)
+
+
+def test_the_least_conformant_checkpoint_gets_its_own_figure(results: Path,
+                                                             tmp_path: Path) -> None:
+    arm = next(a for a in ARMS if a.name == "case2")
+    advice = load_tree(results / "advice" / "standing.json")
+    classes = posture_classes(advice)
+    curve = [{"step": 128, "match_agreement": 0.4}, {"step": 256, "match_agreement": 0.8}]
+    run = run_path(results, arm, 0)
+    assert _draw_least_conformant(tmp_path, arm, run, advice, curve, classes, {}) == 128
+    with Image.open(tmp_path / "figure4-case2-least.png") as img:
+        assert img.width > 300
+    curve[0]["match_agreement"] = 0.8  # no lower than at the end: nothing more to show
+    (tmp_path / "figure4-case2-least.png").unlink()
+    assert _draw_least_conformant(tmp_path, arm, run, advice, curve, classes, {}) is None
+    assert not (tmp_path / "figure4-case2-least.png").exists()
 
 
 def test_both_cases_share_one_bracket(results: Path) -> None:
