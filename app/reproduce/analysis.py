@@ -48,10 +48,24 @@ def training_stats(run_dir: Path) -> dict[str, Any]:
     z_means = [r["z_mean"] for r in rows]
     return {"timesteps": rows[-1]["timesteps"],
             "final_return_100": returns[-1] if returns else None,  # None: no episode ended
+            "final_episode_length_100": recent_episode_length(rows),
             "best_return_100": max(returns, default=None), "z_mean_final": rows[-1]["z_mean"],
             "z_std_final": rows[-1]["z_std"], "z_mean_over_training": float(np.mean(z_means)),
             "z_min_over_training": float(np.min(z_means)),
             "z_max_over_training": float(np.max(z_means))}
+
+
+def recent_episode_length(rows: list[dict[str, Any]], episodes: int = 100) -> float | None:
+    """Mean length of about the last ``episodes`` episodes (whole updates, from the end),
+    the counterpart of ``return_100``; None when no episode ended."""
+    total = count = 0
+    for row in reversed(rows):
+        if row.get("episodes") and row.get("episode_length") is not None:
+            total += row["episode_length"] * row["episodes"]
+            count += row["episodes"]
+            if count >= episodes:
+                break
+    return total / count if count else None
 
 
 def conformance_curve(run_dir: Path, advice: TreeDocument,

@@ -21,8 +21,9 @@ def readme(summary: dict[str, Any]) -> str:
                  ("yes" if p["holds"] else "**no**") + f" ({p['rule']})"]
                 for p in summary["predictions"]]),
         "## Final returns and z\n",
-        _table(["agent", "final return (last 100 episodes)", "best", "z final (mean ± std)",
-                "z mean over training"], [_arm_row(a) for a in summary["arms"].values()]),
+        _table(["agent", "final return (last 100 episodes)", "best", "episode length",
+                "return per step", "z final (mean ± std)", "z mean over training"],
+               [_arm_row(a) for a in summary["arms"].values()]),
         "![learning curves](figure3.png)\n",
         "## Preference trees at the last checkpoint\n",
         _table(["agent", "matches kept", "Kendall tau-b", "tree edit distance",
@@ -58,8 +59,16 @@ def _arm_row(arm: dict[str, Any]) -> list[str]:
     spread = f" ± {_num(arm['final_return_std'])}" if len(s) > 1 else ""
     return [arm["title"], f"{_num(arm['final_return_mean'])}{spread}",
             " / ".join(_num(x["best_return_100"]) for x in s),
+            " / ".join(_num(x["final_episode_length_100"]) for x in s),
+            " / ".join(_per_step(x) for x in s),
             " / ".join(f"{x['z_mean_final']:.2f} ± {x['z_std_final']:.2f}" for x in s),
             " / ".join(f"{x['z_mean_over_training']:.2f}" for x in s)]
+
+
+def _per_step(seed: dict[str, Any]) -> str:
+    """Final return over final episode length: Humanoid's healthy bonus alone gives 5."""
+    ret, length = seed["final_return_100"], seed["final_episode_length_100"]
+    return "n/a" if ret is None or not length else f"{ret / length:.2f}"
 
 
 def _tree_row(arm: dict[str, Any]) -> list[str]:

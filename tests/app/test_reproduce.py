@@ -11,7 +11,7 @@ from PIL import Image
 from typer.testing import CliRunner
 
 from app.cli import cli
-from app.reproduce.analysis import posture_classes
+from app.reproduce.analysis import posture_classes, recent_episode_length
 from app.reproduce.plan import ARMS, run_path
 from app.reproduce.report import _draw_least_conformant
 from engine.treefile import load_tree
@@ -47,6 +47,7 @@ def test_writes_figures_summary_and_readme(results: Path) -> None:
     for arm in ARMS:
         seed = summary["arms"][arm.name]["seeds"][0]
         assert seed["timesteps"] == 256
+        assert seed["final_episode_length_100"] is None or seed["final_episode_length_100"] >= 1
         if arm.advice is not None:
             curve = seed["conformance_curve"]
             assert [r["step"] for r in curve] == [128, 256]
@@ -138,3 +139,11 @@ def test_a_participants_tree_is_the_case_2_advice(monkeypatch, tmp_path: Path) -
     wrong = acv("reproduce", "--out", tmp_path / "other", "--study", "99", "--participant",
                 participant, *TINY)
     assert wrong.exit_code == 2 and "not in study 99" in wrong.stderr
+
+
+def test_recent_episode_length_weighs_updates_by_their_episodes() -> None:
+    rows = [{"episodes": 300, "episode_length": 10.0}, {"episodes": 0, "episode_length": None},
+            {"episodes": 60, "episode_length": 20.0}, {"episodes": 40, "episode_length": 50.0}]
+    assert recent_episode_length(rows) == (60 * 20 + 40 * 50) / 100
+    assert recent_episode_length(rows, episodes=101) == (300 * 10 + 60 * 20 + 40 * 50) / 400
+    assert recent_episode_length(rows[1:2]) is None
