@@ -164,9 +164,17 @@
       document.getElementById("checkpoint-value").textContent = String(steps[Number(slider.value)]);
     });
     slider.addEventListener("change", () => select(steps[Number(slider.value)]));
-    const loadCurve = () => getJson(`${api}/conformance-curve?judge=${judge()}`)
-      .then((c) => { curve = c; drawCurve(); })
-      .catch((err) => { document.getElementById("chart-curve").textContent = err.message; });
+    const loadCurve = () => {
+      const asked = judge();
+      return getJson(`${api}/conformance-curve?judge=${asked}`)
+        .then((c) => {
+          if (asked !== judge()) return;  // another judge was picked meanwhile
+          curve = c;
+          drawCurve();
+          root.dataset.curveJudge = asked;
+        })
+        .catch((err) => { document.getElementById("chart-curve").textContent = err.message; });
+    };
     judgeBox.addEventListener("change", () => { select(current); loadCurve(); });
     select(current);
     loadCurve();

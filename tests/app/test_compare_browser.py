@@ -186,6 +186,7 @@ def test_comparison_page_shows_both_trees_and_the_rejected_advice(
         expect(pair.locator("img").first).to_have_attribute(
             "src", re.compile(rf"/candidates/{r['human_winner']}/image\?size=thumb$"))
         expect(pair).to_contain_text(f"Round {r['round']}: you preferred #{r['human_winner']}")
+    expect(p.locator("#compare")).to_have_attribute("data-curve-judge", "value")
     p.screenshot(path=SCREENS / "compare-value.png", full_page=True)
     assert errors == []
 
