@@ -148,8 +148,9 @@ def conformance_csv(run_id: DbId, session: SessionDep, root: RunsRootDep, _: Res
         comparison.pick_checkpoint(out, checkpoint)]
     rows = [{"checkpoint": s, **comparison.conformance(
         human, comparison.agent_doc(out, s, human, judge))} for s in steps]
+    which = "curve" if checkpoint is None else f"step{steps[0]}"
     return _attachment(comparison.csv_text(rows).encode(), "text/csv",
-                       f"run-{run_id}-conformance.csv")
+                       f"run-{run_id}-conformance-{which}-{judge}.csv")
 
 
 @router.get("/{run_id}/trees/{which}.{fmt}", response_class=Response,

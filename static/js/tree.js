@@ -31,17 +31,28 @@ function drawPreferenceTree(container, doc, options) {
   let x0 = Infinity, x1 = -Infinity;
   root.each((d) => { x0 = Math.min(x0, d.x); x1 = Math.max(x1, d.x); });
   const width = x1 - x0 + dx, height = root.height * dy + opts.thumb + 40;
+  const scale = fitScale(width, container.clientWidth);
   const svg = svgEl("svg", {
     viewBox: `${x0 - dx / 2} ${-opts.thumb / 2 - 8} ${width} ${height}`,
-    width, height, class: "pref-tree", role: "img",
+    width: width * scale, height: height * scale, class: "pref-tree", role: "img",
     "aria-label": `Preference tree judged by ${doc.judge}`,
   });
   for (const link of root.links()) svg.appendChild(edge(link, opts));
   for (const d of root.descendants()) svg.appendChild(node(d, opts));
   container.replaceChildren(svg);
-  // A tree wider than its box starts scrolled so that the champion is in view.
-  container.scrollLeft = Math.max(0, root.x - x0 + dx / 2 - container.clientWidth / 2);
+  // A tree still wider than its box starts scrolled so that the champion is in view.
+  container.scrollLeft = Math.max(0, (root.x - x0 + dx / 2) * scale -
+    container.clientWidth / 2);
   return svg;
+}
+
+// Shrink a tree wider than its box to fit it, down to MIN_SCALE (thumbnails stay
+// recognisable); wider still, the box scrolls. A box not laid out yet (width 0) keeps 1.
+const MIN_SCALE = 0.6;
+function fitScale(width, boxWidth) {
+  const room = boxWidth - 20;  // the box's padding and a scroll bar
+  if (room <= 0 || width <= room) return 1;
+  return Math.max(MIN_SCALE, room / width);
 }
 
 // An edge from below the parent's label to the child's top, its weight w = h(parent) -
