@@ -11,7 +11,9 @@ def readme(summary: dict[str, Any]) -> str:
     cfg = summary["config"]
     parts = [
         "# ACV reproduction of the paper's experiments\n",
-        f"`{summary['command'] or 'acv reproduce'}` on commit `{summary['commit']}`: "
+        f"`{summary['command'] or 'acv reproduce'}`, report written on commit "
+        f"`{summary['commit']}` (a resumed reproduction trains nothing again; see each run's "
+        "checkpoints for when it trained): "
         f"{cfg['env_id']}, {cfg['timesteps']:,} env steps per agent, {cfg['seeds']} seed(s), "
         f"one bracket of {cfg['candidates']} candidates (p = {cfg['p']}, seed "
         f"{cfg['bracket_seed']}). Every number below comes from this run (`summary.json`).\n",
