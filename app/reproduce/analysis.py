@@ -14,7 +14,7 @@ import numpy as np
 
 from engine.conformance import compare
 from engine.envs import env_model
-from engine.rl.agent_judge import agent_tree, candidate_z, load_agent
+from engine.rl.agent_judge import candidate_z, load_agent, trained_agent_tree
 from engine.rl.checkpoint import find_checkpoint, list_checkpoints
 from engine.rl.logger import read_metrics
 from engine.teachers import standing_score
@@ -74,9 +74,10 @@ def conformance_curve(run_dir: Path, advice: TreeDocument,
     the bent share of its straight-vs-bent matches and z at each posture class."""
     rows = []
     for step, path in list_checkpoints(run_dir).items():
-        doc = agent_tree(run_dir, step, "shaped", advice)
+        trained = load_agent(path)
+        doc = trained_agent_tree(trained, run_dir, "shaped", advice)
         c = compare(advice, doc)
-        z = candidate_z(load_agent(path), advice)
+        z = candidate_z(trained, advice)
         rows.append({"step": step, "n_agree": c.n_agree, "n_matches": c.n_matches,
                      "match_agreement": c.match_agreement, "kendall_tau_b": c.kendall_tau_b,
                      "tree_edit_distance": c.tree_edit_distance,
@@ -95,8 +96,9 @@ def final_agent(run_dir: Path, advice: TreeDocument,
                 classes: dict[int, str]) -> tuple[TreeDocument, dict[str, Any]]:
     """The last checkpoint's Agent Preference Tree and its details: the metrics of ``acv
     compare``, z at the candidates by posture, and the bent share of its decisions."""
-    doc = agent_tree(run_dir, None, "shaped", advice)
-    z = candidate_z(load_agent(find_checkpoint(run_dir)), advice)
+    trained = load_agent(find_checkpoint(run_dir))
+    doc = trained_agent_tree(trained, run_dir, "shaped", advice)
+    z = candidate_z(trained, advice)
     details = {
         "conformance": compare(advice, doc).to_json(),
         "champion": doc.tree.root,

@@ -140,11 +140,31 @@ def agent_tree(run_dir: Path, step: int | None = None, judge: str = "shaped",
     Raises:
         InputError: no advice tree, no such checkpoint, a damaged checkpoint, another env.
     """
+    own, doc = _advice_trees(run_dir, advice)  # before the checkpoint: the clearer error
+    return _replay_as(load_agent(find_checkpoint(run_dir, step)), doc, own, judge)
+
+
+def trained_agent_tree(trained: TrainedAgent, run_dir: Path, judge: str = "shaped",
+                       advice: TreeDocument | None = None) -> TreeDocument:
+    """:func:`agent_tree` for a checkpoint already loaded from ``run_dir`` (callers that also
+    need its z or scores load it once)."""
+    own, doc = _advice_trees(run_dir, advice)
+    return _replay_as(trained, doc, own, judge)
+
+
+def _advice_trees(run_dir: Path, advice: TreeDocument | None
+                  ) -> tuple[TreeDocument | None, TreeDocument]:
+    """The run's own advice tree (None without ``advice.json``) and the tree to replay."""
     own = load_run_advice(run_dir)
     doc = advice if advice is not None else own
     if doc is None:
         raise InputError(f"{run_dir} was trained without advice: pass the tree to replay")
-    trained = load_agent(find_checkpoint(run_dir, step))
+    return own, doc
+
+
+def _replay_as(trained: TrainedAgent, doc: TreeDocument, own: TreeDocument | None,
+               judge: str) -> TreeDocument:
+    """``doc``'s bracket replayed with the agent's scores (F from its own advice)."""
     f = advice_reward(trained.config, own) if own is not None else None
     scores = agent_scores(trained, doc, judge, f)
     return replay(doc, ScoreJudge(scores), f"agent:{judge}@{trained.timesteps}", scores=scores)

@@ -7,7 +7,7 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from engine.errors import InputError
+from engine.errors import InputError, seed_error
 
 ALGOS: tuple[str, ...] = ("ppo", "ppo-shaped", "bipars-em", "bipars-mgl")
 """``ppo``: env reward only; ``ppo-shaped``: R + F (z = 1); ``bipars-*``: R + z_phi(s) F(s)."""
@@ -95,7 +95,7 @@ class TrainConfig:
         checks = [
             (self.algo in ALGOS, f"unknown algo {self.algo!r}: choose one of {', '.join(ALGOS)}"),
             (self.total_timesteps > 0, f"timesteps must be positive, got {self.total_timesteps}"),
-            (0 <= self.seed < 2**64, f"seed must be in 0 .. 2**64-1, got {self.seed}"),
+            (seed_error(self.seed) is None, seed_error(self.seed) or ""),
             (self.n_envs >= 1 and self.num_steps >= 2, "n_envs must be >= 1, num_steps >= 2"),
             (self.num_minibatches >= 1, "num_minibatches must be >= 1"),
             (self.num_minibatches < 1 or self.minibatch_size >= MIN_MINIBATCH,
