@@ -42,12 +42,15 @@ setup: system-deps $(STAMP)
 run: setup
 	$(BIN)/acv serve --demo
 
-test: setup test-deps
-	$(BIN)/ruff check app engine tests benchmarks
-	$(BIN)/pytest -n 2 -m "not slow" -q
+test: lint test-deps
+	$(BIN)/pytest -n 2 -m "not slow" -q --durations=15
 
+# Style, formatting and types (mypy: strict on engine/, check_untyped_defs on app/; see
+# [tool.mypy] in pyproject.toml).
 lint: setup
 	$(BIN)/ruff check app engine tests benchmarks
+	$(BIN)/ruff format --check app engine tests benchmarks
+	$(BIN)/mypy engine app
 
 clean:
 	rm -rf $(VENV) .pytest_cache

@@ -1,8 +1,9 @@
 """The FastAPI application factory.
 
 ``create_app(settings)`` builds an app on an existing database (``acv serve`` applies the
-migrations first); for several workers: ``uvicorn --factory app.main:create_app``, settings
-from the environment.
+migrations first). ``acv serve --workers N`` runs N of them, built by
+:func:`app.cli.serve.worker_app` without the background work (the run worker and resuming
+study preparation), which its supervisor process does once.
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ from pathlib import Path
 import anyio.to_thread
 from fastapi import FastAPI
 from fastapi.staticfiles import StaticFiles
+from starlette.middleware.gzip import GZipMiddleware
 
 from app.api import api_router, errors, health
 from app.api.docs import docs_router
@@ -23,26 +25,33 @@ from app.runtime import Runtime
 from app.settings import Settings
 from app.web import router as pages_router
 from app.web.access_log import install_access_log_filter
-from app.web.ratelimit import LoginLimiter
+from app.web.ratelimit import JOINS_PER_MINUTE, LOGIN_FAILURES, OPEN_LINK_JOINS, LoginLimiter
 
 STATIC_DIR = Path(__file__).resolve().parents[1] / "static"
 
 
-def create_app(settings: Settings | None = None) -> FastAPI:
+def create_app(
+    settings: Settings | None = None, *, background: bool = True, processes: int = 1
+) -> FastAPI:
     """The web app: REST API under ``/api``, ``/healthz``, pages, and ``/static``.
 
     Args:
         settings: defaults to the environment's (:class:`Settings`).
+        background: run the training-run worker and resume half-prepared studies (one
+            process of several serves without them).
+        processes: server processes sharing the database (sizes the connection pool).
     """
-    runtime = Runtime(settings or Settings())
+    runtime = Runtime(settings or Settings(), processes=processes)
 
     @asynccontextmanager
     async def lifespan(_: FastAPI) -> AsyncIterator[None]:
         # Few worker threads: requests are short and SQLite takes one writer at a time, so
         # more threads only fight over the GIL (a lock convoy that multiplies tail latency).
         anyio.to_thread.current_default_thread_limiter().total_tokens = runtime.settings.threads
-        runtime.resume()  # studies a previous process left half-prepared
-        run_worker = start_app_worker(app)  # training runs (app.jobs), unless ACV_RUN_WORKER=0
+        run_worker = None
+        if background:
+            runtime.resume()  # studies a previous process left half-prepared
+            run_worker = start_app_worker(app)  # training runs, unless ACV_RUN_WORKER=0
         try:
             yield
         finally:
@@ -52,20 +61,40 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             runtime.close()
 
     # The docs page is ours (self-hosted Swagger UI, strict policy); no ReDoc.
-    app = FastAPI(title="ACV", version="0.1.0", lifespan=lifespan, docs_url=None,
-                  redoc_url=None,
-                  description="Advice Conformance Verification: studies, invite links and "
-                              "bracket labelling.")
+    openapi_url = "/openapi.json"
+    app = FastAPI(
+        title="ACV",
+        version="0.1.0",
+        lifespan=lifespan,
+        docs_url=None,
+        redoc_url=None,
+        openapi_url=openapi_url,
+        description="Advice Conformance Verification: studies, invite links and bracket labelling.",
+    )
     app.state.runtime = runtime
-    app.state.login_limiter = LoginLimiter()
+    # Several processes count failed logins together, in a file of the data dir.
+    app.state.login_limiter = LoginLimiter(
+        shared=runtime.settings.data_dir / LOGIN_FAILURES if processes > 1 else None
+    )
+    # New participants per address through open links (/s/<slug>), counted the same way.
+    app.state.join_limiter = LoginLimiter(
+        JOINS_PER_MINUTE,
+        shared=runtime.settings.data_dir / OPEN_LINK_JOINS if processes > 1 else None,
+    )
     install_access_log_filter()  # invite tokens in /p/<token> paths
     app.add_middleware(BodySizeLimit)
     app.add_middleware(SecurityHeaders)  # outermost: 413 answers get the headers too
     errors.install(app)
     app.include_router(health.router)
-    app.include_router(docs_router(openapi_url=app.openapi_url, title=f"{app.title} API"))
+    app.include_router(docs_router(openapi_url=openapi_url, title=f"{app.title} API"))
     app.include_router(api_router)
     app.include_router(pages_router)
     if STATIC_DIR.is_dir():
-        app.mount("/static", StaticFiles(directory=STATIC_DIR), name="static")
+        # gzip for the static files only (the vendored d3 and Plot builds shrink about 3x);
+        # the API's small JSON answers stay uncompressed on the hot path
+        app.mount(
+            "/static",
+            GZipMiddleware(StaticFiles(directory=STATIC_DIR), minimum_size=1024),
+            name="static",
+        )
     return app

@@ -17,8 +17,11 @@ from starlette.types import ASGIApp, Message, Receive, Scope, Send
 #: at most 20,000 characters), far below what would strain memory.
 MAX_BODY_BYTES = 1 << 20
 #: Added where a response does not set its own value.
-DEFAULT_HEADERS = {"X-Content-Type-Options": "nosniff", "X-Frame-Options": "DENY",
-                   "Referrer-Policy": "no-referrer"}
+DEFAULT_HEADERS = {
+    "X-Content-Type-Options": "nosniff",
+    "X-Frame-Options": "DENY",
+    "Referrer-Policy": "no-referrer",
+}
 #: For responses without a policy of their own (HTML included: a page that needs more must
 #: say so itself).
 DEFAULT_CSP = "default-src 'none'; frame-ancestors 'none'"
@@ -62,11 +65,20 @@ class BodySizeLimit:
                 return messages
 
     async def _too_large(self, send: Send) -> None:
-        body = json.dumps({"detail": f"the request body is larger than {self.max_bytes} "
-                                     "bytes"}).encode()
-        await send({"type": "http.response.start", "status": 413, "headers": [
-            (b"content-type", b"application/json"), (b"content-length", b"%d" % len(body)),
-            (b"connection", b"close")]})
+        body = json.dumps(
+            {"detail": f"the request body is larger than {self.max_bytes} bytes"}
+        ).encode()
+        await send(
+            {
+                "type": "http.response.start",
+                "status": 413,
+                "headers": [
+                    (b"content-type", b"application/json"),
+                    (b"content-length", b"%d" % len(body)),
+                    (b"connection", b"close"),
+                ],
+            }
+        )
         await send({"type": "http.response.body", "body": body})
 
 

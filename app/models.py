@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import hashlib
 from datetime import UTC, datetime
+from enum import StrEnum
 
 from sqlalchemy import (
     JSON,
@@ -20,6 +21,7 @@ from sqlalchemy import (
     Float,
     ForeignKey,
     ForeignKeyConstraint,
+    Index,
     Integer,
     MetaData,
     String,
@@ -28,8 +30,35 @@ from sqlalchemy import (
 )
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, validates
 
-STUDY_STATUSES = ("preparing", "ready", "failed")
-RUN_STATUSES = ("queued", "running", "succeeded", "failed", "cancelled", "interrupted")
+
+class StudyStatus(StrEnum):
+    """Where a study stands: its candidates are being prepared, ready, or failed."""
+
+    PREPARING = "preparing"
+    READY = "ready"
+    FAILED = "failed"
+
+
+class RunStatus(StrEnum):
+    """Where a training run stands (``queued`` -> ``running`` -> one of the last four)."""
+
+    QUEUED = "queued"
+    RUNNING = "running"
+    SUCCEEDED = "succeeded"
+    FAILED = "failed"
+    CANCELLED = "cancelled"
+    INTERRUPTED = "interrupted"
+
+
+STUDY_STATUSES: tuple[str, ...] = tuple(s.value for s in StudyStatus)
+RUN_STATUSES: tuple[str, ...] = tuple(s.value for s in RunStatus)
+
+
+def status_check(statuses: type[StrEnum]) -> CheckConstraint:
+    """``status IN (...)`` over every member of ``statuses``."""
+    listed = ", ".join(f"'{s.value}'" for s in statuses)
+    return CheckConstraint(f"status IN ({listed})", name="status")
+
 
 #: Deterministic constraint names, so that migrations can refer to them on every backend.
 NAMING = {
@@ -61,7 +90,7 @@ class Study(Base):
     __table_args__ = (
         CheckConstraint("n_candidates >= 2 AND n_candidates <= 128", name="n_candidates"),
         CheckConstraint("p >= 0 AND p <= 1", name="p"),
-        CheckConstraint("status IN ('preparing', 'ready', 'failed')", name="status"),
+        status_check(StudyStatus),
     )
 
     id: Mapped[int] = mapped_column(Integer, primary_key=True)
@@ -87,7 +116,8 @@ class Candidate(Base):
     __tablename__ = "candidates"
 
     study_id: Mapped[int] = mapped_column(
-        ForeignKey("studies.id", ondelete="CASCADE"), primary_key=True)
+        ForeignKey("studies.id", ondelete="CASCADE"), primary_key=True
+    )
     id: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=False)
     qpos: Mapped[list[float]] = mapped_column(JSON)
     qvel: Mapped[list[float]] = mapped_column(JSON)
@@ -101,14 +131,17 @@ class BracketSlot(Base):
 
     __tablename__ = "bracket_slots"
     __table_args__ = (
-        ForeignKeyConstraint(["study_id", "a"], ["candidates.study_id", "candidates.id"],
-                             ondelete="CASCADE"),
-        ForeignKeyConstraint(["study_id", "b"], ["candidates.study_id", "candidates.id"],
-                             ondelete="CASCADE"),
+        ForeignKeyConstraint(
+            ["study_id", "a"], ["candidates.study_id", "candidates.id"], ondelete="CASCADE"
+        ),
+        ForeignKeyConstraint(
+            ["study_id", "b"], ["candidates.study_id", "candidates.id"], ondelete="CASCADE"
+        ),
     )
 
     study_id: Mapped[int] = mapped_column(
-        ForeignKey("studies.id", ondelete="CASCADE"), primary_key=True)
+        ForeignKey("studies.id", ondelete="CASCADE"), primary_key=True
+    )
     slot: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=False)
     a: Mapped[int] = mapped_column(Integer)
     b: Mapped[int | None] = mapped_column(Integer, default=None)
@@ -128,17 +161,22 @@ class Participant(Base):
     """
 
     __tablename__ = "participants"
+    __table_args__ = (
+        Index("uq_participants_study_external_id", "study_id", "external_id", unique=True),
+    )
 
     id: Mapped[int] = mapped_column(Integer, primary_key=True)
-    study_id: Mapped[int] = mapped_column(
-        ForeignKey("studies.id", ondelete="CASCADE"), index=True)
+    study_id: Mapped[int] = mapped_column(ForeignKey("studies.id", ondelete="CASCADE"), index=True)
     token: Mapped[str] = mapped_column(String(64), unique=True)
     token_hash: Mapped[str] = mapped_column(String(64), index=True, unique=True)
     name: Mapped[str | None] = mapped_column(String(200), default=None)
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
-    last_active_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True),
-                                                            default=None)
+    last_active_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), default=None)
     finished_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), default=None)
+    #: A crowd platform's id of the person (the study's first external parameter, e.g.
+    #: ``PROLIFIC_PID``): the same id coming back resumes this participant.
+    external_id: Mapped[str | None] = mapped_column(String(200), default=None)
+    external_ids: Mapped[dict | None] = mapped_column(JSON, default=None)
 
     @validates("token")
     def _hash_token(self, _key: str, token: str) -> str:
@@ -156,13 +194,14 @@ class Match(Base):
     )
 
     id: Mapped[int] = mapped_column(Integer, primary_key=True)
-    participant_id: Mapped[int] = mapped_column(
-        ForeignKey("participants.id", ondelete="CASCADE"))
+    participant_id: Mapped[int] = mapped_column(ForeignKey("participants.id", ondelete="CASCADE"))
     round: Mapped[int] = mapped_column(Integer)
     slot: Mapped[int] = mapped_column(Integer)
     a: Mapped[int] = mapped_column(Integer)
     b: Mapped[int] = mapped_column(Integer)
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+    #: Whether ``a`` is shown on the left (seeded per study, participant and match).
+    a_left: Mapped[bool] = mapped_column(Boolean, default=True)
 
 
 class Label(Base):
@@ -172,13 +211,66 @@ class Label(Base):
     __table_args__ = (CheckConstraint("response_ms >= 0", name="response_ms"),)
 
     id: Mapped[int] = mapped_column(Integer, primary_key=True)
-    match_id: Mapped[int] = mapped_column(
-        ForeignKey("matches.id", ondelete="CASCADE"), unique=True)
+    match_id: Mapped[int] = mapped_column(ForeignKey("matches.id", ondelete="CASCADE"), unique=True)
     participant_id: Mapped[int] = mapped_column(
-        ForeignKey("participants.id", ondelete="CASCADE"), index=True)
+        ForeignKey("participants.id", ondelete="CASCADE"), index=True
+    )
     winner: Mapped[int] = mapped_column(Integer)
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
     response_ms: Mapped[int | None] = mapped_column(BigInteger, default=None)
+    #: Whether the picture on the left won (NULL for labels stored before sides were kept).
+    chose_left: Mapped[bool | None] = mapped_column(Boolean, default=None)
+
+
+class CrowdSettings(Base):
+    """A study's open link ``/s/<slug>`` and its crowd options (app.services.crowd).
+
+    ``joined`` counts participants created through the link; the database refuses more than
+    ``max_participants`` (a CHECK), and the join increments it atomically. ``declines``
+    counts declined consents (nothing else of a decline is stored).
+    """
+
+    __tablename__ = "crowd_settings"
+    __table_args__ = (
+        CheckConstraint(
+            "max_participants >= 1 AND joined >= 0 AND joined <= "
+            "max_participants AND declines >= 0",
+            name="counts",
+        ),
+        CheckConstraint("speed_threshold_ms >= 0", name="speed"),
+    )
+
+    study_id: Mapped[int] = mapped_column(
+        ForeignKey("studies.id", ondelete="CASCADE"), primary_key=True
+    )
+    slug: Mapped[str] = mapped_column(String(64), unique=True)
+    enabled: Mapped[bool] = mapped_column(Boolean, default=False)
+    max_participants: Mapped[int] = mapped_column(Integer)
+    joined: Mapped[int] = mapped_column(Integer, default=0)
+    declines: Mapped[int] = mapped_column(Integer, default=0)
+    external_params: Mapped[list] = mapped_column(JSON)
+    consent_text: Mapped[str | None] = mapped_column(Text, default=None)
+    completion_code: Mapped[str | None] = mapped_column(String(100), default=None)
+    redirect_url: Mapped[str | None] = mapped_column(String(500), default=None)
+    consistency_check: Mapped[bool] = mapped_column(Boolean, default=False)
+    speed_threshold_ms: Mapped[int] = mapped_column(Integer, default=800)
+
+
+class ConsistencyCheck(Base):
+    """After the bracket, one first-round match shown again with its sides swapped (not
+    part of the bracket); ``winner`` is the answer, compared with the match's label."""
+
+    __tablename__ = "consistency_checks"
+
+    participant_id: Mapped[int] = mapped_column(
+        ForeignKey("participants.id", ondelete="CASCADE"), primary_key=True
+    )
+    match_id: Mapped[int] = mapped_column(ForeignKey("matches.id", ondelete="CASCADE"))
+    a_left: Mapped[bool] = mapped_column(Boolean)
+    winner: Mapped[int | None] = mapped_column(Integer, default=None)
+    response_ms: Mapped[int | None] = mapped_column(BigInteger, default=None)
+    shown_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+    answered_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), default=None)
 
 
 class Run(Base):
@@ -192,17 +284,16 @@ class Run(Base):
 
     __tablename__ = "runs"
     __table_args__ = (
-        CheckConstraint("status IN ('queued', 'running', 'succeeded', 'failed', 'cancelled', "
-                        "'interrupted')", name="status"),
+        status_check(RunStatus),
         CheckConstraint("participant_id IS NULL OR teacher IS NULL", name="one_advice_source"),
         CheckConstraint("timesteps > 0 AND n_envs > 0 AND progress >= 0", name="budget"),
     )
 
     id: Mapped[int] = mapped_column(Integer, primary_key=True)
-    study_id: Mapped[int] = mapped_column(
-        ForeignKey("studies.id", ondelete="CASCADE"), index=True)
+    study_id: Mapped[int] = mapped_column(ForeignKey("studies.id", ondelete="CASCADE"), index=True)
     participant_id: Mapped[int | None] = mapped_column(
-        ForeignKey("participants.id", ondelete="CASCADE"), default=None)
+        ForeignKey("participants.id", ondelete="CASCADE"), default=None
+    )
     teacher: Mapped[str | None] = mapped_column(String(16), default=None)
     algo: Mapped[str] = mapped_column(String(16))
     timesteps: Mapped[int] = mapped_column(BigInteger)
@@ -222,3 +313,149 @@ class Run(Base):
     started_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), default=None)
     heartbeat_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), default=None)
     finished_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), default=None)
+
+
+class CheckpointArtefact(Base):
+    """What the executor computed at one checkpoint of a run; written once, then only read.
+
+    ``payload`` is :meth:`engine.rl.report.CheckpointReport.to_json`: the Agent Preference
+    Tree of every judge, its conformance to the run's advice tree, and the per-candidate table.
+    A checkpoint without a row is still being computed ("pending").
+    """
+
+    __tablename__ = "checkpoint_artefacts"
+
+    run_id: Mapped[int] = mapped_column(ForeignKey("runs.id", ondelete="CASCADE"), primary_key=True)
+    step: Mapped[int] = mapped_column(BigInteger, primary_key=True, autoincrement=False)
+    payload: Mapped[dict] = mapped_column(JSON)
+    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+
+
+# --- Tree-reading surveys (the paper's user study; app.services.surveys) ---------------------
+
+SURVEY_ASSIGNMENTS = ("all", "round_robin")
+SURVEY_EXCLUSIONS = ("none", "attention_check")
+
+
+class Survey(Base):
+    """A tree-reading survey: intro, questions (JSON, the same on every stimulus), options.
+
+    ``assignment`` is ``all`` (every respondent sees every stimulus) or ``round_robin`` (one
+    stimulus each, from ``rr_counter``, a counter the database increments atomically).
+    ``exclusion_rule`` is fixed when the survey is created (it opens at once) and never
+    changes; ``seed`` seeds every respondent's order and left/right placement.
+    """
+
+    __tablename__ = "surveys"
+    __table_args__ = (
+        CheckConstraint("assignment IN ('all', 'round_robin')", name="assignment"),
+        CheckConstraint("exclusion_rule IN ('none', 'attention_check')", name="exclusion_rule"),
+        CheckConstraint("rr_counter >= 0", name="rr_counter"),
+    )
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    name: Mapped[str] = mapped_column(String(200))
+    intro: Mapped[str] = mapped_column(Text)
+    template: Mapped[str] = mapped_column(String(16))
+    questions: Mapped[list] = mapped_column(JSON)
+    highlights: Mapped[bool] = mapped_column(Boolean, default=False)
+    assignment: Mapped[str] = mapped_column(String(16))
+    exclusion_rule: Mapped[str] = mapped_column(String(32))
+    seed: Mapped[int] = mapped_column(BigInteger)
+    rr_counter: Mapped[int] = mapped_column(Integer, default=0)
+    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+
+
+class SurveyStimulus(Base):
+    """Two frozen ``acv.tree/1`` trees ("Tree 1", "Tree 2") shown on one screen.
+
+    ``trees`` is ``[{"name", "source", "study_id", "doc", "highlight"}, ...]`` (two items):
+    the document is copied in when the survey is created, so later changes to a participant or
+    a run never change what respondents saw. ``expected`` overrides the questions' expected
+    answers on this stimulus; an attention check asks only its ``check_question``.
+    """
+
+    __tablename__ = "survey_stimuli"
+    __table_args__ = (UniqueConstraint("survey_id", "position"),)
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    survey_id: Mapped[int] = mapped_column(ForeignKey("surveys.id", ondelete="CASCADE"))
+    position: Mapped[int] = mapped_column(Integer)
+    label: Mapped[str] = mapped_column(String(200))
+    attention_check: Mapped[bool] = mapped_column(Boolean, default=False)
+    check_question: Mapped[str | None] = mapped_column(String(32), default=None)
+    trees: Mapped[list] = mapped_column(JSON)
+    expected: Mapped[dict] = mapped_column(JSON)
+
+
+class SurveyRespondent(Base):
+    """Someone answering a survey, known only by their invite token (as a participant).
+
+    ``started_at`` is set once, by whichever request first plans their screens (an atomic
+    ``UPDATE ... WHERE started_at IS NULL``); ``stimulus_id`` is their round-robin stimulus.
+    """
+
+    __tablename__ = "survey_respondents"
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    survey_id: Mapped[int] = mapped_column(ForeignKey("surveys.id", ondelete="CASCADE"), index=True)
+    token: Mapped[str] = mapped_column(String(64), unique=True)
+    token_hash: Mapped[str] = mapped_column(String(64), index=True, unique=True)
+    name: Mapped[str | None] = mapped_column(String(200), default=None)
+    stimulus_id: Mapped[int | None] = mapped_column(
+        ForeignKey("survey_stimuli.id", ondelete="CASCADE"), default=None
+    )
+    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+    started_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), default=None)
+    finished_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), default=None)
+
+    @validates("token")
+    def _hash_token(self, _key: str, token: str) -> str:
+        self.token_hash = token_digest(token)
+        return token
+
+
+class SurveyScreen(Base):
+    """One screen of a respondent's plan: which stimulus, and whether Tree 1 is on the left.
+
+    ``shown_at`` is when the server first sent it, ``screen_ms`` the time on the screen that
+    the page measured in the visit that answered it, ``answered_at`` when the answers came.
+    """
+
+    __tablename__ = "survey_screens"
+    __table_args__ = (
+        UniqueConstraint("respondent_id", "stimulus_id"),
+        CheckConstraint("screen_ms >= 0", name="screen_ms"),
+    )
+
+    respondent_id: Mapped[int] = mapped_column(
+        ForeignKey("survey_respondents.id", ondelete="CASCADE"), primary_key=True
+    )
+    position: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=False)
+    stimulus_id: Mapped[int] = mapped_column(ForeignKey("survey_stimuli.id", ondelete="CASCADE"))
+    tree1_left: Mapped[bool] = mapped_column(Boolean)
+    shown_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), default=None)
+    answered_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), default=None)
+    screen_ms: Mapped[int | None] = mapped_column(BigInteger, default=None)
+
+
+class SurveyAnswer(Base):
+    """A respondent's answer to one question on one stimulus; final (UNIQUE per question)."""
+
+    __tablename__ = "survey_answers"
+    __table_args__ = (
+        UniqueConstraint("respondent_id", "stimulus_id", "question"),
+        CheckConstraint(
+            "confidence IS NULL OR (confidence >= 1 AND confidence <= 5)", name="confidence"
+        ),
+    )
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    respondent_id: Mapped[int] = mapped_column(
+        ForeignKey("survey_respondents.id", ondelete="CASCADE"), index=True
+    )
+    stimulus_id: Mapped[int] = mapped_column(ForeignKey("survey_stimuli.id", ondelete="CASCADE"))
+    question: Mapped[str] = mapped_column(String(32))
+    value: Mapped[str] = mapped_column(Text)
+    confidence: Mapped[int | None] = mapped_column(Integer, default=None)
+    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)

@@ -34,12 +34,15 @@ def check_data_dir(settings: Settings) -> None:
         path.mkdir(parents=True, exist_ok=True)
         free = shutil.disk_usage(path).free
         if free < settings.min_free_mb * _MIB:
-            raise InputError(f"the data dir {path} has only {free / _MIB:.1f} MiB free; ACV "
-                             f"needs at least {settings.min_free_mb} MiB (ACV_MIN_FREE_MB)")
+            raise InputError(
+                f"the data dir {path} has only {free / _MIB:.1f} MiB free; ACV "
+                f"needs at least {settings.min_free_mb} MiB (ACV_MIN_FREE_MB)"
+            )
         _write_probe(path)
     except OSError as exc:
-        raise InputError(f"cannot write to the data dir {path}: "
-                         f"{exc.strerror or type(exc).__name__}") from None
+        raise InputError(
+            f"cannot write to the data dir {path}: {exc.strerror or type(exc).__name__}"
+        ) from None
 
 
 def _write_probe(path: Path) -> None:

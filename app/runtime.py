@@ -27,12 +27,13 @@ class Runtime:
 
     Args:
         settings: where the data lives and which database to use.
+        processes: server processes sharing the database (sizes the connection pool).
     """
 
-    def __init__(self, settings: Settings) -> None:
+    def __init__(self, settings: Settings, *, processes: int = 1) -> None:
         check_data_dir(settings)  # fail before serving, not at the first write
         self.settings = settings
-        self.engine = make_engine(settings.sqlalchemy_url)
+        self.engine = make_engine(settings.sqlalchemy_url, processes=processes)
         self.sessions: sessionmaker[Session] = make_sessions(self.engine)
         self.admin_token = ensure_admin_token(settings)
         self._lock = threading.Lock()
@@ -49,8 +50,12 @@ class Runtime:
 
     def prepare(self, study_id: int) -> None:
         """Sample and render a study now, on this thread."""
-        prepare_study(self.sessions, study_id=study_id, renderer=self.renderer,
-                      data_dir=self.settings.data_dir)
+        prepare_study(
+            self.sessions,
+            study_id=study_id,
+            renderer=self.renderer,
+            data_dir=self.settings.data_dir,
+        )
 
     def prepare_later(self, study_id: int) -> Future:
         """Queue a study's preparation on the background worker."""

@@ -34,7 +34,8 @@ class Settings(BaseSettings):
 
     data_dir: Path = Path("data")
     database_url: str | None = Field(
-        default=None, validation_alias=AliasChoices("DATABASE_URL", "ACV_DATABASE_URL"))
+        default=None, validation_alias=AliasChoices("DATABASE_URL", "ACV_DATABASE_URL")
+    )
     admin_token: SecretStr | None = None
     public_url: str | None = None
     threads: int = Field(default=8, ge=1, le=256)

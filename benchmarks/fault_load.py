@@ -99,9 +99,22 @@ class Server:
     def start(self, timeout_s: float = 120.0) -> None:
         with self.log.open("a") as log:
             self.proc = subprocess.Popen(
-                [sys.executable, "-c", "from app.cli import main; main()", "serve", "--host",
-                 "127.0.0.1", "--port", str(self.port), "--no-access-log"],
-                cwd=REPO, env=self.env, stdout=log, stderr=subprocess.STDOUT)
+                [
+                    sys.executable,
+                    "-c",
+                    "from app.cli import main; main()",
+                    "serve",
+                    "--host",
+                    "127.0.0.1",
+                    "--port",
+                    str(self.port),
+                    "--no-access-log",
+                ],
+                cwd=REPO,
+                env=self.env,
+                stdout=log,
+                stderr=subprocess.STDOUT,
+            )
         deadline = time.monotonic() + timeout_s
         while time.monotonic() < deadline:
             if self.proc.poll() is not None:
@@ -131,42 +144,65 @@ def _free_port() -> int:
 
 def prepare(base: str, config: LoadConfig, count: int) -> tuple[int, list[tuple[int, str]]]:
     """A ready study and ``count`` invited participants ``(id, token)``."""
-    body = {"name": "fault load", "env_id": config.env_id, "n_candidates": config.candidates,
-            "p": 0.9, "seed": 0, "sampling": "uniform", "instructions": ""}
+    body = {
+        "name": "fault load",
+        "env_id": config.env_id,
+        "n_candidates": config.candidates,
+        "p": 0.9,
+        "seed": 0,
+        "sampling": "uniform",
+        "instructions": "",
+    }
     study = httpx.post(f"{base}/api/studies", json=body, headers=ADMIN).raise_for_status()
     study_id = study.json()["id"]
-    while (status := httpx.get(f"{base}/api/studies/{study_id}", headers=ADMIN)
-           .json()["status"]) == "preparing":
+    while (
+        status := httpx.get(f"{base}/api/studies/{study_id}", headers=ADMIN).json()["status"]
+    ) == "preparing":
         time.sleep(0.1)
     if status != "ready":
         raise RuntimeError(f"study preparation failed: {status}")
-    people = httpx.post(f"{base}/api/studies/{study_id}/participants/batch", headers=ADMIN,
-                        json={"count": count}, timeout=60).raise_for_status().json()
+    people = (
+        httpx.post(
+            f"{base}/api/studies/{study_id}/participants/batch",
+            headers=ADMIN,
+            json={"count": count},
+            timeout=60,
+        )
+        .raise_for_status()
+        .json()
+    )
     return study_id, [(p["id"], p["token"]) for p in people]
 
 
-async def _post(client: httpx.AsyncClient, headers: dict[str, str], match_id: int,
-                winner: int, tally: Tally) -> int | None:
+async def _post(
+    client: httpx.AsyncClient, headers: dict[str, str], match_id: int, winner: int, tally: Tally
+) -> int | None:
     """One label request; its status, or ``None`` when the connection failed."""
     tally.posts += 1
     t0 = time.perf_counter()
     try:
-        response = await client.post(f"/api/matches/{match_id}/label", headers=headers,
-                                     json={"winner": winner})
+        response = await client.post(
+            f"/api/matches/{match_id}/label", headers=headers, json={"winner": winner}
+        )
     except httpx.TransportError:
         tally.transport_errors += 1
         return None
     tally.label_ms.append((time.perf_counter() - t0) * 1000)
     tally.server_errors += response.status_code >= 500
     tally.conflicts += response.status_code == 409
-    if response.status_code in (200, 201) and \
-            tally.acked.setdefault(match_id, winner) != winner:
+    if response.status_code in (200, 201) and tally.acked.setdefault(match_id, winner) != winner:
         tally.unexpected.append(f"match {match_id}: 2xx for both winners")
     return response.status_code
 
 
-async def _decide(client: httpx.AsyncClient, headers: dict[str, str], match: dict,
-                  rng: np.random.Generator, config: LoadConfig, tally: Tally) -> None:
+async def _decide(
+    client: httpx.AsyncClient,
+    headers: dict[str, str],
+    match: dict,
+    rng: np.random.Generator,
+    config: LoadConfig,
+    tally: Tally,
+) -> None:
     """Send one decision twice at once, or race two different ones, as the config says."""
     mid, sides = match["match_id"], [match["a"]["candidate_id"], match["b"]["candidate_id"]]
     winner = sides[int(rng.integers(2))]
@@ -185,8 +221,14 @@ async def _decide(client: httpx.AsyncClient, headers: dict[str, str], match: dic
         tally.unexpected.append(f"duplicate label of match {mid}: {codes}")
 
 
-async def participant(client: httpx.AsyncClient, token: str, seed: int, config: LoadConfig,
-                      tally: Tally, deadline: float) -> bool:
+async def participant(
+    client: httpx.AsyncClient,
+    token: str,
+    seed: int,
+    config: LoadConfig,
+    tally: Tally,
+    deadline: float,
+) -> bool:
     """Label the whole bracket, resuming after failures; whether it was finished in time."""
     rng = np.random.default_rng(seed)
     headers = {"Authorization": f"Bearer {token}"}
@@ -221,17 +263,24 @@ async def crash_midway(server: Server, tally: Tally, total: int, config: LoadCon
     tally.restart_s = time.perf_counter() - t0
 
 
-async def run_load(server: Server | None, base: str, tokens: list[str],
-                   config: LoadConfig) -> Tally:
+async def run_load(
+    server: Server | None, base: str, tokens: list[str], config: LoadConfig
+) -> Tally:
     """Participants label concurrently; with a ``server``, it is killed midway."""
     tally = Tally()
     limits = httpx.Limits(max_connections=2 * len(tokens), keepalive_expiry=3.0)
     deadline = time.monotonic() + config.timeout_s
     async with httpx.AsyncClient(base_url=base, limits=limits, timeout=60) as client:
-        crash = (asyncio.create_task(crash_midway(server, tally, len(tokens) * (
-            config.candidates - 1), config)) if server is not None else None)
-        done = await asyncio.gather(*(participant(client, tok, k, config, tally, deadline)
-                                      for k, tok in enumerate(tokens)))
+        crash = (
+            asyncio.create_task(
+                crash_midway(server, tally, len(tokens) * (config.candidates - 1), config)
+            )
+            if server is not None
+            else None
+        )
+        done = await asyncio.gather(
+            *(participant(client, tok, k, config, tally, deadline) for k, tok in enumerate(tokens))
+        )
         if crash is not None:
             crash.cancel()  # a no-op once done; else all finished first, and kills == 0
             with contextlib.suppress(asyncio.CancelledError):
@@ -245,8 +294,11 @@ def stored_labels(database_url: str, participant_ids: list[int]) -> dict[int, li
     engine = make_engine(database_url)
     try:
         with make_sessions(engine)() as session:
-            rows = session.execute(select(Label.match_id, Label.winner)
-                                   .where(Label.participant_id.in_(participant_ids)))
+            rows = session.execute(
+                select(Label.match_id, Label.winner).where(
+                    Label.participant_id.in_(participant_ids)
+                )
+            )
             stored: dict[int, list[int]] = {}
             for match_id, winner in rows:
                 stored.setdefault(match_id, []).append(winner)
@@ -259,8 +311,9 @@ def pct(values: list[float], q: float) -> float:
     return round(float(np.percentile(values, q)), 2) if values else float("nan")
 
 
-def run_backend(config: LoadConfig, database_url: str | None, data_dir: Path, *,
-                steady: bool = True) -> dict:
+def run_backend(
+    config: LoadConfig, database_url: str | None, data_dir: Path, *, steady: bool = True
+) -> dict:
     """On one backend: the reference, a steady load (latency; unless ``steady`` is off),
     and the same load on fresh participants with a ``kill -9`` midway; the figures."""
     server = Server(data_dir, database_url)
@@ -271,44 +324,55 @@ def run_backend(config: LoadConfig, database_url: str | None, data_dir: Path, *,
         tokens = [tok for _, tok in people]
         solo = LoadConfig(**{**asdict(config), "think_ms": 0.0, "race_share": 0.0})
         alone = asyncio.run(run_load(None, server.base, tokens[:1], solo))
-        calm = asyncio.run(run_load(None, server.base, tokens[1:k + 1], config)) \
-            if steady else None
+        calm = (
+            asyncio.run(run_load(None, server.base, tokens[1 : k + 1], config)) if steady else None
+        )
         crashed = asyncio.run(run_load(server, server.base, tokens[-k:], config))
     finally:
         server.stop()
-    stored = stored_labels(database_url or f"sqlite:///{data_dir / 'acv.sqlite3'}",
-                           [pid for pid, _ in people[1:]])
-    return figures([t for t in (calm, crashed) if t is not None], stored, alone,
-                   config) | {"kills": crashed.kills, "restart_s": round(crashed.restart_s, 2),
-                              "crash_run_p99_ms": pct(crashed.label_ms, 99)}
+    stored = stored_labels(
+        database_url or f"sqlite:///{data_dir / 'acv.sqlite3'}", [pid for pid, _ in people[1:]]
+    )
+    return figures([t for t in (calm, crashed) if t is not None], stored, alone, config) | {
+        "kills": crashed.kills,
+        "restart_s": round(crashed.restart_s, 2),
+        "crash_run_p99_ms": pct(crashed.label_ms, 99),
+    }
 
 
-def figures(runs: list[Tally], stored: dict[int, list[int]], alone: Tally,
-            config: LoadConfig) -> dict:
+def figures(
+    runs: list[Tally], stored: dict[int, list[int]], alone: Tally, config: LoadConfig
+) -> dict:
     """Integrity over all ``runs``; latency of the first (the steady one, if any)."""
     acked = {m: w for run in runs for m, w in run.acked.items()}
     lost = [m for m, w in acked.items() if stored.get(m) != [w]]
     p50, p99, ref = pct(runs[0].label_ms, 50), pct(runs[0].label_ms, 99), pct(alone.label_ms, 50)
     return {
-        "labels_sent": sum(r.posts for r in runs), "labels_acknowledged": len(acked),
+        "labels_sent": sum(r.posts for r in runs),
+        "labels_acknowledged": len(acked),
         "labels_stored": sum(map(len, stored.values())),
-        "duplicates": sum(len(w) - 1 for w in stored.values()), "lost": len(lost),
+        "duplicates": sum(len(w) - 1 for w in stored.values()),
+        "lost": len(lost),
         "expected": len(runs) * config.participants * (config.candidates - 1),
         "finished": sum(r.finished for r in runs),
-        "conflicts_409": sum(r.conflicts for r in runs), "races": sum(r.races for r in runs),
+        "conflicts_409": sum(r.conflicts for r in runs),
+        "races": sum(r.races for r in runs),
         "race_losers_409": sum(r.race_losers_409 for r in runs),
         "server_errors_5xx": sum(r.server_errors for r in runs),
         "unexpected": [u for r in runs for u in r.unexpected][:10],
         "transport_errors": sum(r.transport_errors for r in runs),
-        "p50_ms": p50, "p99_ms": p99, "alone_p50_ms": ref,
-        "p99_over_alone_p50": round(p99 / ref, 2)}
+        "p50_ms": p50,
+        "p99_ms": p99,
+        "alone_p50_ms": ref,
+        "p99_over_alone_p50": round(p99 / ref, 2),
+    }
 
 
 @contextlib.contextmanager
 def postgres_url() -> Iterator[str]:
     """A database on a throwaway PostgreSQL cluster (the app tests' own fixture code)."""
     sys.path.insert(0, str(REPO))
-    from tests.app.conftest import PostgresCluster
+    from tests.support.postgres import PostgresCluster
 
     cluster = PostgresCluster()
     cluster.start()
@@ -325,24 +389,39 @@ def main() -> None:
         value = getattr(defaults, name)
         parser.add_argument(f"--{name.replace('_', '-')}", type=type(value), default=value)
     parser.add_argument("--env", default=defaults.env_id)
-    parser.add_argument("--backends", nargs="+", default=["sqlite", "postgresql"],
-                        choices=["sqlite", "postgresql"])
+    parser.add_argument(
+        "--backends", nargs="+", default=["sqlite", "postgresql"], choices=["sqlite", "postgresql"]
+    )
     args = parser.parse_args()
-    config = LoadConfig(args.participants, args.candidates, args.env, args.think_ms,
-                        args.race_share, args.kill_at)
+    config = LoadConfig(
+        args.participants, args.candidates, args.env, args.think_ms, args.race_share, args.kill_at
+    )
     results = {}
     for backend in args.backends:
-        with tempfile.TemporaryDirectory(prefix="acv-fault-") as tmp, (
-                postgres_url() if backend == "postgresql" else contextlib.nullcontext()) as url:
+        with (
+            tempfile.TemporaryDirectory(prefix="acv-fault-") as tmp,
+            postgres_url() if backend == "postgresql" else contextlib.nullcontext() as url,
+        ):
             results[backend] = got = run_backend(config, url, Path(tmp))
-        print(f"{backend}: {got['labels_sent']} label requests for {got['expected']} "
-              f"matches; stored {got['labels_stored']}, duplicates {got['duplicates']}, lost "
-              f"{got['lost']}, 409s {got['conflicts_409']} ({got['race_losers_409']}/"
-              f"{got['races']} race losers), 5xx {got['server_errors_5xx']}; kill -9 + "
-              f"restart {got['restart_s']} s; label p99 {got['p99_ms']} ms = "
-              f"{got['p99_over_alone_p50']}x the lone participant's p50")
-    print(json.dumps({"participants": config.participants, "candidates": config.candidates,
-                      "env": config.env_id, "think_ms": config.think_ms, **results}))
+        print(
+            f"{backend}: {got['labels_sent']} label requests for {got['expected']} "
+            f"matches; stored {got['labels_stored']}, duplicates {got['duplicates']}, lost "
+            f"{got['lost']}, 409s {got['conflicts_409']} ({got['race_losers_409']}/"
+            f"{got['races']} race losers), 5xx {got['server_errors_5xx']}; kill -9 + "
+            f"restart {got['restart_s']} s; label p99 {got['p99_ms']} ms = "
+            f"{got['p99_over_alone_p50']}x the lone participant's p50"
+        )
+    print(
+        json.dumps(
+            {
+                "participants": config.participants,
+                "candidates": config.candidates,
+                "env": config.env_id,
+                "think_ms": config.think_ms,
+                **results,
+            }
+        )
+    )
 
 
 if __name__ == "__main__":

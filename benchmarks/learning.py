@@ -1,11 +1,19 @@
-"""Learning benchmark: ACV ``ppo`` on Humanoid-v5, mean true return of the last 100 episodes.
+"""Learning benchmark: ACV ``ppo`` next to Stable-Baselines3 PPO, same settings, same seeds.
 
-Target: >= 700 after 1M steps (CleanRL's PPO reaches 716 +/- 49 on Humanoid-v4 at 1M steps,
-the reference this script divides by). Takes 10-20 minutes on two cores:
+Both learners train on the same env with the same hyper-parameters: env count, rollout length,
+epochs, minibatch size, learning rate annealed linearly to 0, GAE, clipping, 2x64 tanh
+networks, observation and reward normalisation (clip 10), Adam eps 1e-5. The score of each
+is the mean true return of its last 100 episodes. ACV's target is >= 700 after 1M steps, the
+mean over seeds (CleanRL's PPO reaches 716 +/- 49 on Humanoid-v4, which has no contact cost).
 
-    .venv/bin/python benchmarks/learning.py --timesteps 1000000 [--seed 0] [--out DIR]
+    .venv/bin/python benchmarks/learning.py --timesteps 1000000 --seeds 0 1 2 \
+        [--acv-runs results/runs/ppo] [--jobs 2]
 
-Prints the return every ``--every`` steps and, last, one JSON object.
+``--acv-runs`` reuses finished ACV runs (``seed_<k>`` folders of ``acv reproduce``'s ``ppo``
+arm, whose configuration is checked to be the one this benchmark would train) instead of
+training them again. The last line is one JSON object: ``acv_return``, ``sb3_return`` (means
+over seeds), ``ratio_vs_sb3``, per-seed returns, Student's t 95% intervals over seeds and
+``reference_cleanrl_humanoid_v4``.
 """
 
 from __future__ import annotations
@@ -14,49 +22,157 @@ import argparse
 import json
 import tempfile
 import time
+from concurrent.futures import ProcessPoolExecutor
+from multiprocessing import get_context
 from pathlib import Path
 
+import numpy as np
+
 from engine.rl.config import TrainConfig
-from engine.rl.runner import train
 
 CLEANRL_HUMANOID_1M = 716.0  # CleanRL ppo_continuous_action, Humanoid-v4, 1M steps (mean)
+TARGET = 700.0
+
+
+def acv_return(cfg: TrainConfig, out: Path, reuse: Path | None) -> float:
+    """ACV's mean return of the last 100 episodes, training unless ``reuse`` holds the run."""
+    from engine.rl.logger import read_metrics
+    from engine.rl.runner import load_run_config, train
+
+    if reuse is not None:
+        saved = load_run_config(reuse)
+        if saved.to_json() | {"checkpoint_every": 0} != cfg.to_json() | {"checkpoint_every": 0}:
+            raise SystemExit(f"{reuse} was trained with other settings than this benchmark's")
+        rows = read_metrics(reuse)
+    else:
+        train(cfg, None, out)
+        rows = read_metrics(out)
+    if rows[-1]["timesteps"] < cfg.total_timesteps:
+        raise SystemExit(f"{reuse or out} stopped at {rows[-1]['timesteps']} steps")
+    return float(rows[-1]["return_100"])
+
+
+def sb3_return(cfg: TrainConfig) -> float:
+    """Stable-Baselines3 PPO with ``cfg``'s settings: mean return of its last 100 episodes."""
+    import gymnasium as gym
+    import torch
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.env_util import make_vec_env
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    torch.set_num_threads(1)
+    venv = VecNormalize(
+        make_vec_env(lambda: gym.make(cfg.env_id), n_envs=cfg.n_envs, seed=cfg.seed),
+        norm_obs=cfg.norm_obs,
+        norm_reward=cfg.norm_reward,
+        clip_obs=10.0,
+        clip_reward=10.0,
+        gamma=cfg.gamma,
+    )
+    lr = cfg.learning_rate
+    model = PPO(
+        "MlpPolicy",
+        venv,
+        learning_rate=(lambda left: lr * left) if cfg.anneal_lr else lr,
+        n_steps=cfg.num_steps,
+        batch_size=cfg.minibatch_size,
+        n_epochs=cfg.update_epochs,
+        gamma=cfg.gamma,
+        gae_lambda=cfg.gae_lambda,
+        clip_range=cfg.clip_coef,
+        ent_coef=cfg.ent_coef,
+        vf_coef=cfg.vf_coef,
+        max_grad_norm=cfg.max_grad_norm,
+        device="cpu",
+        seed=cfg.seed,
+        policy_kwargs={
+            "net_arch": {"pi": [cfg.hidden] * 2, "vf": [cfg.hidden] * 2},
+            "activation_fn": torch.nn.Tanh,
+            "optimizer_kwargs": {"eps": 1e-5},
+        },
+    )
+    model.learn(total_timesteps=cfg.num_updates * cfg.batch_size)
+    return float(np.mean([info["r"] for info in model.ep_info_buffer]))
+
+
+def one_seed(cfg: TrainConfig, out: Path, reuse: Path | None) -> dict[str, float]:
+    """Both learners at one seed (run in a worker process). SB3's result is kept in
+    ``out/sb3_seed_<k>.json``, so a second call with the same ``--out`` reuses it."""
+    cached = out / f"sb3_seed_{cfg.seed}.{cfg.env_id}.{cfg.total_timesteps}.json"
+    start = time.perf_counter()
+    if cached.is_file():
+        sb3 = json.loads(cached.read_text())["sb3"]
+    else:
+        sb3 = sb3_return(cfg)
+        out.mkdir(parents=True, exist_ok=True)
+        cached.write_text(json.dumps({"sb3": sb3, "wall_s": time.perf_counter() - start}))
+    mid = time.perf_counter()
+    acv = acv_return(cfg, out / f"acv_seed_{cfg.seed}", reuse)
+    result = {
+        "seed": cfg.seed,
+        "acv": round(acv, 1),
+        "sb3": round(sb3, 1),
+        "sb3_wall_s": round(mid - start, 1),
+        "acv_wall_s": round(time.perf_counter() - mid, 1),
+    }
+    print(json.dumps(result), flush=True)
+    return result
+
+
+def interval(values: list[float]) -> list[float] | None:
+    """Student's t 95% interval of the mean over seeds (None for one seed)."""
+    from scipy import stats
+
+    x = np.asarray(values)
+    if len(x) < 2 or stats.sem(x) == 0:
+        return None
+    low, high = stats.t.interval(0.95, len(x) - 1, loc=x.mean(), scale=stats.sem(x))
+    return [round(float(low), 1), round(float(high), 1)]
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--timesteps", type=int, default=1_000_000)
     parser.add_argument("--env", default="Humanoid-v5")
-    parser.add_argument("--algo", default="ppo")
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--n-envs", type=int, default=TrainConfig.n_envs)
-    parser.add_argument("--num-steps", type=int, default=TrainConfig.num_steps,
-                        help="steps per env per rollout")
-    parser.add_argument("--every", type=int, default=50_000, help="print period in steps")
-    parser.add_argument("--out", type=Path, default=None, help="run directory (default: temp)")
+    parser.add_argument("--seeds", type=int, nargs="+", default=[0])
+    parser.add_argument(
+        "--acv-runs",
+        type=Path,
+        default=None,
+        help="folder of finished ACV ppo runs seed_<k> to reuse",
+    )
+    parser.add_argument("--jobs", type=int, default=1, help="seeds trained at a time")
+    parser.add_argument("--out", type=Path, default=None, help="ACV run folder (default: temp)")
     args = parser.parse_args()
-    out = args.out or Path(tempfile.mkdtemp(prefix="acv-learning-")) / "run"
-    cfg = TrainConfig(algo=args.algo, env_id=args.env, total_timesteps=args.timesteps,
-                      seed=args.seed, n_envs=args.n_envs, num_steps=args.num_steps,
-                      checkpoint_every=max(args.timesteps, 1))
-    last: dict = {}
-
-    def progress(row: dict) -> None:
-        if row["timesteps"] // args.every > (row["timesteps"] - cfg.batch_size) // args.every:
-            print(f"{row['timesteps']:>9d} steps  return(100) {row['return_100'] or 0:8.1f}  "
-                  f"{row['sps']:6.0f} steps/s", flush=True)
-        last.update(row)
-
-    start = time.perf_counter()
-    train(cfg, None, out, progress=progress)
-    result = {"env": args.env, "algo": args.algo, "seed": args.seed, "n_envs": cfg.n_envs,
-              "num_steps": cfg.num_steps,
-              "timesteps": last["timesteps"],
-              "mean_return_last100": round(last["return_100"], 1),
-              "target": 700.0, "reference_cleanrl_humanoid_v4": CLEANRL_HUMANOID_1M,
-              "ratio_vs_reference": round(last["return_100"] / CLEANRL_HUMANOID_1M, 3),
-              "sps": round(last["sps"], 1), "wall_s": round(time.perf_counter() - start, 1),
-              "run_dir": str(out)}
-    print(json.dumps(result))
+    out = args.out or Path(tempfile.mkdtemp(prefix="acv-learning-"))
+    configs = [
+        TrainConfig(algo="ppo", env_id=args.env, total_timesteps=args.timesteps, seed=seed)
+        for seed in args.seeds
+    ]
+    reuse = [args.acv_runs / f"seed_{c.seed}" if args.acv_runs else None for c in configs]
+    with ProcessPoolExecutor(max_workers=args.jobs, mp_context=get_context("spawn")) as pool:
+        rows = list(pool.map(one_seed, configs, [out] * len(configs), reuse))
+    acv, sb3 = [r["acv"] for r in rows], [r["sb3"] for r in rows]
+    print(
+        json.dumps(
+            {
+                "env": args.env,
+                "timesteps": args.timesteps,
+                "seeds": args.seeds,
+                "acv_return": round(float(np.mean(acv)), 1),
+                "sb3_return": round(float(np.mean(sb3)), 1),
+                "ratio_vs_sb3": round(float(np.mean(acv) / np.mean(sb3)), 3),
+                "acv_returns": acv,
+                "sb3_returns": sb3,
+                "acv_ci95_t": interval(acv),
+                "sb3_ci95_t": interval(sb3),
+                "acv_spread_sd": round(float(np.std(acv, ddof=1)), 1) if len(acv) > 1 else None,
+                "target": TARGET,
+                "reference_cleanrl_humanoid_v4": CLEANRL_HUMANOID_1M,
+                "acv_reused": args.acv_runs is not None,
+            }
+        )
+    )
 
 
 if __name__ == "__main__":

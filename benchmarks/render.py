@@ -55,8 +55,9 @@ def bare_seconds(env_id: str, states: list[State], spec: RenderSpec) -> float:
     return elapsed
 
 
-def product_seconds(service: RenderService, env_id: str, states: list[State],
-                    spec: RenderSpec, cache_dir: Path) -> float:
+def product_seconds(
+    service: RenderService, env_id: str, states: list[State], spec: RenderSpec, cache_dir: Path
+) -> float:
     """Seconds for the product path, cache writes into the empty ``cache_dir`` included."""
     service.cache = RenderCache(cache_dir)
     start = time.perf_counter()
@@ -108,17 +109,25 @@ def main() -> None:
             else:
                 product.append(product_seconds(service, args.env, states, spec, cache_dir))
                 bare.append(bare_seconds(args.env, states, spec))
-            print(f"round {r}: product {len(states) / product[-1]:.1f} fps, "
-                  f"bare {len(states) / bare[-1]:.1f} fps")
+            print(
+                f"round {r}: product {len(states) / product[-1]:.1f} fps, "
+                f"bare {len(states) / bare[-1]:.1f} fps"
+            )
 
     frames = args.rounds * len(states)
     result = {
-        "env": args.env, "view": spec.view, "size": spec.size, "format": spec.fmt,
-        "backend": backend, "frames": frames,
-        "product_fps": round(frames / sum(product), 1), "bare_fps": round(frames / sum(bare), 1),
+        "env": args.env,
+        "view": spec.view,
+        "size": spec.size,
+        "format": spec.fmt,
+        "backend": backend,
+        "frames": frames,
+        "product_fps": round(frames / sum(product), 1),
+        "bare_fps": round(frames / sum(bare), 1),
         "ratio": round(float(np.median(np.array(bare) / np.array(product))), 3),
         "ratio_total": round(sum(bare) / sum(product), 3),
-        "study_candidates": len(states), "study_s": round(study_cold_s, 3),
+        "study_candidates": len(states),
+        "study_s": round(study_cold_s, 3),
         "study_warm_s": round(study_warm_s, 3),
         "backend_select_s": round(backend_s, 3),
         "load_avg": [round(x, 2) for x in os.getloadavg()],

@@ -42,6 +42,7 @@ def acv_timer(cfg: TrainConfig, advice):
         for _ in range(k):
             trainer.iterate()
         return clocks() - start
+
     return run
 
 
@@ -52,21 +53,39 @@ def sb3_timer(cfg: TrainConfig):
     from stable_baselines3.common.env_util import make_vec_env
     from stable_baselines3.common.vec_env import VecNormalize
 
-    venv = VecNormalize(make_vec_env(lambda: gym.make(cfg.env_id, disable_env_checker=True),
-                                     n_envs=cfg.n_envs, seed=cfg.seed), gamma=cfg.gamma)
-    model = PPO("MlpPolicy", venv, learning_rate=cfg.learning_rate, n_steps=cfg.num_steps,
-                batch_size=cfg.minibatch_size, n_epochs=cfg.update_epochs, gamma=cfg.gamma,
-                gae_lambda=cfg.gae_lambda, clip_range=cfg.clip_coef, ent_coef=cfg.ent_coef,
-                vf_coef=cfg.vf_coef, max_grad_norm=cfg.max_grad_norm, device="cpu",
-                seed=cfg.seed, policy_kwargs={"net_arch": {"pi": [cfg.hidden] * 2,
-                                                           "vf": [cfg.hidden] * 2},
-                                              "activation_fn": torch.nn.Tanh,
-                                              "optimizer_kwargs": {"eps": 1e-5}})
+    venv = VecNormalize(
+        make_vec_env(
+            lambda: gym.make(cfg.env_id, disable_env_checker=True), n_envs=cfg.n_envs, seed=cfg.seed
+        ),
+        gamma=cfg.gamma,
+    )
+    model = PPO(
+        "MlpPolicy",
+        venv,
+        learning_rate=cfg.learning_rate,
+        n_steps=cfg.num_steps,
+        batch_size=cfg.minibatch_size,
+        n_epochs=cfg.update_epochs,
+        gamma=cfg.gamma,
+        gae_lambda=cfg.gae_lambda,
+        clip_range=cfg.clip_coef,
+        ent_coef=cfg.ent_coef,
+        vf_coef=cfg.vf_coef,
+        max_grad_norm=cfg.max_grad_norm,
+        device="cpu",
+        seed=cfg.seed,
+        policy_kwargs={
+            "net_arch": {"pi": [cfg.hidden] * 2, "vf": [cfg.hidden] * 2},
+            "activation_fn": torch.nn.Tanh,
+            "optimizer_kwargs": {"eps": 1e-5},
+        },
+    )
 
     def run(k: int) -> np.ndarray:
         start = clocks()
         model.learn(total_timesteps=k * cfg.batch_size, reset_num_timesteps=False)
         return clocks() - start
+
     return run
 
 
@@ -80,8 +99,7 @@ def measure(timers: dict, updates: int, rounds: int, steps: int) -> dict[str, np
             seconds = run(updates)
             total[name] += seconds
             cpu, wall = updates * steps / seconds
-            print(f"round {r}: {name:10s} {cpu:6.0f} steps/CPU-s {wall:6.0f} steps/s",
-                  flush=True)
+            print(f"round {r}: {name:10s} {cpu:6.0f} steps/CPU-s {wall:6.0f} steps/s", flush=True)
     return {name: rounds * updates * steps / t for name, t in total.items()}
 
 
@@ -96,21 +114,39 @@ def main() -> None:
     parser.add_argument("--rounds", type=int, default=3)
     args = parser.parse_args()
     torch.set_num_threads(1)
-    base = dict(env_id=args.env, n_envs=args.n_envs, num_steps=args.num_steps,
-                num_minibatches=args.n_envs * args.num_steps // args.minibatch,
-                update_epochs=args.epochs)
+    base = dict(
+        env_id=args.env,
+        n_envs=args.n_envs,
+        num_steps=args.num_steps,
+        num_minibatches=args.n_envs * args.num_steps // args.minibatch,
+        update_epochs=args.epochs,
+    )
     ppo, em = TrainConfig(algo="ppo", **base), TrainConfig(algo="bipars-em", **base)
     tree = run_tournament(env_id=args.env, n_candidates=16, p=0.9, seed=0, teacher="good")
-    sps = measure({"acv-ppo": acv_timer(ppo, None), "sb3-ppo": sb3_timer(ppo),
-                   "acv-bipars": acv_timer(em, advice_reward(em, tree))},
-                  args.updates, args.rounds, ppo.batch_size)
+    sps = measure(
+        {
+            "acv-ppo": acv_timer(ppo, None),
+            "sb3-ppo": sb3_timer(ppo),
+            "acv-bipars": acv_timer(em, advice_reward(em, tree)),
+        },
+        args.updates,
+        args.rounds,
+        ppo.batch_size,
+    )
     acv, sb3, em = sps["acv-ppo"], sps["sb3-ppo"], sps["acv-bipars"]
-    result = {"env": args.env, "n_envs": args.n_envs, "acv_sps": round(acv[0], 1),
-              "sb3_sps": round(sb3[0], 1), "ratio_vs_sb3": round(acv[0] / sb3[0], 3),
-              "bipars_sps": round(em[0], 1), "bipars_overhead": round(acv[0] / em[0] - 1, 3),
-              "wall_acv_sps": round(acv[1], 1), "wall_sb3_sps": round(sb3[1], 1),
-              "wall_ratio_vs_sb3": round(acv[1] / sb3[1], 3),
-              "wall_bipars_overhead": round(acv[1] / em[1] - 1, 3)}
+    result = {
+        "env": args.env,
+        "n_envs": args.n_envs,
+        "acv_sps": round(acv[0], 1),
+        "sb3_sps": round(sb3[0], 1),
+        "ratio_vs_sb3": round(acv[0] / sb3[0], 3),
+        "bipars_sps": round(em[0], 1),
+        "bipars_overhead": round(acv[0] / em[0] - 1, 3),
+        "wall_acv_sps": round(acv[1], 1),
+        "wall_sb3_sps": round(sb3[1], 1),
+        "wall_ratio_vs_sb3": round(acv[1] / sb3[1], 3),
+        "wall_bipars_overhead": round(acv[1] / em[1] - 1, 3),
+    }
     print(json.dumps(result))
 
 

@@ -1,7 +1,7 @@
 """The advice reward F(s): the Human Preference Tree generalised to any state.
 
 Each tree node s' carries ``T_r(s') * D(s')`` (tree reward times depth factor). A state s is
-compared with the nodes by cosine similarity of standardised posture features (DESIGN.md
+compared with the nodes by cosine similarity of standardised posture features (docs/method.md
 section 2):
 
 - ``nearest`` (default): ``F(s) = sim(s, s*) * T_r(s*) * D(s*)``, ``s* = argmax sim(s, s')``.
@@ -15,6 +15,7 @@ runner-up at depth 2 outscore the champion at depth 1, so it is not the default)
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Literal
 
@@ -53,8 +54,13 @@ class AdviceReward:
     kappa: float = 10.0
 
     @classmethod
-    def from_tree(cls, doc: TreeDocument, mode: AdviceMode = "nearest",
-                  depth_factor: str = "none", kappa: float = 10.0) -> AdviceReward:
+    def from_tree(
+        cls,
+        doc: TreeDocument,
+        mode: AdviceMode = "nearest",
+        depth_factor: str = "none",
+        kappa: float = 10.0,
+    ) -> AdviceReward:
         """F from a Human Preference Tree document."""
         if mode not in ADVICE_MODES:
             raise InputError(f"unknown advice mode {mode!r}: expected one of {ADVICE_MODES}")
@@ -65,26 +71,52 @@ class AdviceReward:
         mean, std = feats.mean(0), feats.std(0)
         std = np.where(std > 1e-8, std, 1.0)
         nodes = doc.tree.nodes
-        values = np.array([nodes[c.id].reward * (nodes[c.id].depth if depth_factor == "paper"
-                                                 else 1.0) for c in doc.candidates])
+        values = np.array(
+            [
+                nodes[c.id].reward * (nodes[c.id].depth if depth_factor == "paper" else 1.0)
+                for c in doc.candidates
+            ]
+        )
         return cls(_unit((feats - mean) / std), values, mean, std, posture, mode, kappa)
 
     def similarity(self, qpos: np.ndarray) -> np.ndarray:
         """Cosine similarity of each state to each node, shape ``(B, N)``."""
         feats = np.atleast_2d(np.asarray(qpos, dtype=np.float64))[:, self.posture]
-        return _unit((feats - self.mean) / self.std) @ self.node_features.T
+        similarity: np.ndarray = _unit((feats - self.mean) / self.std) @ self.node_features.T
+        return similarity
 
     def __call__(self, qpos: np.ndarray) -> np.ndarray:
         """F(s) for a batch of states: ``qpos`` shape ``(B, nq)`` -> shape ``(B,)``."""
         sim = self.similarity(qpos)
         if self.mode == "nearest":
             best = sim.argmax(axis=1)
-            return sim[np.arange(len(sim)), best] * self.node_values[best]
+            nearest: np.ndarray = sim[np.arange(len(sim)), best] * self.node_values[best]
+            return nearest
         if self.mode == "softmax":
             logits = self.kappa * sim
             w = np.exp(logits - logits.max(axis=1, keepdims=True))
-            return (w * self.node_values).sum(1) / w.sum(1)
-        return (sim * self.node_values).min(axis=1)
+            softmax: np.ndarray = (w * self.node_values).sum(1) / w.sum(1)
+            return softmax
+        paper_min: np.ndarray = (sim * self.node_values).min(axis=1)
+        return paper_min
+
+
+@dataclass(frozen=True)
+class PooledAdvice:
+    """The advice of several people over one bracket: F is the mean of their trees' F.
+
+    Attributes:
+        members: one F per person (for example :class:`AdviceReward` of each tree).
+    """
+
+    members: tuple[Callable[[np.ndarray], np.ndarray], ...]
+
+    def __call__(self, qpos: np.ndarray) -> np.ndarray:
+        """Mean F over the members: ``qpos`` shape ``(B, nq)`` -> shape ``(B,)``."""
+        mean: np.ndarray = np.mean(
+            [np.asarray(f(qpos), dtype=np.float64) for f in self.members], axis=0
+        )
+        return mean
 
 
 def _unit(x: np.ndarray) -> np.ndarray:

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 
@@ -65,17 +66,20 @@ def seed_positions(size: int) -> list[int]:
     return order
 
 
-def make_first_round(ids: Sequence[int], abilities: np.ndarray, p: float,
-                     rng: np.random.Generator) -> FirstRound:
+def make_first_round(
+    ids: Sequence[int], abilities: np.ndarray, p: float, rng: np.random.Generator
+) -> FirstRound:
     """BM-seeded first round for players ``ids`` (N >= 2), byes for the top seeds."""
     if len(ids) < 2:
         raise InputError(f"a bracket needs at least 2 candidates, got {len(ids)}")
     ranked = [ids[k] for k in bm_ranking(abilities, p, rng)]
     size = 1 << (len(ids) - 1).bit_length()
-    by_seed = {seed: (ranked[seed - 1] if seed <= len(ids) else None)
-               for seed in range(1, size + 1)}
+    by_seed = {
+        seed: (ranked[seed - 1] if seed <= len(ids) else None) for seed in range(1, size + 1)
+    }
     order = seed_positions(size)
-    return [(by_seed[order[k]], by_seed[order[k + 1]]) for k in range(0, size, 2)]
+    # the first of each pair is the better seed, at most size / 2 < len(ids): never a bye
+    return [(cast(int, by_seed[order[k]]), by_seed[order[k + 1]]) for k in range(0, size, 2)]
 
 
 @dataclass(frozen=True)
@@ -121,20 +125,27 @@ class Bracket:
         for rnd in range(2, self.n_rounds + 1):
             cur = [(rnd, k) for k in range(len(prev) // 2)]
             for k, key in enumerate(cur):
-                slots[key] = (self.winner(prev[2 * k], slots, results),
-                              self.winner(prev[2 * k + 1], slots, results))
+                slots[key] = (
+                    self.winner(prev[2 * k], slots, results),
+                    self.winner(prev[2 * k + 1], slots, results),
+                )
             prev = cur
         return slots
 
     @staticmethod
-    def winner(key: tuple[int, int], slots: dict, results: Results) -> int | None:
+    def winner(
+        key: tuple[int, int], slots: dict[tuple[int, int], tuple[int | None, ...]], results: Results
+    ) -> int | None:
         a, b = slots[key]
         return a if b is None and key[0] == 1 else results.get(key)
 
     def matches(self, results: Results) -> list[Match]:
         """All matches whose two players are known, in (round, slot) order."""
-        return [Match(rnd, slot, a, b) for (rnd, slot), (a, b) in self.slot_players(results).items()
-                if a is not None and b is not None]
+        return [
+            Match(rnd, slot, a, b)
+            for (rnd, slot), (a, b) in self.slot_players(results).items()
+            if a is not None and b is not None
+        ]
 
     def open_matches(self, results: Results) -> list[Match]:
         """Matches ready to be judged: both players known, no result yet."""
@@ -145,5 +156,6 @@ class Bracket:
 
     def check_result(self, match: Match, winner: int) -> None:
         if winner not in (match.a, match.b):
-            raise InputError(f"winner {winner} did not play round {match.round} "
-                             f"match {match.a} vs {match.b}")
+            raise InputError(
+                f"winner {winner} did not play round {match.round} match {match.a} vs {match.b}"
+            )

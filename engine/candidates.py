@@ -1,6 +1,6 @@
 """Candidate states: sampled from rollouts, each a player in the bracket.
 
-Modes (DESIGN.md section 2): ``uniform`` picks N of all visited states uniformly;
+Modes (docs/method.md section 2): ``uniform`` picks N of all visited states uniformly;
 ``diverse`` clusters the visited states' standardised posture features with k-means and keeps
 the state nearest each centroid (the paper's "future work" on more interpretable trees).
 """
@@ -9,12 +9,14 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Literal
+from typing import Any, Literal
 
+import gymnasium as gym
 import numpy as np
 
 from engine.envs import DEFAULT_ENV_ID, make_env, restore
 from engine.errors import InputError
+from engine.gym_types import mujoco_base
 from engine.rewards import posture_features, state_reward
 
 SamplingMode = Literal["uniform", "diverse"]
@@ -42,9 +44,15 @@ class Candidate:
     env_reward: float
 
 
-def sample_candidates(env_id: str = DEFAULT_ENV_ID, n: int = 16, *, rng: np.random.Generator,
-                      mode: SamplingMode = "uniform", rollout_steps: int | None = None,
-                      policy: Policy | None = None) -> list[Candidate]:
+def sample_candidates(
+    env_id: str = DEFAULT_ENV_ID,
+    n: int = 16,
+    *,
+    rng: np.random.Generator,
+    mode: SamplingMode = "uniform",
+    rollout_steps: int | None = None,
+    policy: Policy | None = None,
+) -> list[Candidate]:
     """Roll out ``policy`` in the env and pick ``n`` candidate states from those visited.
 
     Args:
@@ -62,16 +70,20 @@ def sample_candidates(env_id: str = DEFAULT_ENV_ID, n: int = 16, *, rng: np.rand
     env = make_env(env_id)
     try:
         qpos, qvel = _rollout(env, rollout_steps or max(2000, 50 * n), rng, policy)
-        features = posture_features(qpos, env.unwrapped.model)
-        picked = _pick_uniform(len(qpos), n, rng) if mode == "uniform" else \
-            _pick_diverse(features, n, rng)
+        features = posture_features(qpos, mujoco_base(env).model)
+        picked = (
+            _pick_uniform(len(qpos), n, rng)
+            if mode == "uniform"
+            else _pick_diverse(features, n, rng)
+        )
         return [_candidate(env, i, qpos[j], qvel[j]) for i, j in enumerate(picked)]
     finally:
         env.close()
 
 
-def _rollout(env, steps: int, rng: np.random.Generator,
-             policy: Policy | None) -> tuple[np.ndarray, np.ndarray]:
+def _rollout(
+    env: gym.Env[Any, Any], steps: int, rng: np.random.Generator, policy: Policy | None
+) -> tuple[np.ndarray, np.ndarray]:
     """Visit ``steps`` states over as many episodes as needed; returns (qpos, qvel) stacks."""
     env.action_space.seed(int(rng.integers(2**31)))
     obs, _ = env.reset(seed=int(rng.integers(2**31)))
@@ -79,8 +91,8 @@ def _rollout(env, steps: int, rng: np.random.Generator,
     for _ in range(steps):
         action = env.action_space.sample() if policy is None else policy(obs)
         obs, _, terminated, truncated, _ = env.step(action)
-        qpos.append(env.unwrapped.data.qpos.copy())
-        qvel.append(env.unwrapped.data.qvel.copy())
+        qpos.append(mujoco_base(env).data.qpos.copy())
+        qvel.append(mujoco_base(env).data.qvel.copy())
         if terminated or truncated:
             obs, _ = env.reset(seed=int(rng.integers(2**31)))
     return np.array(qpos), np.array(qvel)
@@ -104,6 +116,6 @@ def _pick_diverse(features: np.ndarray, n: int, rng: np.random.Generator) -> np.
     return np.sort(np.array(picked))
 
 
-def _candidate(env, cid: int, qpos: np.ndarray, qvel: np.ndarray) -> Candidate:
+def _candidate(env: gym.Env[Any, Any], cid: int, qpos: np.ndarray, qvel: np.ndarray) -> Candidate:
     restore(env, qpos, qvel)
     return Candidate(id=cid, qpos=qpos, qvel=qvel, env_reward=state_reward(env))

@@ -8,11 +8,17 @@
 - normalised tree edit distance: Zhang-Shasha distance (zss) with unit costs and children in
   canonical order, divided by ``n_human + n_agent`` so that it lies in [0, 1].
 - same champion, and the *rejected advice*: the human's matches the agent overturned.
+- *contested* matches: the human's matches whose winner has the lower environment reward R
+  (the stored ``env_reward``). A judge that ignored the advice and went by R would overturn
+  them; keeping an uncontested match proves nothing, so the verdict leads with these.
+- reference agreement: the match agreement that an R-only judge scores against the human,
+  that is, what ignoring the advice would score.
 """
 
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
+from typing import Any
 
 import numpy as np
 import zss
@@ -32,6 +38,25 @@ class Rejection:
     b: int
     human_winner: int
     agent_winner: int | None
+    contested: bool = False
+    """the human's winner has the lower environment reward R"""
+
+
+@dataclass(frozen=True)
+class Contested:
+    """Agreement over the human's contested matches (winner with the lower R).
+
+    Attributes:
+        n: contested matches.
+        kept: of those, decided the human's way by the agent.
+        agreement: ``kept / n``; None without contested matches.
+        agreement_ci: Wilson 95% interval of ``agreement``; None without contested matches.
+    """
+
+    n: int
+    kept: int
+    agreement: float | None
+    agreement_ci: tuple[float, float] | None
 
 
 @dataclass(frozen=True)
@@ -46,11 +71,28 @@ class Conformance:
     tree_edit_distance: float
     same_champion: bool
     rejected: list[Rejection]
+    contested: Contested
+    reference_agreement: float
 
-    def to_json(self) -> dict:
+    def to_json(self) -> dict[str, Any]:
+        """The JSON of ``acv compare --json`` (tuples as lists)."""
         out = asdict(self)
         out["match_agreement_ci"] = list(self.match_agreement_ci)
+        ci = self.contested.agreement_ci
+        out["contested"]["agreement_ci"] = None if ci is None else list(ci)
         return out
+
+    @classmethod
+    def from_json(cls, obj: dict[str, Any]) -> Conformance:
+        """Inverse of :meth:`to_json`."""
+        fields = dict(obj)
+        ci = obj["contested"]["agreement_ci"]
+        fields["contested"] = Contested(
+            **{**obj["contested"], "agreement_ci": None if ci is None else tuple(ci)}
+        )
+        fields["rejected"] = [Rejection(**r) for r in obj["rejected"]]
+        fields["match_agreement_ci"] = tuple(obj["match_agreement_ci"])
+        return cls(**fields)
 
 
 def compare(human: TreeDocument, agent: TreeDocument) -> Conformance:
@@ -58,30 +100,72 @@ def compare(human: TreeDocument, agent: TreeDocument) -> Conformance:
     check_same_bracket(human, agent)
     if not human.matches:  # binomtest needs n >= 1
         raise InputError("the trees have no matches to compare (fewer than 2 candidates)")
-    rejected, agree = [], 0
+    reward = {c.id: c.env_reward for c in human.candidates}
+    rejected, agree, contested, contested_kept = [], 0, 0, 0
     for m, human_winner in human.matches:
         pick = agent_pick(agent, m.round, m.a, m.b)
+        is_contested = _is_contested(reward, m.a, m.b, human_winner)
+        contested += is_contested
         if pick == human_winner:
             agree += 1
+            contested_kept += is_contested
         else:
-            rejected.append(Rejection(m.round, m.a, m.b, human_winner, pick))
+            rejected.append(Rejection(m.round, m.a, m.b, human_winner, pick, is_contested))
     n = len(human.matches)
-    ci = binomtest(agree, n).proportion_ci(confidence_level=0.95, method="wilson")
-    return Conformance(n, agree, agree / n, (float(ci.low), float(ci.high)),
-                       heights_tau(human.tree, agent.tree), tree_edit_distance(human.tree,
-                                                                               agent.tree),
-                       human.tree.root == agent.tree.root, rejected)
+    return Conformance(
+        n,
+        agree,
+        agree / n,
+        wilson(agree, n),
+        heights_tau(human.tree, agent.tree),
+        tree_edit_distance(human.tree, agent.tree),
+        human.tree.root == agent.tree.root,
+        rejected,
+        _contested(contested_kept, contested),
+        reference_agreement(human),
+    )
+
+
+def _is_contested(reward: dict[int, float], a: int, b: int, winner: int) -> bool:
+    """Whether ``winner`` of ``a`` vs ``b`` has the strictly lower R."""
+    loser = b if winner == a else a
+    return reward[winner] < reward[loser]
+
+
+def _contested(kept: int, n: int) -> Contested:
+    return Contested(n, kept, kept / n if n else None, wilson(kept, n) if n else None)
+
+
+def wilson(k: int, n: int) -> tuple[float, float]:
+    """Wilson 95% interval of ``k`` successes in ``n >= 1`` trials."""
+    ci = binomtest(k, n).proportion_ci(confidence_level=0.95, method="wilson")
+    return float(ci.low), float(ci.high)
+
+
+def reference_agreement(human: TreeDocument) -> float:
+    """The match agreement of an R-only judge with ``human``: the share of the human's matches
+    won by the higher-R candidate (a tie in R counts as not agreeing)."""
+    reward = {c.id: c.env_reward for c in human.candidates}
+    agree = sum(reward[w] > reward[m.b if w == m.a else m.a] for m, w in human.matches)
+    return agree / len(human.matches)
 
 
 def check_same_bracket(human: TreeDocument, agent: TreeDocument) -> None:
     """Raise :class:`InputError` unless both documents share candidates and first round."""
-    same = (human.env_id == agent.env_id and human.first_round == agent.first_round
-            and len(human.candidates) == len(agent.candidates)
-            and all(np.array_equal(h.qpos, a.qpos) and np.array_equal(h.qvel, a.qvel)
-                    for h, a in zip(human.candidates, agent.candidates, strict=True)))
+    same = (
+        human.env_id == agent.env_id
+        and human.first_round == agent.first_round
+        and len(human.candidates) == len(agent.candidates)
+        and all(
+            np.array_equal(h.qpos, a.qpos) and np.array_equal(h.qvel, a.qvel)
+            for h, a in zip(human.candidates, agent.candidates, strict=True)
+        )
+    )
     if not same:
-        raise InputError("the two trees are over different brackets (candidates, env or "
-                         "first round differ): replay the human's tree to compare")
+        raise InputError(
+            "the two trees are over different brackets (candidates, env or "
+            "first round differ): replay the human's tree to compare"
+        )
 
 
 def agent_pick(agent: TreeDocument, rnd: int, a: int, b: int) -> int | None:
@@ -98,8 +182,9 @@ def agent_pick(agent: TreeDocument, rnd: int, a: int, b: int) -> int | None:
 def heights_tau(human: PreferenceTree, agent: PreferenceTree) -> float | None:
     """Kendall tau-b of heights over all candidates; ``None`` when undefined."""
     ids = sorted(human.nodes)
-    tau = kendalltau([human.nodes[i].height for i in ids], [agent.nodes[i].height for i in ids],
-                     variant="b").statistic
+    tau = kendalltau(
+        [human.nodes[i].height for i in ids], [agent.nodes[i].height for i in ids], variant="b"
+    ).statistic
     return None if np.isnan(tau) else float(tau)
 
 

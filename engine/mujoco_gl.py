@@ -35,5 +35,7 @@ def check_mujoco_gl(environ: Mapping[str, str] | None = None) -> None:
     value = env.get("MUJOCO_GL", "")
     if value.lower().strip() not in valid_mujoco_gl():
         named = ", ".join(v for v in _PLATFORM.get(platform.system(), ()) + ("glfw",))
-        raise InputError(f"invalid MUJOCO_GL={value!r}: use one of {named} (egl or osmesa "
-                         "for headless rendering), or unset it to pick one automatically")
+        raise InputError(
+            f"invalid MUJOCO_GL={value!r}: use one of {named} (egl or osmesa "
+            "for headless rendering), or unset it to pick one automatically"
+        )

@@ -78,8 +78,14 @@ def from_dendrogram(root: DendroNode, r_b: float = 1.0, r_e: float = 1.0) -> Pre
     return build(root.value, parents, heights, children, r_b, r_e)
 
 
-def build(root: int, parents: dict[int, int | None], heights: dict[int, int],
-          children: dict[int, list[int]], r_b: float, r_e: float) -> PreferenceTree:
+def build(
+    root: int,
+    parents: dict[int, int | None],
+    heights: dict[int, int],
+    children: dict[int, list[int]],
+    r_b: float,
+    r_e: float,
+) -> PreferenceTree:
     """Assemble the tree from parent links and heights: depths, weights and rewards."""
     order = {s: sorted(kids, key=lambda c: (-heights[c], c)) for s, kids in children.items()}
     rewards = tree_reward(root, order, heights, r_b, r_e)
@@ -89,14 +95,16 @@ def build(root: int, parents: dict[int, int | None], heights: dict[int, int],
         state, depth = stack.pop()
         parent = parents[state]
         weight = None if parent is None else heights[parent] - heights[state]
-        nodes[state] = PrefNode(state, parent, heights[state], depth, weight, rewards[state],
-                                tuple(order[state]))
+        nodes[state] = PrefNode(
+            state, parent, heights[state], depth, weight, rewards[state], tuple(order[state])
+        )
         stack.extend((c, depth + 1) for c in reversed(order[state]))
     return PreferenceTree(root, nodes)
 
 
-def tree_reward(root: int, children: dict[int, list[int]], heights: dict[int, int],
-                r_b: float, r_e: float) -> dict[int, float]:
+def tree_reward(
+    root: int, children: dict[int, list[int]], heights: dict[int, int], r_b: float, r_e: float
+) -> dict[int, float]:
     """T_r by the paper's bottom-up recursion (Eq. 1), as written.
 
     ``T_r(s) = -r_b`` for a leaf, else ``mean_c (T_r(c) + r_e * w(s, c))``. It telescopes to
@@ -111,6 +119,9 @@ def tree_reward(root: int, children: dict[int, list[int]], heights: dict[int, in
         stack.extend(children[s])
     for s in reversed(post_order):
         kids = children[s]
-        rewards[s] = -r_b if not kids else sum(
-            rewards[c] + r_e * (heights[s] - heights[c]) for c in kids) / len(kids)
+        rewards[s] = (
+            -r_b
+            if not kids
+            else sum(rewards[c] + r_e * (heights[s] - heights[c]) for c in kids) / len(kids)
+        )
     return rewards

@@ -1,6 +1,6 @@
 """The state reward R(s) and the advice features of a state.
 
-R(s) is the part of a Gymnasium MuJoCo locomotion reward that one state determines (DESIGN.md
+R(s) is the part of a Gymnasium MuJoCo locomotion reward that one state determines (docs/method.md
 section 2): the healthy bonus, the forward-velocity term (centre-of-mass x velocity), the
 contact cost, and the control cost only when an action is given. It is the players' *ability*
 in Braverman-Mossel seeding and the `good` teacher's preference (the paper's Case 1, F = R).
@@ -8,12 +8,18 @@ in Braverman-Mossel seeding and the `good` teacher's preference (the paper's Cas
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Any
+
 import gymnasium as gym
-import mujoco
 import numpy as np
 
+from engine.gym_types import MujocoBase, mujoco_base
 
-def state_reward(env: gym.Env, action: np.ndarray | None = None) -> float:
+if TYPE_CHECKING:  # mujoco loads where an env is built, not in web processes
+    import mujoco
+
+
+def state_reward(env: gym.Env[Any, Any], action: np.ndarray | None = None) -> float:
     """R(s) of the env's current state; call :func:`engine.envs.restore` first.
 
     Args:
@@ -26,21 +32,31 @@ def state_reward(env: gym.Env, action: np.ndarray | None = None) -> float:
     return total_reward(reward_terms(env, action))
 
 
-def reward_terms(env: gym.Env, action: np.ndarray | None = None) -> dict[str, float]:
+def reward_terms(env: gym.Env[Any, Any], action: np.ndarray | None = None) -> dict[str, float]:
     """The named terms of R(s) in the env's current state (see :func:`state_reward`).
 
     Returns:
         ``healthy`` (bonus), ``forward`` (weight * COM x velocity), ``contact_cost`` and
         ``control_cost`` (0 without an action); the costs are positive numbers.
     """
-    base = env.unwrapped
-    control = 0.0
-    if action is not None and hasattr(base, "control_cost"):
-        control = float(base.control_cost(np.asarray(action)))
-    return {"healthy": float(getattr(base, "healthy_reward", 0.0)),
-            "forward": float(getattr(base, "_forward_reward_weight", 1.0)) * com_x_velocity(base),
-            "contact_cost": float(getattr(base, "contact_cost", 0.0)),
-            "control_cost": control}
+    base = mujoco_base(env)
+    control = 0.0 if action is None else control_cost(env, np.asarray(action))
+    return {
+        "healthy": float(getattr(base, "healthy_reward", 0.0)),
+        "forward": float(getattr(base, "_forward_reward_weight", 1.0)) * com_x_velocity(base),
+        "contact_cost": float(getattr(base, "contact_cost", 0.0)),
+        "control_cost": control,
+    }
+
+
+def control_cost(env: gym.Env[Any, Any], action: np.ndarray) -> float:
+    """The env's control cost of ``action``: ``ctrl_cost_weight * sum(action^2)``.
+
+    Computed from the action itself: Humanoid's own ``control_cost`` reads ``data.ctrl``, the
+    control last applied, which a restored state does not have.
+    """
+    weight = float(getattr(env.unwrapped, "_ctrl_cost_weight", 0.0))
+    return weight * float(np.sum(np.square(action)))
 
 
 def total_reward(terms: dict[str, float]) -> float:
@@ -48,7 +64,7 @@ def total_reward(terms: dict[str, float]) -> float:
     return terms["healthy"] + terms["forward"] - terms["contact_cost"] - terms["control_cost"]
 
 
-def com_x_velocity(base: gym.Env) -> float:
+def com_x_velocity(base: MujocoBase) -> float:
     """Centre-of-mass x velocity of the whole model (``subtree_linvel`` of the world body)."""
     return float(base.data.subtree_linvel[0, 0])
 
@@ -60,6 +76,8 @@ def posture_slice(model: mujoco.MjModel) -> slice:
     (torso height, orientation, joint angles). A planar root (Hopper, Walker2d, HalfCheetah)
     starts with a slide-x joint: posture is ``qpos[1:]``.
     """
+    import mujoco
+
     free = model.njnt > 0 and model.jnt_type[0] == mujoco.mjtJoint.mjJNT_FREE
     return slice(2, None) if free else slice(1, None)
 

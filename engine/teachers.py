@@ -13,14 +13,17 @@ Any teacher may flip each decision with probability ``noise``, mimicking human e
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
-import mujoco
 import numpy as np
 
 from engine.candidates import Candidate
 from engine.errors import InputError
 from engine.rewards import posture_slice, torso_height, uprightness
 from engine.tournament import Judge, ScoreJudge
+
+if TYPE_CHECKING:  # mujoco loads where an env is built, not in web processes
+    import mujoco
 
 TEACHERS: tuple[str, ...] = ("good", "standing", "random")
 
@@ -29,11 +32,13 @@ def standing_score(qpos: np.ndarray, model: mujoco.MjModel) -> np.ndarray:
     """How much a batch of states looks like upright standing, in [0, 1], shape ``(B,)``."""
     h0 = model.qpos0[2 if posture_slice(model).start == 2 else 1]
     height_term = np.exp(-(((torso_height(qpos, model) - h0) / 0.1) ** 2))
-    return height_term * np.clip((uprightness(qpos, model) + 1.0) / 1.9, 0.0, 1.0)
+    score: np.ndarray = height_term * np.clip((uprightness(qpos, model) + 1.0) / 1.9, 0.0, 1.0)
+    return score
 
 
-def teacher_scores(name: str, candidates: Sequence[Candidate],
-                   model: mujoco.MjModel) -> dict[int, float] | None:
+def teacher_scores(
+    name: str, candidates: Sequence[Candidate], model: mujoco.MjModel
+) -> dict[int, float] | None:
     """The scores a score-based teacher judges by; ``None`` for ``random``."""
     if name == "good":
         return {c.id: c.env_reward for c in candidates}
@@ -70,8 +75,14 @@ class NoisyJudge:
         return winner
 
 
-def make_teacher(name: str, candidates: Sequence[Candidate], model: mujoco.MjModel, *,
-                 noise: float = 0.0, rng: np.random.Generator) -> tuple[Judge, dict | None]:
+def make_teacher(
+    name: str,
+    candidates: Sequence[Candidate],
+    model: mujoco.MjModel,
+    *,
+    noise: float = 0.0,
+    rng: np.random.Generator,
+) -> tuple[Judge, dict[int, float] | None]:
     """A simulated teacher and, for score-based ones, the scores it judges by."""
     if not 0.0 <= noise <= 1.0:
         raise InputError(f"noise must be in [0, 1], got {noise}")

@@ -39,8 +39,12 @@ class ScoreJudge:
         return b.id if self.scores[b.id] > self.scores[a.id] else a.id
 
 
-def play(bracket: Bracket, candidates: Mapping[int, Candidate], judge: Judge,
-         results: Results | None = None) -> dict[tuple[int, int], int]:
+def play(
+    bracket: Bracket,
+    candidates: Mapping[int, Candidate],
+    judge: Judge,
+    results: Results | None = None,
+) -> dict[tuple[int, int], int]:
     """Play every open match, round by round, until the bracket is complete.
 
     Args:
@@ -74,12 +78,17 @@ def dendrogram(bracket: Bracket, results: Results) -> DendroNode:
     """Build the dendrogram of a complete bracket."""
     if not bracket.is_complete(results):
         raise InputError("the bracket is not complete: every match needs a winner")
-    nodes = [DendroNode(a, 0) if b is None else
-             _match_node(results[(1, k)], DendroNode(a, 0), DendroNode(b, 0))
-             for k, (a, b) in enumerate(bracket.first_round)]
+    nodes = [
+        DendroNode(a, 0)
+        if b is None
+        else _match_node(results[(1, k)], DendroNode(a, 0), DendroNode(b, 0))
+        for k, (a, b) in enumerate(bracket.first_round)
+    ]
     for rnd in range(2, bracket.n_rounds + 1):
-        nodes = [_match_node(results[(rnd, k)], nodes[2 * k], nodes[2 * k + 1])
-                 for k in range(len(nodes) // 2)]
+        nodes = [
+            _match_node(results[(rnd, k)], nodes[2 * k], nodes[2 * k + 1])
+            for k in range(len(nodes) // 2)
+        ]
     return nodes[0]
 
 

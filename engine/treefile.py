@@ -68,33 +68,57 @@ class TreeDocument:
         return {c.id: c for c in self.candidates}
 
 
-def make_document(*, env_id: str, seed: int, p: float, judge: str, candidates: list[Candidate],
-                  first_round: FirstRound, results: dict[tuple[int, int], int],
-                  r_b: float = 1.0, r_e: float = 1.0,
-                  scores: dict[int, float] | None = None) -> TreeDocument:
+def make_document(
+    *,
+    env_id: str,
+    seed: int,
+    p: float,
+    judge: str,
+    candidates: list[Candidate],
+    first_round: FirstRound,
+    results: dict[tuple[int, int], int],
+    r_b: float = 1.0,
+    r_e: float = 1.0,
+    scores: dict[int, float] | None = None,
+) -> TreeDocument:
     """Build the Preference Tree of a complete bracket and wrap everything in a document."""
     tree = from_dendrogram(dendrogram(Bracket(first_round), results), r_b=r_b, r_e=r_e)
-    return TreeDocument(env_id, seed, p, judge, r_b, r_e, candidates, first_round, results,
-                        tree, scores)
+    return TreeDocument(
+        env_id, seed, p, judge, r_b, r_e, candidates, first_round, results, tree, scores
+    )
 
 
 def tree_to_json(doc: TreeDocument) -> dict[str, Any]:
     """The document as JSON-ready data (floats kept exact: JSON round-trips ``repr``)."""
     return {
-        "schema": SCHEMA, "env_id": doc.env_id, "seed": doc.seed, "p": doc.p,
-        "judge": doc.judge, "tree_reward": {"r_b": doc.r_b, "r_e": doc.r_e},
+        "schema": SCHEMA,
+        "env_id": doc.env_id,
+        "seed": doc.seed,
+        "p": doc.p,
+        "judge": doc.judge,
+        "tree_reward": {"r_b": doc.r_b, "r_e": doc.r_e},
         "candidates": [_candidate_json(c, doc.scores) for c in doc.candidates],
         "first_round": [[a, b] for a, b in doc.first_round],
         "matches": [{"round": m.round, "a": m.a, "b": m.b, "winner": w} for m, w in doc.matches],
-        "tree": {"root": doc.tree.root, "nodes": [
-            {"state": n.state, "parent": n.parent, "height": n.height, "depth": n.depth,
-             "weight": n.weight, "reward": n.reward} for n in doc.tree.nodes.values()]},
+        "tree": {
+            "root": doc.tree.root,
+            "nodes": [
+                {
+                    "state": n.state,
+                    "parent": n.parent,
+                    "height": n.height,
+                    "depth": n.depth,
+                    "weight": n.weight,
+                    "reward": n.reward,
+                }
+                for n in doc.tree.nodes.values()
+            ],
+        },
     }
 
 
 def _candidate_json(c: Candidate, scores: dict[int, float] | None) -> dict[str, Any]:
-    out = {"id": c.id, "qpos": c.qpos.tolist(), "qvel": c.qvel.tolist(),
-           "env_reward": c.env_reward}
+    out = {"id": c.id, "qpos": c.qpos.tolist(), "qvel": c.qvel.tolist(), "env_reward": c.env_reward}
     if scores is not None:
         out["score"] = scores[c.id]
     return out
@@ -148,22 +172,35 @@ def _parse(obj: dict[str, Any]) -> TreeDocument:
         raise InputError("first round must hold every candidate exactly once")
     results = _results(bracket, obj["matches"])
     tr = obj["tree_reward"]
-    return make_document(env_id=str(obj["env_id"]), seed=check_seed(int(obj["seed"])),
-                         p=_probability(obj["p"]), judge=str(obj["judge"]), candidates=cands,
-                         first_round=first_round, results=results, r_b=float(tr["r_b"]),
-                         r_e=float(tr["r_e"]), scores=scores)
+    return make_document(
+        env_id=str(obj["env_id"]),
+        seed=check_seed(int(obj["seed"])),
+        p=_probability(obj["p"]),
+        judge=str(obj["judge"]),
+        candidates=cands,
+        first_round=first_round,
+        results=results,
+        r_b=float(tr["r_b"]),
+        r_e=float(tr["r_e"]),
+        scores=scores,
+    )
 
 
 def _candidates(items: list[dict[str, Any]]) -> tuple[list[Candidate], dict[int, float] | None]:
     """The candidates, and their judge scores when every one has a ``score``."""
-    cands = [Candidate(int(c["id"]), _floats(c["qpos"]), _floats(c["qvel"]),
-                       float(c["env_reward"])) for c in items]
+    cands = [
+        Candidate(int(c["id"]), _floats(c["qpos"]), _floats(c["qvel"]), float(c["env_reward"]))
+        for c in items
+    ]
     if len(cands) < 2:  # one player means no match: nothing to compare or train on
         raise InputError(f"a tree needs at least 2 candidates, got {len(cands)}")
     if [c.id for c in cands] != list(range(len(cands))):
         raise InputError("candidate ids must be 0 .. N-1 in order")
-    scores = ({c.id: float(item["score"]) for c, item in zip(cands, items, strict=True)}
-              if all("score" in item for item in items) else None)
+    scores = (
+        {c.id: float(item["score"]) for c, item in zip(cands, items, strict=True)}
+        if all("score" in item for item in items)
+        else None
+    )
     return cands, scores
 
 
@@ -184,8 +221,9 @@ def _floats(values: Any) -> np.ndarray:
 def _results(bracket: Bracket, matches: list[dict[str, Any]]) -> dict[tuple[int, int], int]:
     """Replay the listed matches through the bracket, checking each one's players."""
     results: dict[tuple[int, int], int] = {}
-    pending = {(int(m["round"]), frozenset((int(m["a"]), int(m["b"])))): int(m["winner"])
-               for m in matches}
+    pending = {
+        (int(m["round"]), frozenset((int(m["a"]), int(m["b"])))): int(m["winner"]) for m in matches
+    }
     if len(pending) != len(matches):
         raise InputError("a match is listed twice")
     while open_ := bracket.open_matches(results):
@@ -220,5 +258,8 @@ def _same_node(n: dict[str, Any], tree: PreferenceTree) -> bool:
     if ref is None or not isinstance(reward, int | float) or isinstance(reward, bool):
         return False
     return (n.get("parent"), n.get("height"), n.get("depth"), n.get("weight")) == (
-        ref.parent, ref.height, ref.depth, ref.weight) and math.isclose(
-        reward, ref.reward, abs_tol=1e-9)
+        ref.parent,
+        ref.height,
+        ref.depth,
+        ref.weight,
+    ) and math.isclose(reward, ref.reward, abs_tol=1e-9)

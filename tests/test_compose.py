@@ -72,8 +72,10 @@ def assert_runs_something_real(args: list[str]) -> None:
         location = config["alembic"]["script_location"]
         assert (Path(location) / "env.py").is_file() and rest == ["upgrade", "head"]
     elif program == "ray":
-        assert any(r.startswith("ray") for r in PYPROJECT["project"]["optional-dependencies"]
-                   ["ray"]) and importlib.util.find_spec("ray") is not None
+        assert (
+            any(r.startswith("ray") for r in PYPROJECT["project"]["optional-dependencies"]["ray"])
+            and importlib.util.find_spec("ray") is not None
+        )
     elif program == "sh":
         assert rest[0] in ("-c", "-ec") and len(rest) == 2, args
         for command in shell_commands(rest[1]):
@@ -81,8 +83,13 @@ def assert_runs_something_real(args: list[str]) -> None:
     elif program == "python":
         code = rest[rest.index("-c") + 1]
         for node in ast.walk(ast.parse(code)):
-            names = ([a.name for a in node.names] if isinstance(node, ast.Import) else
-                     [node.module] if isinstance(node, ast.ImportFrom) else [])
+            names = (
+                [a.name for a in node.names]
+                if isinstance(node, ast.Import)
+                else [node.module]
+                if isinstance(node, ast.ImportFrom)
+                else []
+            )
             for name in names:
                 assert importlib.util.find_spec(name) is not None, name
     else:
@@ -99,7 +106,7 @@ def shell_commands(script: str) -> list[list[str]]:
         words = [*lexer, ";"]
         while words:
             end = next(i for i, w in enumerate(words) if w in (";", "&&", "||", "|"))
-            command, words = words[:end], words[end + 1:]
+            command, words = words[:end], words[end + 1 :]
             while command and command[0] in ("if", "then", "else", "fi", "exec"):
                 command = command[1:]
             if command and command[0] != "[":
@@ -150,16 +157,16 @@ def test_the_web_runs_several_workers_of_the_app_factory() -> None:
     assert args[:3] == ["uvicorn", "--factory", "app.main:create_app"]
     assert re.fullmatch(r"\$\{WEB_WORKERS:-[2-9]\d*\}|[2-9]\d*", args[args.index("--workers") + 1])
     assert "/healthz" in " ".join(SERVICES["web"]["healthcheck"]["test"])
-    assert {r.path for r in importlib.import_module("app.api.health").router.routes} == \
-        {"/healthz"}
+    assert {r.path for r in importlib.import_module("app.api.health").router.routes} == {"/healthz"}
 
 
 def test_migrations_run_once_before_the_web_and_the_worker() -> None:
     assert argv(SERVICES["migrate"]["command"]) == ["alembic", "upgrade", "head"]
     assert SERVICES["migrate"]["restart"] == "no"
     for name in ("web", "worker"):
-        assert SERVICES[name]["depends_on"]["migrate"] == \
-            {"condition": "service_completed_successfully"}
+        assert SERVICES[name]["depends_on"]["migrate"] == {
+            "condition": "service_completed_successfully"
+        }
     assert SERVICES["migrate"]["depends_on"]["postgres"] == {"condition": "service_healthy"}
     assert "pg_isready" in " ".join(SERVICES["postgres"]["healthcheck"]["test"])
 
@@ -183,7 +190,8 @@ def test_secrets_are_required_from_the_environment() -> None:
     assert env["ACV_ADMIN_TOKEN"].startswith("${ACV_ADMIN_TOKEN:?")
     assert "${POSTGRES_PASSWORD:?" in env["DATABASE_URL"]
     assert SERVICES["postgres"]["environment"]["POSTGRES_PASSWORD"].startswith(
-        "${POSTGRES_PASSWORD:?")
+        "${POSTGRES_PASSWORD:?"
+    )
 
 
 def interpolated(text: str) -> str:
@@ -206,8 +214,16 @@ def test_dockerfile_installs_the_renderer_and_the_package() -> None:
     assert all(package in install.split() for package in DEBIAN_PACKAGES)
     assert 'pip install -e ".[ray]"' in text and "COPY . ." in text
     ignored = (REPO / ".dockerignore").read_text().split()
-    for needed in ("app", "engine", "migrations", "templates", "static", "alembic.ini",
-                   "pyproject.toml", "README.md"):
+    for needed in (
+        "app",
+        "engine",
+        "migrations",
+        "templates",
+        "static",
+        "alembic.ini",
+        "pyproject.toml",
+        "README.md",
+    ):
         assert (REPO / needed).exists() and needed not in ignored, needed
 
 
@@ -220,20 +236,29 @@ def test_the_worker_joins_the_ray_cluster_it_submits_to() -> None:
     assert args[:2] == ["sh", "-ec"]
     script = args[2]
     assert "$" not in script.replace("$$", ""), "compose would substitute an unescaped $"
-    assert shell_commands(script) == [["ray", "start", "--address=${ACV_RAY_ADDRESS}"],
-                                      ["acv", "worker"]]
-    assert re.search(r'^if \[ -n "\$\$\{ACV_RAY_ADDRESS\}" \]; then ray start [^\n]*; fi$', script,
-                     re.M), "the join happens only with ACV_RAY_ADDRESS set"
+    assert shell_commands(script) == [
+        ["ray", "start", "--address=${ACV_RAY_ADDRESS}"],
+        ["acv", "worker"],
+    ]
+    assert re.search(
+        r'^if \[ -n "\$\$\{ACV_RAY_ADDRESS\}" \]; then ray start [^\n]*; fi$', script, re.M
+    ), "the join happens only with ACV_RAY_ADDRESS set"
     assert script.strip().splitlines()[-1] == "exec acv worker"
     # The address joined is the one the executor connects to: the head's GCS port.
     assert SERVICES["worker"]["environment"]["ACV_RAY_ADDRESS"] == "${ACV_RAY_ADDRESS:-}"
     head = argv(SERVICES["ray-head"]["command"])
     assert head[:3] == ["ray", "start", "--head"] and "--port=6379" in head
     for doc in ("docker-compose.yml", "docs/scale.md"):
-        assert "ACV_RAY_ADDRESS=ray-head:6379 docker compose --profile ray up" in \
-            (REPO / doc).read_text(), doc
-    assert shell_commands('if [ -n "$$X" ]; then a b; fi\nexec c && d | e') == \
-        [["a", "b"], ["c"], ["d"], ["e"]]
+        assert (
+            "ACV_RAY_ADDRESS=ray-head:6379 docker compose --profile ray up"
+            in (REPO / doc).read_text()
+        ), doc
+    assert shell_commands('if [ -n "$$X" ]; then a b; fi\nexec c && d | e') == [
+        ["a", "b"],
+        ["c"],
+        ["d"],
+        ["e"],
+    ]
 
 
 def test_only_the_web_is_published_on_every_interface() -> None:
@@ -245,7 +270,12 @@ def test_only_the_web_is_published_on_every_interface() -> None:
                 assert address in ("127.0.0.1", "[::1]"), (name, address, port)
     dashboard = [a for a, port in published_ports(SERVICES["ray-head"]) if port == "8265"]
     assert dashboard in ([], ["127.0.0.1"])
-    assert published_ports({"ports": ["8265:8265", "8265", {"target": 8265},
-                                      "127.0.0.1:8265:8265/tcp", "[::1]:1:2"]}) == [
-        ("0.0.0.0", "8265"), ("0.0.0.0", "8265"), ("0.0.0.0", "8265"), ("127.0.0.1", "8265"),
-        ("[::1]", "2")]
+    assert published_ports(
+        {"ports": ["8265:8265", "8265", {"target": 8265}, "127.0.0.1:8265:8265/tcp", "[::1]:1:2"]}
+    ) == [
+        ("0.0.0.0", "8265"),
+        ("0.0.0.0", "8265"),
+        ("0.0.0.0", "8265"),
+        ("127.0.0.1", "8265"),
+        ("[::1]", "2"),
+    ]

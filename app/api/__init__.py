@@ -4,12 +4,14 @@ from __future__ import annotations
 
 from fastapi import APIRouter
 
-from app.api import errors, health, matches, participants, runs, studies
+from app.api import crowd, errors, health, matches, participants, runs, studies, surveys
 
 api_router = APIRouter(prefix="/api", responses=errors.RESPONSES)
 api_router.include_router(studies.router)
 api_router.include_router(participants.router)
 api_router.include_router(matches.router)
 api_router.include_router(runs.router)
+api_router.include_router(surveys.router)
+api_router.include_router(crowd.router)
 
 __all__ = ["api_router", "health"]

@@ -25,6 +25,7 @@ from app.models import Participant
 from app.runtime import Runtime
 from app.services import auth
 from app.services.errors import AuthError, ForbiddenError, TooManyAttemptsError
+from app.services.survey_respond import is_respondent_token
 from app.settings import Settings
 
 if TYPE_CHECKING:  # app.web imports this module: no import of it at run time
@@ -32,10 +33,14 @@ if TYPE_CHECKING:  # app.web imports this module: no import of it at run time
 
 log = logging.getLogger(__name__)
 
-_admin_bearer = HTTPBearer(auto_error=False, scheme_name="AdminToken",
-                           description="The researcher's admin token (ACV_ADMIN_TOKEN).")
-_invite_bearer = HTTPBearer(auto_error=False, scheme_name="InviteToken",
-                            description="A participant's invite token.")
+_admin_bearer = HTTPBearer(
+    auto_error=False,
+    scheme_name="AdminToken",
+    description="The researcher's admin token (ACV_ADMIN_TOKEN).",
+)
+_invite_bearer = HTTPBearer(
+    auto_error=False, scheme_name="InviteToken", description="A participant's invite token."
+)
 _Credentials = HTTPAuthorizationCredentials | None
 
 #: Requests holding a database session at once: below the pool's capacity
@@ -60,8 +65,9 @@ def check_cookie_write(request: Request) -> None:
     """
     name, value = AJAX_HEADER
     if request.method not in _SAFE_METHODS and request.headers.get(name) != value:
-        raise ForbiddenError(f"a {request.method} authenticated by a cookie must send the "
-                             f"header {name}: {value}")
+        raise ForbiddenError(
+            f"a {request.method} authenticated by a cookie must send the header {name}: {value}"
+        )
 
 
 async def get_runtime(request: Request) -> Runtime:  # async: no thread hop for a lookup
@@ -93,8 +99,9 @@ async def get_session(runtime: RuntimeDep) -> AsyncIterator[Session]:
         session.close()
 
 
-SessionDep = Annotated[Session, Depends(get_session, scope="function",
-                                       max_concurrency=MAX_SESSIONS)]
+SessionDep = Annotated[
+    Session, Depends(get_session, scope="function", max_concurrency=MAX_SESSIONS)
+]
 
 
 @dataclass(frozen=True)
@@ -118,8 +125,10 @@ def _limiter(request: Request) -> tuple[LoginLimiter, str]:
 
 
 def _too_many(limiter: LoginLimiter, address: str) -> TooManyAttemptsError:
-    return TooManyAttemptsError("too many failed researcher credentials from this address; "
-                                "try again later", retry_after_s=limiter.retry_after_s(address))
+    return TooManyAttemptsError(
+        "too many failed researcher credentials from this address; try again later",
+        retry_after_s=limiter.retry_after_s(address),
+    )
 
 
 def _failed(limiter: LoginLimiter, address: str) -> None:
@@ -129,13 +138,17 @@ def _failed(limiter: LoginLimiter, address: str) -> None:
 
 def _is_invite_token(runtime: Runtime, token: str) -> bool:
     with runtime.sessions() as session:
-        return auth.is_invite_token(session, token=token)
+        return auth.is_invite_token(session, token=token) or is_respondent_token(
+            session, token=token
+        )
 
 
 async def require_researcher(
-        request: Request, runtime: RuntimeDep,
-        credentials: Annotated[_Credentials, Depends(_admin_bearer)],
-        cookie: Annotated[str | None, Cookie(alias=auth.RESEARCHER_COOKIE)] = None) -> Viewer:
+    request: Request,
+    runtime: RuntimeDep,
+    credentials: Annotated[_Credentials, Depends(_admin_bearer)],
+    cookie: Annotated[str | None, Cookie(alias=auth.RESEARCHER_COOKIE)] = None,
+) -> Viewer:
     """The researcher, or 401 (429 after too many failed bearer tokens from this address;
     403 for a cookie write without :data:`AJAX_HEADER`). A bearer token, when sent, decides."""
     if (token := _token(credentials)) is not None:
@@ -148,8 +161,9 @@ async def require_researcher(
         if not await anyio.to_thread.run_sync(_is_invite_token, runtime, token):
             _failed(limiter, address)
         raise AuthError(_RESEARCHER_REQUIRED)
-    if not auth.is_researcher(admin_token=runtime.admin_token, cookie=cookie,
-                              max_age_s=runtime.settings.session_max_age_s):
+    if not auth.is_researcher(
+        admin_token=runtime.admin_token, cookie=cookie, max_age_s=runtime.settings.session_max_age_s
+    ):
         raise AuthError(_RESEARCHER_REQUIRED)
     check_cookie_write(request)
     return Viewer(researcher=True)
@@ -159,8 +173,9 @@ ResearcherDep = Annotated[Viewer, Depends(require_researcher)]
 
 
 async def invite_token(
-        request: Request, credentials: Annotated[_Credentials, Depends(_invite_bearer)],
-        cookie: Annotated[str | None, Cookie(alias=auth.PARTICIPANT_COOKIE)] = None,
+    request: Request,
+    credentials: Annotated[_Credentials, Depends(_invite_bearer)],
+    cookie: Annotated[str | None, Cookie(alias=auth.PARTICIPANT_COOKIE)] = None,
 ) -> str | None:
     """The invite token sent (bearer first, then the cookie), not yet checked."""
     if (token := _token(credentials)) is not None:
@@ -175,21 +190,23 @@ async def invite_token(
 InviteTokenDep = Annotated[str | None, Depends(invite_token)]
 
 
-def require_participant(session: SessionDep, token: InviteTokenDep) -> Participant:
-    """The participant whose invite token is sent, or 401."""
-    participant = auth.participant_by_token(session, token=token)
+def require_participant(session: SessionDep, token: InviteTokenDep) -> auth.ParticipantRef:
+    """The participant whose invite token is sent (known tokens without a query), or 401."""
+    participant = auth.participant_ref_by_token(session, token=token)
     session.commit()  # hand the connection back while the request waits for the handler
     return participant
 
 
-ParticipantDep = Annotated[Participant, Depends(require_participant)]
+ParticipantDep = Annotated[auth.ParticipantRef, Depends(require_participant)]
 
 
 def get_viewer(
-        request: Request, runtime: RuntimeDep, session: SessionDep,
-        credentials: Annotated[_Credentials, Depends(_admin_bearer)],
-        researcher_cookie: Annotated[str | None, Cookie(alias=auth.RESEARCHER_COOKIE)] = None,
-        participant_cookie: Annotated[str | None, Cookie(alias=auth.PARTICIPANT_COOKIE)] = None,
+    request: Request,
+    runtime: RuntimeDep,
+    session: SessionDep,
+    credentials: Annotated[_Credentials, Depends(_admin_bearer)],
+    researcher_cookie: Annotated[str | None, Cookie(alias=auth.RESEARCHER_COOKIE)] = None,
+    participant_cookie: Annotated[str | None, Cookie(alias=auth.PARTICIPANT_COOKIE)] = None,
 ) -> Viewer:
     """The researcher if their credentials are sent, else the participant, else 401. A
     bearer token, when sent, decides; past the failed-login limit only invite tokens work."""
@@ -208,8 +225,11 @@ def get_viewer(
     else:
         if researcher_cookie or participant_cookie:
             check_cookie_write(request)
-        if auth.is_researcher(admin_token=runtime.admin_token, cookie=researcher_cookie,
-                              max_age_s=runtime.settings.session_max_age_s):
+        if auth.is_researcher(
+            admin_token=runtime.admin_token,
+            cookie=researcher_cookie,
+            max_age_s=runtime.settings.session_max_age_s,
+        ):
             return Viewer(researcher=True)
         participant = auth.participant_by_token(session, token=participant_cookie)
     session.commit()  # as in require_participant

@@ -33,18 +33,31 @@ def docs_policy(html: bytes) -> str:
     if len(scripts) != 1:
         raise ValueError(f"expected one inline script in the docs page, found {len(scripts)}")
     digest = base64.b64encode(hashlib.sha256(scripts[0]).digest()).decode()
-    return "; ".join((
-        "default-src 'none'", f"script-src 'self' 'sha256-{digest}'", "style-src 'self'",
-        "img-src 'self' data:", "connect-src 'self'", "base-uri 'none'", "form-action 'none'",
-        "frame-ancestors 'none'"))
+    return "; ".join(
+        (
+            "default-src 'none'",
+            f"script-src 'self' 'sha256-{digest}'",
+            "style-src 'self'",
+            "img-src 'self' data:",
+            "connect-src 'self'",
+            "base-uri 'none'",
+            "form-action 'none'",
+            "frame-ancestors 'none'",
+        )
+    )
 
 
 def docs_router(*, openapi_url: str, title: str) -> APIRouter:
     """A router serving Swagger UI for ``openapi_url`` at ``/docs`` (the page is built once)."""
-    html = get_swagger_ui_html(
-        openapi_url=openapi_url, title=title, swagger_js_url=SWAGGER_JS,
-        swagger_css_url=SWAGGER_CSS, swagger_favicon_url=FAVICON,
-        swagger_ui_parameters={"validatorUrl": None}).body  # no badge from swagger.io
+    page = get_swagger_ui_html(
+        openapi_url=openapi_url,
+        title=title,
+        swagger_js_url=SWAGGER_JS,
+        swagger_css_url=SWAGGER_CSS,
+        swagger_favicon_url=FAVICON,
+        swagger_ui_parameters={"validatorUrl": None},
+    )  # no badge from swagger.io
+    html = bytes(page.body)  # Starlette types a body as bytes or memoryview; this is bytes
     headers = {"Content-Security-Policy": docs_policy(html), "Referrer-Policy": "no-referrer"}
     router = APIRouter(include_in_schema=False)
 

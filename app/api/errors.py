@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import logging
 import math
-from typing import Any
+from collections.abc import Awaitable, Callable
+from typing import Any, TypeVar, cast
 
 from fastapi import FastAPI, Request
 from fastapi.encoders import jsonable_encoder
@@ -17,11 +18,14 @@ from pydantic import BaseModel
 from sqlalchemy.exc import DataError, OperationalError
 from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.routing import Match
+from starlette.types import ExceptionHandler
 
-from app.services.errors import AuthError, ServiceError, TooManyAttemptsError
+from app.services.errors import AuthError, PendingError, ServiceError, TooManyAttemptsError
 from engine.errors import InputError
 
 log = logging.getLogger(__name__)
+
+E = TypeVar("E", bound=Exception)
 
 
 class ErrorOut(BaseModel):
@@ -33,25 +37,31 @@ class ErrorOut(BaseModel):
 #: Error answers any API operation may give, documented in the OpenAPI schema as JSON
 #: (explicitly: a ``model`` would be documented in the route's own media type, e.g. CSV).
 RESPONSES: dict[int | str, dict[str, Any]] = {
-    code: {"description": text,
-           "content": {"application/json": {"schema": ErrorOut.model_json_schema()}}}
+    code: {
+        "description": text,
+        "content": {"application/json": {"schema": ErrorOut.model_json_schema()}},
+    }
     for code, text in (
         (400, "The body could not be parsed (malformed JSON, or not UTF-8)."),
         (401, "No valid credentials for this operation."),
-        (403, "Credentials that do not allow this, or a write authenticated by a cookie "
-              "without the X-Requested-With header."),
+        (
+            403,
+            "Credentials that do not allow this, or a write authenticated by a cookie "
+            "without the X-Requested-With header.",
+        ),
         (404, "No such object, or not visible to the caller."),
         (409, "The request conflicts with the stored state."),
         (413, "The request body is too large."),
         (422, "Invalid input."),
         (429, "Too many failed researcher credentials from this address; see Retry-After."),
-        (503, "The database is unavailable; try again."))}
+        (503, "The database is unavailable; try again."),
+    )
+}
 
 
 def _validation_error(_: Request, exc: RequestValidationError) -> JSONResponse:
     """FastAPI's 422, made safe for inputs JSON cannot hold (NaN, Infinity, surrogates)."""
-    return JSONResponse({"detail": _json_safe(jsonable_encoder(exc.errors()))},
-                        status_code=422)
+    return JSONResponse({"detail": _json_safe(jsonable_encoder(exc.errors()))}, status_code=422)
 
 
 def _json_safe(value: Any) -> Any:
@@ -70,9 +80,14 @@ async def _http_error(request: Request, exc: StarletteHTTPException) -> Response
     """FastAPI's answer, except that a 405 lists every method of the path in ``Allow``
     (Starlette names the first matching route's only, and FastAPI has a route per method)."""
     if exc.status_code == 405:
-        methods = sorted({m for route in iter_route_contexts(request.app.routes)
-                          if route.methods and route.matches(request.scope)[0] != Match.NONE
-                          for m in route.methods})
+        methods = sorted(
+            {
+                m
+                for route in iter_route_contexts(request.app.routes)
+                if route.methods and route.matches(request.scope)[0] != Match.NONE
+                for m in route.methods
+            }
+        )
         exc = StarletteHTTPException(405, exc.detail, headers={"Allow": ", ".join(methods)})
     return await http_exception_handler(request, exc)
 
@@ -85,6 +100,12 @@ def _service_error(_: Request, exc: ServiceError) -> JSONResponse:
     headers = {"WWW-Authenticate": "Bearer"} if isinstance(exc, AuthError) else None
     if isinstance(exc, TooManyAttemptsError):
         headers = {"Retry-After": str(exc.retry_after_s)}
+    if isinstance(exc, PendingError):  # not a failure: the client polls
+        return JSONResponse(
+            {"status": "pending", "detail": exc.detail},
+            status_code=202,
+            headers={"Retry-After": "2"},
+        )
     return JSONResponse({"detail": exc.detail}, status_code=exc.status_code, headers=headers)
 
 
@@ -95,8 +116,11 @@ def _unstorable(_: Request, exc: DataError) -> JSONResponse:
 
 def _database_down(_: Request, exc: OperationalError) -> JSONResponse:
     log.error("database error: %s", exc)
-    return JSONResponse({"detail": "the database is unavailable; try again"}, status_code=503,
-                        headers={"Retry-After": "1"})
+    return JSONResponse(
+        {"detail": "the database is unavailable; try again"},
+        status_code=503,
+        headers={"Retry-After": "1"},
+    )
 
 
 def _unexpected(_: Request, exc: Exception) -> JSONResponse:
@@ -106,10 +130,23 @@ def _unexpected(_: Request, exc: Exception) -> JSONResponse:
 
 def install(app: FastAPI) -> None:
     """Register the handlers on ``app``."""
-    app.add_exception_handler(RequestValidationError, _validation_error)
-    app.add_exception_handler(StarletteHTTPException, _http_error)
-    app.add_exception_handler(InputError, _input_error)
-    app.add_exception_handler(ServiceError, _service_error)
-    app.add_exception_handler(DataError, _unstorable)
-    app.add_exception_handler(OperationalError, _database_down)
-    app.add_exception_handler(Exception, _unexpected)
+    _handle(app, RequestValidationError, _validation_error)
+    _handle(app, StarletteHTTPException, _http_error)
+    _handle(app, InputError, _input_error)
+    _handle(app, ServiceError, _service_error)
+    _handle(app, DataError, _unstorable)
+    _handle(app, OperationalError, _database_down)
+    _handle(app, Exception, _unexpected)
+
+
+def _handle(
+    app: FastAPI,
+    exc_class: type[E],
+    handler: Callable[[Request, E], Response | Awaitable[Response]],
+) -> None:
+    """``app.add_exception_handler``, with the handler typed for the class it handles.
+
+    Starlette types every handler as taking any ``Exception``; it only ever passes one of
+    ``exc_class``, so the cast is safe and the signature above still checks each handler.
+    """
+    app.add_exception_handler(exc_class, cast(ExceptionHandler, handler))

@@ -6,15 +6,16 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from app.api.schemas import ProgressOut, UtcDatetime
-from app.models import Run
+from app.api.schemas import JsonInt, ProgressOut, UtcDatetime
+from app.models import RUN_STATUSES, Run
 from app.services.runs import MAX_TIMESTEPS, RUN_TEACHERS, advice_label
-from engine.rl.config import ALGOS, TrainConfig
+from engine.rl.config import ADVICE_MODES, ALGOS, TrainConfig
 
-RunStatus = Literal["queued", "running", "succeeded", "failed", "cancelled", "interrupted"]
+RunStatus = Literal[RUN_STATUSES]  # type: ignore[valid-type]
 Algo = Literal[ALGOS]  # type: ignore[valid-type]
 Teacher = Literal[RUN_TEACHERS]  # type: ignore[valid-type]
-Judge = Literal["shaped", "shaping", "value"]
+AdviceMode = Literal[ADVICE_MODES]  # type: ignore[valid-type]
+Judge = Literal["shaped", "shaping", "value", "behaviour"]
 
 
 class RunCreate(BaseModel):
@@ -23,20 +24,29 @@ class RunCreate(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
 
-    study_id: int = Field(ge=1, le=2**31 - 1)
-    participant_id: int | None = Field(None, ge=1, le=2**31 - 1)
+    study_id: JsonInt = Field(ge=1, le=2**31 - 1)
+    participant_id: JsonInt | None = Field(None, ge=1, le=2**31 - 1)
     teacher: Teacher | None = None
     algo: Algo = "bipars-em"
-    timesteps: int = Field(ge=1, le=MAX_TIMESTEPS, description="Env steps over all envs.")
-    seed: int = Field(0, ge=0, le=2**31 - 1)
-    n_envs: int = Field(4, ge=1, le=64)
-    num_steps: int | None = Field(None, ge=2, le=65_536,
-                                  description="Steps per env per rollout (default 512).")
-    num_minibatches: int | None = Field(None, ge=1, le=4096)
-    update_epochs: int | None = Field(None, ge=1, le=100)
-    checkpoint_every: int | None = Field(
-        None, ge=1, le=MAX_TIMESTEPS,
-        description="Env steps between checkpoints (default: about 10 checkpoints).")
+    timesteps: JsonInt = Field(ge=1, le=MAX_TIMESTEPS, description="Env steps over all envs.")
+    seed: JsonInt = Field(0, ge=0, le=2**31 - 1)
+    n_envs: JsonInt = Field(4, ge=1, le=64)
+    num_steps: JsonInt | None = Field(
+        None, ge=2, le=65_536, description="Steps per env per rollout (default 512)."
+    )
+    num_minibatches: JsonInt | None = Field(None, ge=1, le=4096)
+    update_epochs: JsonInt | None = Field(None, ge=1, le=100)
+    checkpoint_every: JsonInt | None = Field(
+        None,
+        ge=1,
+        le=MAX_TIMESTEPS,
+        description="Env steps between checkpoints (default: about 10 checkpoints).",
+    )
+    advice_mode: AdviceMode | None = Field(
+        None,
+        description="How F is made from the advice tree; ``reward``: F is the env's "
+        "step reward (the tree is still what the agent is compared with).",
+    )
 
 
 class RunCreated(BaseModel):
@@ -70,15 +80,27 @@ class RunOut(BaseModel):
     @classmethod
     def of(cls, run: Run) -> RunOut:
         config = TrainConfig.from_json(run.config)
-        return cls(id=run.id, study_id=run.study_id, participant_id=run.participant_id,
-                   teacher=run.teacher, advice=advice_label(run), algo=run.algo,
-                   timesteps=run.timesteps, seed=run.seed, n_envs=run.n_envs, config=run.config,
-                   status=run.status,
-                   progress=ProgressOut(done=run.progress,
-                                        total=config.num_updates * config.batch_size),
-                   metrics=run.metrics, error=run.error, cancel_requested=run.cancel_requested,
-                   executor=run.executor, created_at=run.created_at, started_at=run.started_at,
-                   finished_at=run.finished_at)
+        return cls(
+            id=run.id,
+            study_id=run.study_id,
+            participant_id=run.participant_id,
+            teacher=run.teacher,
+            advice=advice_label(run),
+            algo=run.algo,
+            timesteps=run.timesteps,
+            seed=run.seed,
+            n_envs=run.n_envs,
+            config=run.config,
+            status=run.status,
+            progress=ProgressOut(done=run.progress, total=config.num_updates * config.batch_size),
+            metrics=run.metrics,
+            error=run.error,
+            cancel_requested=run.cancel_requested,
+            executor=run.executor,
+            created_at=run.created_at,
+            started_at=run.started_at,
+            finished_at=run.finished_at,
+        )
 
 
 class CheckpointOut(BaseModel):

@@ -5,26 +5,44 @@ from __future__ import annotations
 from datetime import datetime
 from typing import Annotated, Any, Literal
 
-from pydantic import AfterValidator, BaseModel, BeforeValidator, ConfigDict, Field
+from pydantic import (
+    AfterValidator,
+    BaseModel,
+    BeforeValidator,
+    ConfigDict,
+    Field,
+    ValidationInfo,
+)
 
-from app.models import as_utc
+from app.models import STUDY_STATUSES, as_utc
 from app.services.labelling import MAX_RESPONSE_MS
 from app.services.participants import MAX_BATCH
 from app.services.studies import MAX_INSTRUCTIONS_CHARS, MAX_NAME_CHARS, MAX_SEED
 from engine.candidates import MAX_CANDIDATES
 from engine.envs import DEFAULT_ENV_ID
 
-StudyStatus = Literal["preparing", "ready", "failed"]
+StudyStatus = Literal[STUDY_STATUSES]  # type: ignore[valid-type]
 
 
-def _json_integer(value: Any) -> Any:
-    if isinstance(value, bool | str):  # pydantic would read true as 1 and "3" as 3
-        raise ValueError("must be a JSON integer")
-    return value
+#: Validation context of HTML forms, whose every field is text: there ``"3"`` is an integer.
+FORM_INPUT = {"form": True}
 
 
-#: An integer as JSON Schema defines it: ``3`` or ``3.0``, never ``true`` or ``"3"``.
-JsonInt = Annotated[int, BeforeValidator(_json_integer)]
+def _json_number(kind: str) -> Any:
+    def check(value: Any, info: ValidationInfo) -> Any:
+        from_form = isinstance(value, str) and bool(info.context and info.context.get("form"))
+        if isinstance(value, bool) or (isinstance(value, str) and not from_form):
+            raise ValueError(f"must be a JSON {kind}")  # lax pydantic reads true as 1, "3" as 3
+        return value
+
+    return check
+
+
+#: An integer as JSON Schema defines it: ``3`` or ``3.0``, never ``true``, ``1.5`` or ``"3"``.
+#: Every integer field of a request body is one (``tests/app/test_strict_integers.py``).
+JsonInt = Annotated[int, BeforeValidator(_json_number("integer"))]
+#: A JSON number (an integer too), never ``true`` or ``"0.5"``.
+JsonFloat = Annotated[float, BeforeValidator(_json_number("number"))]
 #: Stored times are UTC; SQLite hands them back naive.
 UtcDatetime = Annotated[datetime, AfterValidator(as_utc)]
 
@@ -35,15 +53,27 @@ class StudyCreate(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     name: str = Field(min_length=1, max_length=MAX_NAME_CHARS)
-    env_id: str = Field(DEFAULT_ENV_ID, min_length=1, max_length=100,
-                        description="A Gymnasium MuJoCo env id, e.g. Humanoid-v5.")
-    n_candidates: int = Field(ge=2, le=MAX_CANDIDATES)
-    p: float = Field(0.9, ge=0.0, le=1.0, allow_inf_nan=False,
-                     description="Braverman-Mossel coin probability of the seeding.")
-    seed: int = Field(0, ge=0, le=MAX_SEED)
+    env_id: str = Field(
+        DEFAULT_ENV_ID,
+        min_length=1,
+        max_length=100,
+        description="A Gymnasium MuJoCo env id, e.g. Humanoid-v5.",
+    )
+    n_candidates: JsonInt = Field(ge=2, le=MAX_CANDIDATES)
+    p: JsonFloat = Field(
+        0.9,
+        ge=0.0,
+        le=1.0,
+        allow_inf_nan=False,
+        description="Braverman-Mossel coin probability of the seeding.",
+    )
+    seed: JsonInt = Field(0, ge=0, le=MAX_SEED)
     sampling: Literal["uniform", "diverse"] = "uniform"
-    instructions: str = Field("", max_length=MAX_INSTRUCTIONS_CHARS,
-                              description="Shown to participants before the first match.")
+    instructions: str = Field(
+        "",
+        max_length=MAX_INSTRUCTIONS_CHARS,
+        description="Shown to participants before the first match.",
+    )
 
 
 class StudyOut(BaseModel):
@@ -79,8 +109,9 @@ class ProgressOut(BaseModel):
 class ParticipantCreate(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
-    name: str | None = Field(None, max_length=MAX_NAME_CHARS,
-                             description="Optional note, e.g. who was invited.")
+    name: str | None = Field(
+        None, max_length=MAX_NAME_CHARS, description="Optional note, e.g. who was invited."
+    )
 
 
 class ParticipantBatchCreate(ParticipantCreate):
@@ -130,6 +161,10 @@ class NextMatchOut(BaseModel):
     matches_in_round: int
     a: MatchSide
     b: MatchSide
+    left: int = Field(
+        description="The candidate id shown on the left (``a``'s or ``b``'s; "
+        "sides are randomised per participant and match)."
+    )
     progress: ProgressOut
 
 
@@ -137,9 +172,9 @@ class LabelIn(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     winner: JsonInt = Field(ge=0, le=2**31 - 1, description="The preferred candidate's id.")
-    response_ms: Annotated[int, Field(ge=0, le=MAX_RESPONSE_MS),
-                           BeforeValidator(_json_integer)] | None = Field(
-        None, description="Time the participant took; estimated by the server when absent.")
+    response_ms: Annotated[JsonInt, Field(ge=0, le=MAX_RESPONSE_MS)] | None = Field(
+        None, description="Time the participant took; estimated by the server when absent."
+    )
 
 
 class LabelOut(BaseModel):
@@ -148,6 +183,9 @@ class LabelOut(BaseModel):
     created: bool
     progress: ProgressOut
     finished: bool
+    next: NextMatchOut | None = Field(
+        description="The match to decide now (as next-match answers); null once finished."
+    )
 
 
 class UndoOut(BaseModel):

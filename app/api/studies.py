@@ -37,8 +37,9 @@ router = APIRouter(prefix="/studies", tags=["studies"])
 
 
 @router.post("", status_code=201)
-def create_study(body: StudyCreate, session: SessionDep, runtime: RuntimeDep,
-                 _: ResearcherDep) -> StudyOut:
+def create_study(
+    body: StudyCreate, session: SessionDep, runtime: RuntimeDep, _: ResearcherDep
+) -> StudyOut:
     """Create a study; its candidates are sampled and rendered in the background
     (``status`` goes from ``preparing`` to ``ready``, or ``failed`` with ``error``)."""
     study = studies.create_study(session, **body.model_dump())
@@ -59,81 +60,132 @@ def get_study(study_id: DbId, session: SessionDep, _: ResearcherDep) -> StudyOut
 @router.get("/{study_id}/candidates")
 def list_candidates(study_id: DbId, session: SessionDep, _: ResearcherDep) -> list[CandidateOut]:
     """The candidate states with their images (empty while the study is preparing)."""
-    return [CandidateOut(id=c.id, env_reward=c.env_reward, qpos=c.qpos, qvel=c.qvel,
-                         image_url=image_url(study_id, c.id),
-                         thumb_url=image_url(study_id, c.id, "thumb"))
-            for c in studies.list_candidates(session, study_id=study_id)]
+    return [
+        CandidateOut(
+            id=c.id,
+            env_reward=c.env_reward,
+            qpos=c.qpos,
+            qvel=c.qvel,
+            image_url=image_url(study_id, c.id),
+            thumb_url=image_url(study_id, c.id, "thumb"),
+        )
+        for c in studies.list_candidates(session, study_id=study_id)
+    ]
 
 
-@router.get("/{study_id}/candidates/{candidate_id}/image", name="candidate_image",
-            response_class=FileResponse, responses={200: {"content": {MEDIA_TYPE: {}}}})
-def candidate_image(study_id: DbId, candidate_id: CandidateId, session: SessionDep,
-                    settings: SettingsDep, viewer: ViewerDep,
-                    size: ImageSize = "full") -> FileResponse:
+@router.get(
+    "/{study_id}/candidates/{candidate_id}/image",
+    name="candidate_image",
+    response_class=FileResponse,
+    responses={200: {"content": {MEDIA_TYPE: {}}}},
+)
+def candidate_image(
+    study_id: DbId,
+    candidate_id: CandidateId,
+    session: SessionDep,
+    settings: SettingsDep,
+    viewer: ViewerDep,
+    size: ImageSize = "full",
+) -> FileResponse:
     """A candidate's rendered image (``size=thumb`` for a small one), for the researcher and
     the study's participants (``<img>`` tags send the role's cookie)."""
-    if not viewer.researcher and viewer.participant.study_id != study_id:
+    if not viewer.researcher and (
+        viewer.participant is None or viewer.participant.study_id != study_id
+    ):
         raise NotFoundError(f"candidate {candidate_id} of study {study_id} not found")
     cand = studies.get_candidate(session, study_id=study_id, candidate_id=candidate_id)
     path = image_file(settings.data_dir, cand.image_path if size == "full" else cand.thumb_path)
     if not path.is_file():
         raise NotFoundError(f"the image of candidate {candidate_id} is missing on disk")
-    return FileResponse(path, media_type=MEDIA_TYPE,
-                        headers={"Cache-Control": "private, max-age=86400"})
+    return FileResponse(
+        path, media_type=MEDIA_TYPE, headers={"Cache-Control": "private, max-age=86400"}
+    )
 
 
 @router.post("/{study_id}/participants", status_code=201)
-def add_participant(study_id: DbId, request: Request, session: SessionDep, _: ResearcherDep,
-                    body: ParticipantCreate | None = None) -> ParticipantCreated:
+def add_participant(
+    study_id: DbId,
+    request: Request,
+    session: SessionDep,
+    _: ResearcherDep,
+    body: ParticipantCreate | None = None,
+) -> ParticipantCreated:
     """Invite one participant; share ``invite_url`` with them."""
-    (person,) = participants.add_participants(session, study_id=study_id,
-                                              name=body.name if body else None)
+    (person,) = participants.add_participants(
+        session, study_id=study_id, name=body.name if body else None
+    )
     return _created(request, person)
 
 
 @router.post("/{study_id}/participants/batch", status_code=201)
-def add_participants(study_id: DbId, body: ParticipantBatchCreate, request: Request,
-                     session: SessionDep, _: ResearcherDep) -> list[ParticipantCreated]:
+def add_participants(
+    study_id: DbId,
+    body: ParticipantBatchCreate,
+    request: Request,
+    session: SessionDep,
+    _: ResearcherDep,
+) -> list[ParticipantCreated]:
     """Invite ``count`` participants at once."""
-    people = participants.add_participants(session, study_id=study_id, count=body.count,
-                                           name=body.name)
+    people = participants.add_participants(
+        session, study_id=study_id, count=body.count, name=body.name
+    )
     return [_created(request, p) for p in people]
 
 
 def _created(request: Request, person: Participant) -> ParticipantCreated:
-    return ParticipantCreated(id=person.id, study_id=person.study_id, token=person.token,
-                              invite_url=invite_url(request, person.token))
+    return ParticipantCreated(
+        id=person.id,
+        study_id=person.study_id,
+        token=person.token,
+        invite_url=invite_url(request, person.token),
+    )
 
 
 @router.get("/{study_id}/participants")
-def list_participants(study_id: DbId, request: Request, session: SessionDep,
-                      _: ResearcherDep) -> list[ParticipantOut]:
+def list_participants(
+    study_id: DbId, request: Request, session: SessionDep, _: ResearcherDep
+) -> list[ParticipantOut]:
     """Participants with their progress and invite links."""
-    return [participant_out(request, s.participant, s.progress)
-            for s in participants.list_participants(session, study_id=study_id)]
+    return [
+        participant_out(request, s.participant, s.progress)
+        for s in participants.list_participants(session, study_id=study_id)
+    ]
 
 
-def participant_out(request: Request, person: Participant,
-                    progress: participants.Progress) -> ParticipantOut:
+def participant_out(
+    request: Request, person: Participant, progress: participants.Progress
+) -> ParticipantOut:
     return ParticipantOut(
-        id=person.id, study_id=person.study_id, token=person.token, name=person.name,
+        id=person.id,
+        study_id=person.study_id,
+        token=person.token,
+        name=person.name,
         invite_url=invite_url(request, person.token),
         progress=ProgressOut(done=progress.done, total=progress.total),
-        finished=progress.finished, created_at=person.created_at,
-        finished_at=person.finished_at)
+        finished=progress.finished,
+        created_at=person.created_at,
+        finished_at=person.finished_at,
+    )
 
 
-@router.get("/{study_id}/labels.csv", response_class=Response,
-            responses={200: {"content": {"text/csv": {}}}})
+@router.get(
+    "/{study_id}/labels.csv",
+    response_class=Response,
+    responses={200: {"content": {"text/csv": {}}}},
+)
 def labels_csv(study_id: DbId, session: SessionDep, _: ResearcherDep) -> Response:
     """Every label of the study, one row per label."""
-    return Response(trees.labels_csv(session, study_id=study_id), media_type="text/csv",
-                    headers={"Content-Disposition":
-                             f'attachment; filename="study-{study_id}-labels.csv"'})
+    return Response(
+        trees.labels_csv(session, study_id=study_id),
+        media_type="text/csv",
+        headers={"Content-Disposition": f'attachment; filename="study-{study_id}-labels.csv"'},
+    )
 
 
 @router.get("/{study_id}/trees")
 def study_trees(study_id: DbId, session: SessionDep, _: ResearcherDep) -> list[dict[str, Any]]:
     """Every finished participant's Human Preference Tree (``acv.tree/1`` documents)."""
-    return [{"participant_id": pid, "tree": tree_to_json(doc)}
-            for pid, doc in trees.study_trees(session, study_id=study_id)]
+    return [
+        {"participant_id": pid, "tree": tree_to_json(doc)}
+        for pid, doc in trees.study_trees(session, study_id=study_id)
+    ]

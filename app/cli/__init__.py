@@ -17,6 +17,7 @@ def _register_commands() -> None:
         reproduce,
         serve,
         study,
+        survey,
         tournament,
         train,
         worker,
@@ -42,7 +43,13 @@ def main() -> None:
         if _STARTUP_ERROR is not None:
             raise _STARTUP_ERROR
         cli()
-    except (InputError, json.JSONDecodeError, FileNotFoundError, IsADirectoryError,
-            PermissionError, UnicodeDecodeError) as exc:
+    except (
+        InputError,
+        json.JSONDecodeError,
+        FileNotFoundError,
+        IsADirectoryError,
+        PermissionError,
+        UnicodeDecodeError,
+    ) as exc:
         print(f"acv: error: {exc}", file=sys.stderr)
         sys.exit(2)

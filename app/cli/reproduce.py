@@ -20,10 +20,17 @@ Opt = typer.Option
 
 @cli.command()
 def reproduce(
-    out: Annotated[Path, Opt(help="Results folder (a second call with the same settings "
-                                  "resumes).")] = Path("results"),
+    out: Annotated[
+        Path, Opt(help="Results folder (a second call with the same settings resumes).")
+    ] = Path("results"),
     timesteps: Annotated[int, Opt(help="Env steps per agent and seed.")] = 1_000_000,
-    seeds: Annotated[int, Opt(help="Training seeds per agent.")] = 1,
+    seeds: Annotated[
+        int,
+        Opt(help="Training seeds of the core arms (ppo, both Case 1 (paper), Case 2, control)."),
+    ] = 1,
+    extra_seeds: Annotated[
+        int, Opt(help="Training seeds of the other arms (Case 1 tree, MGL, ablations).")
+    ] = 1,
     env: Annotated[str, Opt(help="Gymnasium MuJoCo env id.")] = DEFAULT_ENV_ID,
     n_envs: Annotated[int, Opt(help="Parallel envs per run.")] = 4,
     num_steps: Annotated[int, Opt(help="Steps per env per rollout.")] = 512,
@@ -31,8 +38,9 @@ def reproduce(
     candidates: Annotated[int, Opt(help="Candidate states in the shared bracket.")] = 16,
     p: Annotated[float, Opt(help="Braverman-Mossel coin probability.")] = 0.9,
     bracket_seed: Annotated[int, Opt(help="Seed of the candidates and the bracket.")] = 0,
-    study: Annotated[int | None, Opt(help="Use a real participant's tree from this study "
-                                          "as the Case 2 advice.")] = None,
+    study: Annotated[
+        int | None, Opt(help="Use a real participant's tree from this study as the Case 2 advice.")
+    ] = None,
     participant: Annotated[int | None, Opt(help="That participant's id.")] = None,
     jobs: Annotated[int, Opt(min=1, help="Training runs at a time (one core each).")] = 1,
 ) -> None:
@@ -44,14 +52,24 @@ def reproduce(
 
     with service_errors():
         check_env_id(env)
-        config = ReproduceConfig(env_id=env, timesteps=timesteps, seeds=seeds, n_envs=n_envs,
-                                 num_steps=num_steps, checkpoint_every=checkpoint_every,
-                                 candidates=candidates, p=p, bracket_seed=bracket_seed,
-                                 study_id=study, participant_id=participant)
+        config = ReproduceConfig(
+            env_id=env,
+            timesteps=timesteps,
+            seeds=seeds,
+            extra_seeds=extra_seeds,
+            n_envs=n_envs,
+            num_steps=num_steps,
+            checkpoint_every=checkpoint_every,
+            candidates=candidates,
+            p=p,
+            bracket_seed=bracket_seed,
+            study_id=study,
+            participant_id=participant,
+        )
         trees = prepare(out, config, _participant_tree(config))
         train_all(out, config, trees, jobs=jobs)
         typer.echo("training done; extracting agent trees and drawing figures")
-        write_report(out, config, trees, command=shlex.join(["acv", *sys.argv[1:]]))
+        write_report(out, config, trees, command=shlex.join(["acv", *sys.argv[1:]]), jobs=jobs)
     typer.echo(f"wrote {out / 'README.md'} and {out / 'summary.json'}")
 
 
@@ -66,9 +84,10 @@ def _participant_tree(config: ReproduceConfig) -> TreeDocument | None:
 
     with cli_runtime() as runtime, runtime.sessions() as session:
         doc = participant_tree(session, participant_id=config.participant_id)
-        if session.get(Participant, config.participant_id).study_id != config.study_id:
-            raise NotFoundError(f"participant {config.participant_id} is not in study "
-                                f"{config.study_id}")
+        if session.get_one(Participant, config.participant_id).study_id != config.study_id:
+            raise NotFoundError(
+                f"participant {config.participant_id} is not in study {config.study_id}"
+            )
     if doc.env_id != config.env_id:
         raise InputError(f"study {config.study_id} is on {doc.env_id}; pass --env {doc.env_id}")
     return doc

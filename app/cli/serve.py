@@ -1,18 +1,34 @@
-"""``acv serve``: apply migrations, then serve the web app with uvicorn."""
+"""``acv serve``: apply migrations, then serve the web app with uvicorn.
+
+With ``--workers N`` (N > 1) uvicorn's supervisor starts N server processes (spawned, each
+building its app with :func:`worker_app`) that share the listening socket. The work that
+must happen once happens in the supervisor, before and beside them: the migrations, the
+admin token, resuming half-prepared studies, and the training-run worker (a thread). The
+server processes share the database (SQLite in WAL mode, writers queued on a file lock; see
+:mod:`app.db`) and the failed-login counts (:mod:`app.web.ratelimit`); researcher and
+participant cookies are signed or looked up, never kept in a process.
+"""
 
 from __future__ import annotations
 
+import copy
+import gc
+import logging.config
+import os
 from collections.abc import Iterator
 from contextlib import contextmanager
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 import uvicorn
+from fastapi import FastAPI
 from pydantic import ValidationError
 from sqlalchemy.exc import ArgumentError, SQLAlchemyError
 
 from app.cli.root import cli, fail
 from app.db import upgrade
+from app.jobs.settings import JobSettings
+from app.jobs.worker import Worker, WorkerThread, make_executor
 from app.main import create_app
 from app.preflight import check_data_dir
 from app.runtime import Runtime
@@ -36,8 +52,10 @@ def service_errors() -> Iterator[None]:
     except ArgumentError as exc:
         fail(f"bad DATABASE_URL: {exc}")
     except ValidationError as exc:  # a setting from the environment
-        fail("bad setting: " + "; ".join(f"{'.'.join(map(str, e['loc']))}: {e['msg']}"
-                                         for e in exc.errors()))
+        fail(
+            "bad setting: "
+            + "; ".join(f"{'.'.join(map(str, e['loc']))}: {e['msg']}" for e in exc.errors())
+        )
     except SQLAlchemyError as exc:
         fail(f"database error: {str(exc).splitlines()[0]}")
 
@@ -70,30 +88,117 @@ def base_url(settings: Settings, host: str, port: int) -> str:
     return f"http://[{shown}]:{port}" if ":" in shown else f"http://{shown}:{port}"
 
 
+#: Tells the spawned server processes how many they are (an internal variable).
+WORKERS_ENV = "ACV_SERVE_WORKERS"
+
+
 @cli.command()
 def serve(
     host: Annotated[str, typer.Option(help="Address to listen on.")] = "127.0.0.1",
     port: Annotated[int, typer.Option(min=1, max=65535, help="TCP port.")] = 8000,
-    demo: Annotated[bool, typer.Option(help="Prepare a demo study first (16 Humanoid-v5 "
-                                            "states, one simulated participant).")] = False,
+    demo: Annotated[
+        bool,
+        typer.Option(
+            help="Prepare a demo study first (16 Humanoid-v5 states, one simulated participant)."
+        ),
+    ] = False,
     access_log: Annotated[bool, typer.Option(help="Log every request.")] = True,
+    workers: Annotated[
+        int,
+        typer.Option(
+            min=1,
+            max=64,
+            help="Server processes (one per CPU core for crowds of labellers; see the README).",
+        ),
+    ] = 1,
 ) -> None:
     """Apply database migrations, print the researcher login URL, and serve the app."""
     settings = migrated_settings()
     with service_errors():
-        app = create_app(settings)
-        runtime: Runtime = app.state.runtime
+        app = create_app(settings) if workers == 1 else None
+        runtime: Runtime = app.state.runtime if app is not None else Runtime(settings)
         base = base_url(settings, host, port)
         demo_lines = _demo_lines(runtime, base) if demo else []
-    typer.echo(f"ACV on {base}  (data: {settings.data_dir.resolve()}, database: "
-               f"{runtime.engine.url.render_as_string(hide_password=True)})")
+    typer.echo(
+        f"ACV on {base}  (data: {settings.data_dir.resolve()}, database: "
+        f"{runtime.engine.url.render_as_string(hide_password=True)}"
+        f"{f', {workers} server processes' if workers > 1 else ''})"
+    )
     for line in _login_lines(settings, runtime.admin_token, base):
         typer.echo(line)
     for line in demo_lines:
         typer.echo(line)
     typer.echo(f"  API docs:         {base}/docs")
-    uvicorn.run(app, host=host, port=port, access_log=access_log, log_level="info",
-                timeout_graceful_shutdown=10)
+    options: dict[str, Any] = {
+        "host": host,
+        "port": port,
+        "access_log": access_log,
+        "log_level": "info",
+        "timeout_graceful_shutdown": 10,
+        "log_config": log_config(workers),
+    }
+    if app is not None:
+        tune_gc()
+        uvicorn.run(app, **options)
+    else:
+        _serve_workers(runtime, workers, options)
+
+
+def _serve_workers(runtime: Runtime, workers: int, options: dict[str, Any]) -> None:
+    """N spawned server processes under uvicorn's supervisor; the background work runs here,
+    once."""
+    logging.config.dictConfig(options["log_config"])
+    os.environ[WORKERS_ENV] = str(workers)
+    runtime.resume()
+    jobs = JobSettings()
+    run_worker = (
+        WorkerThread(
+            Worker(
+                runtime.sessions,
+                make_executor(runtime.settings, jobs),
+                slots=jobs.worker_slots,
+                poll_s=jobs.poll_s,
+            )
+        ).start()
+        if jobs.run_worker
+        else None
+    )
+    try:
+        uvicorn.run("app.cli.serve:worker_app", factory=True, workers=workers, **options)
+    finally:
+        if run_worker is not None:
+            run_worker.stop()  # running runs checkpoint and become `interrupted`
+        runtime.close()
+
+
+def worker_app() -> FastAPI:
+    """The app of one of ``acv serve --workers N``'s processes: settings from the
+    environment, the database already migrated, no background work (the supervisor's)."""
+    tune_gc()
+    return create_app(Settings(), background=False, processes=int(os.environ.get(WORKERS_ENV, "1")))
+
+
+def log_config(workers: int) -> dict[str, Any]:
+    """uvicorn's logging, plus the app's own INFO lines (e.g. the run worker starting);
+    with several processes every line names its process id."""
+    config = copy.deepcopy(uvicorn.config.LOGGING_CONFIG)
+    config["loggers"]["app"] = {"handlers": ["default"], "level": "INFO", "propagate": False}
+    if workers > 1:
+        for formatter in config["formatters"].values():
+            formatter["fmt"] = formatter["fmt"].replace(
+                "%(levelprefix)s", "%(levelprefix)s [%(process)d]"
+            )
+    return config
+
+
+def tune_gc() -> None:
+    """Fewer and shorter garbage-collection pauses while serving (they showed in the tail
+    latency of labelling, issue 16): objects alive at start-up (modules, the ORM's mappers,
+    routes) are frozen out of collection, and collections start less often (request garbage
+    is freed by reference counting; only cycles wait for the collector)."""
+    gc.collect()
+    gc.freeze()
+    gc.set_threshold(10_000, 20, 20)
 
 
 def _login_lines(settings: Settings, admin_token: str, base: str) -> list[str]:
@@ -101,15 +206,18 @@ def _login_lines(settings: Settings, admin_token: str, base: str) -> list[str]:
     often ends up in journald or docker logs. A generated one is, in a URL fragment (which
     browsers never send, so it stays out of access logs); it is kept in the data dir."""
     if settings.admin_token is not None:
-        return [f"  researcher login: {base}/login  (with the admin token set in "
-                "ACV_ADMIN_TOKEN)"]
-    return [f"  researcher login: {base}/login#token={admin_token}",
-            f"  admin token:      {admin_token}  (kept in "
-            f"{(settings.data_dir / ADMIN_TOKEN_FILE).resolve()})"]
+        return [f"  researcher login: {base}/login  (with the admin token set in ACV_ADMIN_TOKEN)"]
+    return [
+        f"  researcher login: {base}/login#token={admin_token}",
+        f"  admin token:      {admin_token}  (kept in "
+        f"{(settings.data_dir / ADMIN_TOKEN_FILE).resolve()})",
+    ]
 
 
 def _demo_lines(runtime: Runtime, base: str) -> list[str]:
     typer.echo("preparing the demo study (sampling and rendering 16 states)...")
     demo = ensure_demo(runtime)
-    return [f"  demo study:       {base}/studies/{demo.study.id}  (id {demo.study.id})",
-            f"  participant link: {invite_url(base, demo.invite_token)}"]
+    return [
+        f"  demo study:       {base}/studies/{demo.study.id}  (id {demo.study.id})",
+        f"  participant link: {invite_url(base, demo.invite_token)}",
+    ]

@@ -33,15 +33,24 @@ def create(
     seed: Annotated[int, typer.Option(help="Seed for sampling and seeding.")] = 0,
     sampling: Annotated[str, typer.Option(help=" or ".join(SAMPLING_MODES))] = "uniform",
     instructions: Annotated[str, typer.Option(help="Text shown to participants.")] = "",
-    instructions_file: Annotated[Path | None, typer.Option(
-        help="Read the instructions from this file instead.")] = None,
+    instructions_file: Annotated[
+        Path | None, typer.Option(help="Read the instructions from this file instead.")
+    ] = None,
 ) -> None:
     """Create a study, then sample and render its candidates (waits until ready)."""
     text = instructions_file.read_text(encoding="utf-8") if instructions_file else instructions
     with cli_runtime() as runtime:
         with runtime.sessions() as session:
-            study = studies.create_study(session, name=name, env_id=env, n_candidates=candidates,
-                                         p=p, seed=seed, sampling=sampling, instructions=text)
+            study = studies.create_study(
+                session,
+                name=name,
+                env_id=env,
+                n_candidates=candidates,
+                p=p,
+                seed=seed,
+                sampling=sampling,
+                instructions=text,
+            )
         runtime.prepare(study.id)
         with runtime.sessions() as session:
             study = studies.get_study(session, study_id=study.id)
@@ -57,8 +66,10 @@ def list_() -> None:
         for study in studies.list_studies(session):
             people = participants.list_participants(session, study_id=study.id)
             done = sum(s.progress.finished for s in people)
-            typer.echo(f"{study.id}\t{study.status}\t{study.env_id}\t{study.n_candidates}\t"
-                       f"{done}/{len(people)} finished\t{study.name}")
+            typer.echo(
+                f"{study.id}\t{study.status}\t{study.env_id}\t{study.n_candidates}\t"
+                f"{done}/{len(people)} finished\t{study.name}"
+            )
 
 
 @participant_cli.command("add")
@@ -91,14 +102,21 @@ def tree(
 def simulate(
     study: Annotated[int, typer.Option(help="Study id.")],
     teacher: Annotated[str, typer.Option(help=f"Judge: {', '.join(TEACHERS)}.")] = "standing",
-    participants_: Annotated[int, typer.Option(
-        "--participants", help="How many simulated participants.")] = 1,
+    participants_: Annotated[
+        int, typer.Option("--participants", help="How many simulated participants.")
+    ] = 1,
     noise: Annotated[float, typer.Option(help="Probability of flipping each decision.")] = 0.0,
     seed: Annotated[int, typer.Option(help="Seed of the teacher's noise.")] = 0,
 ) -> None:
     """Simulated participants label the study's bracket through the service layer."""
     with cli_runtime() as runtime, runtime.sessions() as session:
-        people = simulation.simulate(session, study_id=study, teacher=teacher,
-                                     participants=participants_, noise=noise, seed=seed)
+        people = simulation.simulate(
+            session,
+            study_id=study,
+            teacher=teacher,
+            participants=participants_,
+            noise=noise,
+            seed=seed,
+        )
         for person in people:
             typer.echo(f"participant {person.id} finished ({teacher})")

@@ -4,14 +4,14 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, cast
 
 import typer
 from rich.console import Console
 from rich.table import Table
 
 from app.cli.root import cli, fail
-from engine.candidates import SAMPLING_MODES
+from engine.candidates import SAMPLING_MODES, SamplingMode
 from engine.conformance import Conformance, compare
 from engine.envs import DEFAULT_ENV_ID, check_env_id
 from engine.errors import check_seed
@@ -30,8 +30,10 @@ def tournament(
     teacher: Annotated[str, typer.Option(help=f"Judge: {', '.join(TEACHERS)}.")] = "standing",
     noise: Annotated[float, typer.Option(help="Probability of flipping each decision.")] = 0.0,
     sampling: Annotated[str, typer.Option(help="uniform or diverse.")] = "uniform",
-    replay: Annotated[Path | None, typer.Option(
-        help="Replay this tree's bracket (same candidates and first round).")] = None,
+    replay: Annotated[
+        Path | None,
+        typer.Option(help="Replay this tree's bracket (same candidates and first round)."),
+    ] = None,
 ) -> None:
     """Sample candidates, seed a bracket, let a simulated teacher play it, write the tree."""
     if teacher not in TEACHERS:
@@ -42,8 +44,15 @@ def tournament(
         doc = replay_with_teacher(load_tree(replay), teacher, noise)
     else:
         _check_new(env, candidates, p, seed, sampling)
-        doc = run_tournament(env_id=env, n_candidates=candidates, p=p, seed=seed,
-                             teacher=teacher, noise=noise, sampling=sampling)
+        doc = run_tournament(
+            env_id=env,
+            n_candidates=candidates,
+            p=p,
+            seed=seed,
+            teacher=teacher,
+            noise=noise,
+            sampling=cast(SamplingMode, sampling),
+        )  # _check_new checked it
     dump_tree(doc, out)
     typer.echo(f"wrote {out}: {len(doc.candidates)} candidates, champion {doc.tree.root}")
 
@@ -63,8 +72,7 @@ def _check_new(env: str, candidates: int, p: float, seed: int, sampling: str) ->
 def compare_cmd(
     human: Annotated[Path, typer.Argument(help="The Human Preference Tree (acv.tree/1).")],
     agent: Annotated[Path, typer.Argument(help="The other tree, over the same bracket.")],
-    as_json: Annotated[bool, typer.Option("--json", help="Print JSON instead of a table.")]
-    = False,
+    as_json: Annotated[bool, typer.Option("--json", help="Print JSON instead of a table.")] = False,
 ) -> None:
     """Conformance metrics of the second tree to the first."""
     result = compare(load_tree(human), load_tree(agent))
@@ -80,23 +88,43 @@ def print_conformance(c: Conformance, human: TreeDocument, agent: TreeDocument) 
     table = Table(title=f"Conformance of {agent.judge!r} to {human.judge!r}")
     table.add_column("metric")
     table.add_column("value", justify="right")
+    table.add_row("contested matches kept", _contested_text(c))
+    table.add_row("an R-only judge would agree", f"{c.reference_agreement:.3f}")
     lo, hi = c.match_agreement_ci
-    table.add_row("match agreement", f"{c.n_agree}/{c.n_matches} = {c.match_agreement:.3f}"
-                  f"  (95% CI {lo:.3f}..{hi:.3f})")
+    table.add_row(
+        "match agreement",
+        f"{c.n_agree}/{c.n_matches} = {c.match_agreement:.3f}  (95% CI {lo:.3f}..{hi:.3f})",
+    )
     tau = "undefined" if c.kendall_tau_b is None else f"{c.kendall_tau_b:.3f}"
     table.add_row("Kendall tau-b of heights", tau)
     table.add_row("tree edit distance (normalised)", f"{c.tree_edit_distance:.3f}")
-    table.add_row("same champion", "yes" if c.same_champion else
-                  f"no ({human.tree.root} vs {agent.tree.root})")
+    table.add_row(
+        "same champion",
+        "yes" if c.same_champion else f"no ({human.tree.root} vs {agent.tree.root})",
+    )
     console.print(table)
     if c.rejected:
         rej = Table(title="Rejected advice: matches the agent decided the other way")
-        for col in ("round", "match", "human preferred", "agent preferred"):
+        for col in ("round", "match", "human preferred", "agent preferred", "contested"):
             rej.add_column(col)
         for r in c.rejected:
-            rej.add_row(str(r.round), f"{r.a} vs {r.b}", str(r.human_winner),
-                        "no preference" if r.agent_winner is None else str(r.agent_winner))
+            rej.add_row(
+                str(r.round),
+                f"{r.a} vs {r.b}",
+                str(r.human_winner),
+                "no preference" if r.agent_winner is None else str(r.agent_winner),
+                "yes" if r.contested else "",
+            )
         console.print(rej)
+
+
+def _contested_text(c: Conformance) -> str:
+    """``3/5 = 0.600 (95% CI ...)``, or why there is nothing to tell."""
+    k = c.contested
+    if k.n == 0 or k.agreement_ci is None:  # the interval is None exactly when n == 0
+        return "none contested: this bracket cannot tell whether the advice was used"
+    lo, hi = k.agreement_ci
+    return f"{k.kept}/{k.n} = {k.agreement:.3f}  (95% CI {lo:.3f}..{hi:.3f})"
 
 
 @cli.command()
@@ -107,7 +135,8 @@ def demo(
 ) -> None:
     """The engine end to end: a `standing` teacher's tree against its `good` replay."""
     check_env_id(env)
-    human = run_tournament(env_id=env, n_candidates=candidates, p=0.9, seed=seed,
-                           teacher="standing")
+    human = run_tournament(
+        env_id=env, n_candidates=candidates, p=0.9, seed=seed, teacher="standing"
+    )
     other = replay_with_teacher(human, "good")
     print_conformance(compare(human, other), human, other)

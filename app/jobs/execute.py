@@ -2,9 +2,11 @@
 
 The run's row says what to train (config, advice tree, resume flag); :func:`execute_run`
 calls :func:`engine.rl.runner.train` in the run directory, stores every metrics row as the
-run's progress, polls for a cancel (or for the run being taken away, e.g. marked
-``interrupted`` after a restart) after every update, and sets the final state. A stop always
-writes a checkpoint first (``train`` does), so an interrupted or cancelled run can resume.
+run's progress, judges every checkpoint once and stores the result as the checkpoint's artefact
+(:mod:`app.services.artefacts`; the web tier only reads it), polls for a cancel (or for the
+run being taken away, e.g. marked ``interrupted`` after a restart) after every update, and
+sets the final state. A stop always writes a checkpoint first (``train`` does), so an
+interrupted or cancelled run can resume.
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ from sqlalchemy.orm import Session, sessionmaker
 from app.db import make_engine, make_sessions
 from app.jobs import queue
 from app.models import Run
+from app.services import artefacts
 from engine.errors import InputError
 
 log = logging.getLogger(__name__)
@@ -39,8 +42,14 @@ def run_dir(runs_dir: Path | str, run_id: int) -> Path:
     return Path(runs_dir) / str(run_id)
 
 
-def execute_run(run_id: int, *, database_url: str, runs_dir: str | Path, worker: str,
-                interrupted: Callable[[], bool] | None = None) -> str:
+def execute_run(
+    run_id: int,
+    *,
+    database_url: str,
+    runs_dir: str | Path,
+    worker: str,
+    interrupted: Callable[[], bool] | None = None,
+) -> str:
     """Train run ``run_id``, which ``worker`` has claimed; returns the state it ends in.
 
     Args:
@@ -64,8 +73,13 @@ def execute_run(run_id: int, *, database_url: str, runs_dir: str | Path, worker:
 class _Job:
     """The state of one execution: why it stopped, if it did."""
 
-    def __init__(self, sessions: sessionmaker[Session], run_id: int, worker: str,
-                 interrupted: Callable[[], bool]) -> None:
+    def __init__(
+        self,
+        sessions: sessionmaker[Session],
+        run_id: int,
+        worker: str,
+        interrupted: Callable[[], bool],
+    ) -> None:
         self.sessions, self.run_id, self.worker = sessions, run_id, worker
         self.interrupted = interrupted
         self.reason: str | None = None  # cancel, lost, interrupted
@@ -77,56 +91,96 @@ class _Job:
             return "lost"
         try:
             with run_lock(out):
-                _train(row, out, self.progress, self.should_stop)
+                _train(row, out, self.progress, self.should_stop, self.judge_checkpoint(row, out))
         except Exception as exc:  # any failure must end up on the run, not in a log only
             log.error("run %d failed:\n%s", self.run_id, traceback.format_exc())
             return self._finish("failed", error_text(exc))
         final = {None: "succeeded", "cancel": "cancelled", "interrupted": "interrupted"}
         if self.reason == "lost":
             return "lost"
-        return self._finish(final[self.reason],
-                            queue.INTERRUPTED if self.reason == "interrupted" else None)
+        return self._finish(
+            final[self.reason], queue.INTERRUPTED if self.reason == "interrupted" else None
+        )
 
     def _finish(self, status: str, error: str | None = None) -> str:
         with self.sessions() as session:
-            done = queue.finish(session, run_id=self.run_id, worker=self.worker, status=status,
-                                error=error)
+            done = queue.finish(
+                session, run_id=self.run_id, worker=self.worker, status=status, error=error
+            )
         return status if done else "lost"
 
     def progress(self, row: dict[str, Any]) -> None:
         with self.sessions() as session:
-            ours = queue.report_progress(session, run_id=self.run_id, worker=self.worker,
-                                         timesteps=int(row["timesteps"]),
-                                         metrics=progress_metrics(row))
+            ours = queue.report_progress(
+                session,
+                run_id=self.run_id,
+                worker=self.worker,
+                timesteps=int(row["timesteps"]),
+                metrics=progress_metrics(row),
+            )
         if not ours:
             self.reason = self.reason or "lost"
+
+    def judge_checkpoint(self, row: Run, out: Path) -> Callable[[int, Path], None] | None:
+        """The ``on_checkpoint`` hook: store the checkpoint's artefact (runs with advice)."""
+        advice = row.advice
+        if advice is None:
+            return None
+
+        def judge(step: int, _: Path) -> None:
+            try:
+                artefacts.record(
+                    self.sessions, run_id=self.run_id, advice=advice, out=out, step=step
+                )
+            except Exception:  # a judge failing must not fail the training; backfill retries
+                log.error(
+                    "run %d, checkpoint %d: no artefact:\n%s",
+                    self.run_id,
+                    step,
+                    traceback.format_exc(),
+                )
+
+        return judge
 
     def should_stop(self) -> bool:
         if self.reason is None and self.interrupted():
             self.reason = "interrupted"
         if self.reason is None:
             with self.sessions() as session:
-                self.reason = queue.stop_reason(session, run_id=self.run_id,
-                                                worker=self.worker)
+                self.reason = queue.stop_reason(session, run_id=self.run_id, worker=self.worker)
         return self.reason is not None
 
 
-def _train(row: Run, out: Path, progress: Callable[[dict[str, Any]], None],
-           should_stop: Callable[[], bool]) -> None:
+def _train(
+    row: Run,
+    out: Path,
+    progress: Callable[[dict[str, Any]], None],
+    should_stop: Callable[[], bool],
+    on_checkpoint: Callable[[int, Path], None] | None,
+) -> None:
     from engine.rl.config import TrainConfig  # torch loads here, in the run's process
     from engine.rl.runner import train
     from engine.treefile import tree_from_json
 
     advice = tree_from_json(row.advice) if row.advice is not None else None
-    train(TrainConfig.from_json(row.config), advice, out, progress=progress,
-          should_stop=should_stop, resume=row.resume)
+    train(
+        TrainConfig.from_json(row.config),
+        advice,
+        out,
+        progress=progress,
+        should_stop=should_stop,
+        resume=row.resume,
+        on_checkpoint=on_checkpoint,
+    )
 
 
 def progress_metrics(row: dict[str, Any]) -> dict[str, Any]:
     """A metrics row as stored on the run: scalars only, NaN and infinities as null."""
-    return {k: None if isinstance(v, float) and not math.isfinite(v) else v
-            for k, v in row.items()
-            if k not in _SKIPPED_KEYS and (v is None or isinstance(v, int | float))}
+    return {
+        k: None if isinstance(v, float) and not math.isfinite(v) else v
+        for k, v in row.items()
+        if k not in _SKIPPED_KEYS and (v is None or isinstance(v, int | float))
+    }
 
 
 def error_text(exc: BaseException) -> str:

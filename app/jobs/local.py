@@ -53,16 +53,29 @@ class LocalExecutor:
         """Start the process of a run ``worker`` has claimed."""
         out = run_dir(self.runs_dir, run_id)
         out.mkdir(parents=True, exist_ok=True)
-        env = os.environ | {"DATABASE_URL": self.database_url,
-                            "ACV_RUNS_DIR": str(self.runs_dir),
-                            "PYTHONPATH": os.pathsep.join(
-                                filter(None, [str(ROOT), os.environ.get("PYTHONPATH")]))}
+        env = os.environ | {
+            "DATABASE_URL": self.database_url,
+            "ACV_RUNS_DIR": str(self.runs_dir),
+            "PYTHONPATH": os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")])),
+        }
         with (out / LOG_FILE).open("ab") as log:
             self.procs[run_id] = subprocess.Popen(
-                [sys.executable, "-m", "app.jobs.run_process", str(run_id),
-                 "--worker", worker, "--parent", str(os.getpid())],
-                stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT, env=env,
-                start_new_session=True)
+                [
+                    sys.executable,
+                    "-m",
+                    "app.jobs.run_process",
+                    str(run_id),
+                    "--worker",
+                    worker,
+                    "--parent",
+                    str(os.getpid()),
+                ],
+                stdin=subprocess.DEVNULL,
+                stdout=log,
+                stderr=subprocess.STDOUT,
+                env=env,
+                start_new_session=True,
+            )
 
     @property
     def active(self) -> int:
@@ -84,8 +97,11 @@ class LocalExecutor:
         return done
 
     def _death(self, run_id: int, code: int) -> str:
-        how = (f"was killed by {signal.Signals(-code).name}" if code < 0
-               else f"exited with code {code}")
+        how = (
+            f"was killed by {signal.Signals(-code).name}"
+            if code < 0
+            else f"exited with code {code}"
+        )
         path = run_dir(self.runs_dir, run_id) / LOG_FILE
         tail = path.read_text(errors="replace")[-TAIL_CHARS:].strip() if path.exists() else ""
         return f"the run process {how}" + (f"; its last output:\n{tail}" if tail else "")

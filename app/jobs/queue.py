@@ -17,9 +17,9 @@ import secrets
 import socket
 from collections.abc import Callable
 from datetime import timedelta
-from typing import Any
+from typing import Any, cast
 
-from sqlalchemy import select, update
+from sqlalchemy import CursorResult, select, update
 from sqlalchemy.orm import Session
 
 from app.db import writing
@@ -63,21 +63,38 @@ def worker_alive(worker: str) -> bool | None:
 def update_if(session: Session, where: tuple, **values: Any) -> bool:
     """One conditional update in its own transaction; whether it changed a row."""
     with writing(session):
-        result = session.execute(update(Run).where(*where).values(**values)
-                                 .execution_options(synchronize_session=False))
+        result = cast(
+            CursorResult[Any],
+            session.execute(
+                update(Run)
+                .where(*where)
+                .values(**values)
+                .execution_options(synchronize_session=False)
+            ),
+        )
     return result.rowcount == 1
 
 
 def claim_next(session: Session, *, worker: str, executor: str) -> int | None:
     """Take the oldest queued run for ``worker``; its id, or None when the queue is empty."""
-    queued = list(session.scalars(select(Run.id).where(Run.status == "queued")
-                                  .order_by(Run.id).limit(CLAIM_BATCH)))
+    queued = list(
+        session.scalars(
+            select(Run.id).where(Run.status == "queued").order_by(Run.id).limit(CLAIM_BATCH)
+        )
+    )
     session.rollback()  # end the read transaction before writing
     now = utcnow()
     for run_id in queued:
-        if update_if(session, (Run.id == run_id, Run.status == "queued"), status="running",
-                worker=worker, executor=executor, started_at=now, heartbeat_at=now,
-                error=None):
+        if update_if(
+            session,
+            (Run.id == run_id, Run.status == "queued"),
+            status="running",
+            worker=worker,
+            executor=executor,
+            started_at=now,
+            heartbeat_at=now,
+            error=None,
+        ):
             return run_id
     return None
 
@@ -85,64 +102,96 @@ def claim_next(session: Session, *, worker: str, executor: str) -> int | None:
 def heartbeat(session: Session, *, worker: str) -> None:
     """Tell the others that ``worker`` still looks after its running runs."""
     with writing(session):
-        session.execute(update(Run).where(Run.worker == worker, Run.status == "running")
-                        .values(heartbeat_at=utcnow())
-                        .execution_options(synchronize_session=False))
+        session.execute(
+            update(Run)
+            .where(Run.worker == worker, Run.status == "running")
+            .values(heartbeat_at=utcnow())
+            .execution_options(synchronize_session=False)
+        )
 
 
-def report_progress(session: Session, *, run_id: int, worker: str, timesteps: int,
-                    metrics: dict[str, Any]) -> bool:
+def report_progress(
+    session: Session, *, run_id: int, worker: str, timesteps: int, metrics: dict[str, Any]
+) -> bool:
     """Store a run's progress; False when the run is no longer this worker's to run."""
-    return update_if(session, _ours(run_id, worker), progress=timesteps, metrics=metrics,
-                heartbeat_at=utcnow())
+    return update_if(
+        session, _ours(run_id, worker), progress=timesteps, metrics=metrics, heartbeat_at=utcnow()
+    )
 
 
 def stop_reason(session: Session, *, run_id: int, worker: str) -> str | None:
     """``cancel`` when a cancel was asked, ``lost`` when the run is no longer ours, else None."""
-    row = session.execute(select(Run.status, Run.worker, Run.cancel_requested)
-                          .where(Run.id == run_id)).one_or_none()
+    row = session.execute(
+        select(Run.status, Run.worker, Run.cancel_requested).where(Run.id == run_id)
+    ).one_or_none()
     session.rollback()
     if row is None or row.status != "running" or row.worker != worker:
         return "lost"
     return "cancel" if row.cancel_requested else None
 
 
-def finish(session: Session, *, run_id: int, worker: str, status: str,
-           error: str | None = None) -> bool:
+def finish(
+    session: Session, *, run_id: int, worker: str, status: str, error: str | None = None
+) -> bool:
     """Move a run this worker is running to its final ``status`` (or ``interrupted``)."""
     finished_at = None if status == "interrupted" else utcnow()
-    return update_if(session, _ours(run_id, worker), status=status, error=error,
-                finished_at=finished_at)
+    return update_if(
+        session, _ours(run_id, worker), status=status, error=error, finished_at=finished_at
+    )
 
 
 def interrupt_worker_runs(session: Session, *, worker: str, reason: str = INTERRUPTED) -> int:
     """Mark every run ``worker`` is running as ``interrupted``; how many there were."""
     with writing(session):
-        result = session.execute(update(Run).where(Run.worker == worker,
-                                                   Run.status == "running")
-                                 .values(status="interrupted", error=reason)
-                                 .execution_options(synchronize_session=False))
+        result = cast(
+            CursorResult[Any],
+            session.execute(
+                update(Run)
+                .where(Run.worker == worker, Run.status == "running")
+                .values(status="interrupted", error=reason)
+                .execution_options(synchronize_session=False)
+            ),
+        )
     return result.rowcount
 
 
-def recover(session: Session, *, alive: Callable[[str], bool | None] = worker_alive,
-            stale_s: float = STALE_S) -> list[int]:
+def recover(
+    session: Session,
+    *,
+    alive: Callable[[str], bool | None] = worker_alive,
+    stale_s: float = STALE_S,
+) -> list[int]:
     """Mark running runs whose worker is gone as ``interrupted``; returns their ids.
 
     A worker is gone when ``alive`` says so, or (where it cannot tell) when the run had no
     heartbeat for ``stale_s`` seconds.
     """
-    rows = session.execute(select(Run.id, Run.worker, Run.heartbeat_at)
-                           .where(Run.status == "running")).all()
+    rows = session.execute(
+        select(Run.id, Run.worker, Run.heartbeat_at).where(Run.status == "running")
+    ).all()
     session.rollback()
     cutoff = utcnow() - timedelta(seconds=stale_s)
-    gone = [(rid, w) for rid, w, beat in rows
-            if w is None or alive(w) is False
-            or (alive(w) is None and (beat is None or as_utc(beat) < cutoff))]
-    return [rid for rid, w in gone
-            if update_if(session, (Run.id == rid, Run.status == "running",
-                              Run.worker.is_(None) if w is None else Run.worker == w),
-                    status="interrupted", error=INTERRUPTED)]
+    gone = [
+        (rid, w)
+        for rid, w, beat in rows
+        if w is None
+        or alive(w) is False
+        or (alive(w) is None and (beat is None or as_utc(beat) < cutoff))
+    ]
+    return [
+        rid
+        for rid, w in gone
+        if update_if(
+            session,
+            (
+                Run.id == rid,
+                Run.status == "running",
+                Run.worker.is_(None) if w is None else Run.worker == w,
+            ),
+            status="interrupted",
+            error=INTERRUPTED,
+        )
+    ]
 
 
 def _ours(run_id: int, worker: str) -> tuple:

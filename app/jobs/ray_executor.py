@@ -15,8 +15,9 @@ runs last hours.
 
 from __future__ import annotations
 
+import logging
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 from app.jobs.execute import execute_run
 from app.jobs.local import TAIL_CHARS, Finished
@@ -43,9 +44,15 @@ class RayExecutor:
 
         self._ray = ray
         if not ray.is_initialized():
-            ray.init(address=address, namespace="acv", logging_level="WARNING",
-                     log_to_driver=False, configure_logging=False)
-        self._task = ray.remote(num_cpus=TASK_CPUS, max_retries=0)(execute_run)
+            ray.init(
+                address=address,
+                namespace="acv",
+                logging_level=logging.WARNING,
+                log_to_driver=False,
+                configure_logging=False,
+            )
+        # ray's stubs type a decorated function as taking no arguments; ours takes the run's
+        self._task: Any = ray.remote(num_cpus=TASK_CPUS, max_retries=0)(cast(Any, execute_run))
         self.database_url = database_url
         self.runs_dir = str(Path(runs_dir).resolve())
         self.refs: dict[Any, int] = {}
@@ -54,7 +61,8 @@ class RayExecutor:
     def start(self, run_id: int, worker: str) -> None:
         """Submit a run ``worker`` has claimed."""
         ref = self._task.options(name=f"acv-run-{run_id}").remote(
-            run_id, database_url=self.database_url, runs_dir=self.runs_dir, worker=worker)
+            run_id, database_url=self.database_url, runs_dir=self.runs_dir, worker=worker
+        )
         self.refs[ref] = run_id
 
     @property
@@ -85,8 +93,9 @@ class RayExecutor:
         """Wait for the tasks to end (cancel those still running after ``timeout_s``), then
         disconnect from the cluster; :meth:`poll` still reports the ended tasks."""
         if self.refs:
-            ready, left = self._ray.wait(list(self.refs), num_returns=len(self.refs),
-                                         timeout=timeout_s)
+            ready, left = self._ray.wait(
+                list(self.refs), num_returns=len(self.refs), timeout=timeout_s
+            )
             self._ended += [self._result(ref) for ref in ready]
             for ref in left:
                 self._ray.cancel(ref, force=True)

@@ -46,8 +46,9 @@ def die_with_parent() -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m app.jobs.run_process",
-                                     description="Execute one claimed training run.")
+    parser = argparse.ArgumentParser(
+        prog="python -m app.jobs.run_process", description="Execute one claimed training run."
+    )
     parser.add_argument("run_id", type=int)
     parser.add_argument("--worker", required=True, help="the claiming worker's name")
     parser.add_argument("--parent", type=int, default=None, help="the worker's pid")
@@ -60,9 +61,13 @@ def main(argv: list[str] | None = None) -> int:
     if stop():  # the worker died before we could ask to be told
         return 3
     settings = Settings()
-    status = execute_run(args.run_id, database_url=settings.sqlalchemy_url,
-                         runs_dir=JobSettings().runs_root(settings), worker=args.worker,
-                         interrupted=stop)
+    status = execute_run(
+        args.run_id,
+        database_url=settings.sqlalchemy_url,
+        runs_dir=JobSettings().runs_root(settings),
+        worker=args.worker,
+        interrupted=stop,
+    )
     logging.info("run %d: %s", args.run_id, status)
     return 0
 

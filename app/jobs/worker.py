@@ -30,8 +30,7 @@ log = logging.getLogger(__name__)
 HEARTBEAT_S, RECOVER_S = 5.0, 30.0
 #: Seconds the runs get to checkpoint and exit when the worker stops.
 STOP_GRACE_S = 30.0
-SERVER_STOPPED = "the server stopped while the run was running; resume it from its last " \
-                 "checkpoint"
+SERVER_STOPPED = "the server stopped while the run was running; resume it from its last checkpoint"
 
 
 class Executor(Protocol):
@@ -58,8 +57,9 @@ def make_executor(settings: Settings, jobs: JobSettings) -> Executor:
     if jobs.ray_address:
         from app.jobs.ray_executor import RayExecutor
 
-        return RayExecutor(address=jobs.ray_address, database_url=settings.sqlalchemy_url,
-                           runs_dir=runs_dir)
+        return RayExecutor(
+            address=jobs.ray_address, database_url=settings.sqlalchemy_url, runs_dir=runs_dir
+        )
     return LocalExecutor(database_url=settings.sqlalchemy_url, runs_dir=runs_dir)
 
 
@@ -73,8 +73,14 @@ class Worker:
         poll_s: seconds between two looks at the queue.
     """
 
-    def __init__(self, sessions: sessionmaker[Session], executor: Executor, *, slots: int = 1,
-                 poll_s: float = 1.0) -> None:
+    def __init__(
+        self,
+        sessions: sessionmaker[Session],
+        executor: Executor,
+        *,
+        slots: int = 1,
+        poll_s: float = 1.0,
+    ) -> None:
         self.sessions, self.executor = sessions, executor
         self.slots, self.poll_s = slots, poll_s
         self.id = queue.new_worker_id()
@@ -84,8 +90,9 @@ class Worker:
         """Work until ``stop`` is set (or, with ``until_idle``, the queue and slots are empty);
         then stop the runs still going (they become ``interrupted``)."""
         queue.register(self.id, live=True)
-        log.info("worker %s (%s executor, %d slots) started", self.id, self.executor.name,
-                 self.slots)
+        log.info(
+            "worker %s (%s executor, %d slots) started", self.id, self.executor.name, self.slots
+        )
         try:
             while not stop.is_set():
                 claimed = self.tick()
@@ -123,14 +130,18 @@ class Worker:
                 self.executor.start(run_id, self.id)
             except Exception as exc:  # the run must not stay `running` without a process
                 log.exception("run %d: could not be started", run_id)
-                queue.finish(session, run_id=run_id, worker=self.id, status="failed",
-                             error=f"could not start the run: {type(exc).__name__}: {exc}")
+                queue.finish(
+                    session,
+                    run_id=run_id,
+                    worker=self.id,
+                    status="failed",
+                    error=f"could not start the run: {type(exc).__name__}: {exc}",
+                )
         return claimed
 
     def _reap(self, session: Session, ended: Finished) -> None:
         error = ended.error or "the run process exited without reporting a result"
-        if queue.finish(session, run_id=ended.run_id, worker=self.id, status="failed",
-                        error=error):
+        if queue.finish(session, run_id=ended.run_id, worker=self.id, status="failed", error=error):
             log.error("run %d failed: %s", ended.run_id, error)
 
     def shutdown(self, grace_s: float = STOP_GRACE_S) -> None:
@@ -151,8 +162,9 @@ class WorkerThread:
     def __init__(self, worker: Worker) -> None:
         self.worker = worker
         self._stop = threading.Event()
-        self._thread = threading.Thread(target=worker.run, args=(self._stop,),
-                                        name="acv-run-worker", daemon=True)
+        self._thread = threading.Thread(
+            target=worker.run, args=(self._stop,), name="acv-run-worker", daemon=True
+        )
 
     def start(self) -> WorkerThread:
         self._thread.start()
@@ -174,7 +186,11 @@ def start_app_worker(app: FastAPI) -> WorkerThread | None:
     if not jobs.run_worker:
         return None
     runtime = app.state.runtime
-    worker = Worker(runtime.sessions, make_executor(runtime.settings, jobs),
-                    slots=jobs.worker_slots, poll_s=jobs.poll_s)
+    worker = Worker(
+        runtime.sessions,
+        make_executor(runtime.settings, jobs),
+        slots=jobs.worker_slots,
+        poll_s=jobs.poll_s,
+    )
     app.state.run_worker = worker
     return WorkerThread(worker).start()

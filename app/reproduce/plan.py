@@ -1,16 +1,23 @@
 """``acv reproduce``: the paper's experiments (section V) on one shared candidate set and bracket.
 
-Four agents ("arms") train on the same env, each with one advice tree over the same bracket:
+Every agent ("arm") trains on the same env and is compared with one advice tree over the same
+bracket:
 
-- ``ppo``: no advice, the baseline;
-- ``case1``: ``bipars-em`` with ``good`` advice (F = R, the paper's Case 1);
+- ``ppo``: no advice, the baseline (compared with the ``standing`` tree);
+- ``case1-paper``: ``bipars-em`` with F = R, the env's own step reward (the paper's Case 1,
+  "good advice"), compared with the ``good`` tree;
+- ``case1-tree``: ``bipars-em`` with F made from the ``good`` teacher's tree;
 - ``case2``: ``bipars-em`` with ``standing`` advice (the paper's Case 2);
-- ``control``: ``ppo-shaped`` with ``standing`` advice (z = 1: what naive shaping gives).
+- ``case2-mgl``: ``bipars-mgl`` (meta-gradient) with ``standing`` advice;
+- ``control``: ``ppo-shaped`` with ``standing`` advice (z = 1: what naive shaping gives);
+- ``case2-paper-min``, ``case2-paper-depth``: Case 2 with the paper's literal F
+  (``paper-min``) and with its depth factor, an ablation.
 
-The output folder holds ``reproduce.json`` (the configuration; a second call with the same
-one resumes), ``advice/{good,standing}.json`` and ``runs/<arm>/seed_<k>/`` (ordinary
-training runs, see :mod:`engine.rl.runner`). Training is resumed from the last checkpoint
-of every unfinished run, so an interrupted reproduction loses at most one checkpoint period.
+Core arms train ``seeds`` seeds, the others ``extra_seeds``. The output folder holds
+``reproduce.json`` (the configuration; a second call with the same one resumes),
+``advice/{good,standing}.json`` and ``runs/<arm>/seed_<k>/`` (ordinary training runs, see
+:mod:`engine.rl.runner`). Training is resumed from the last checkpoint of every unfinished
+run, so an interrupted reproduction loses at most one checkpoint period.
 """
 
 from __future__ import annotations
@@ -37,21 +44,65 @@ class Arm:
     Attributes:
         name: folder name under ``runs/``.
         algo: the training algorithm (:data:`engine.rl.config.ALGOS`).
-        advice: ``"good"`` or ``"standing"`` (the advice tree it trains on), or None.
+        advice: ``"good"`` or ``"standing"``: the advice tree it trains on (or, with
+            ``advice_mode="reward"``, is compared against); None for no advice.
         title: the label in figures and tables.
+        core: trained with ``seeds`` seeds (else ``extra_seeds``).
+        advice_mode: F mode (:data:`engine.rl.config.ADVICE_MODES`).
+        depth_factor: depth factor of F (``none`` or ``paper``).
     """
 
     name: str
     algo: str
     advice: str | None
     title: str
+    core: bool = True
+    advice_mode: str = "nearest"
+    depth_factor: str = "none"
+
+    @property
+    def compared_with(self) -> str:
+        """The advice tree the agent's trees are compared with."""
+        return self.advice or "standing"
 
 
 ARMS: tuple[Arm, ...] = (
     Arm("ppo", "ppo", None, "PPO, no advice"),
-    Arm("case1", "bipars-em", "good", "Case 1: BiPaRS-EM, good advice (F = R)"),
+    Arm(
+        "case1-paper", "bipars-em", "good", "Case 1 (paper): BiPaRS-EM, F = R", advice_mode="reward"
+    ),
+    Arm(
+        "case1-tree",
+        "bipars-em",
+        "good",
+        "Case 1 (tree): BiPaRS-EM, good teacher's tree",
+        core=False,
+    ),
     Arm("case2", "bipars-em", "standing", "Case 2: BiPaRS-EM, standing advice"),
+    Arm(
+        "case2-mgl",
+        "bipars-mgl",
+        "standing",
+        "Case 2, MGL: BiPaRS-MGL, standing advice",
+        core=False,
+    ),
     Arm("control", "ppo-shaped", "standing", "Control: PPO + standing advice, z = 1"),
+    Arm(
+        "case2-paper-min",
+        "bipars-em",
+        "standing",
+        "Ablation: Case 2 with F = paper-min",
+        core=False,
+        advice_mode="paper-min",
+    ),
+    Arm(
+        "case2-paper-depth",
+        "bipars-em",
+        "standing",
+        "Ablation: Case 2 with the paper's depth factor",
+        core=False,
+        depth_factor="paper",
+    ),
 )
 
 
@@ -64,7 +115,9 @@ class ReproduceConfig:
     timesteps: int = 1_000_000
     """Env steps per agent and seed."""
     seeds: int = 1
-    """Training seeds per agent: 0, 1, ..., seeds - 1."""
+    """Training seeds of each core arm: 0, 1, ..., seeds - 1."""
+    extra_seeds: int = 1
+    """Training seeds of the other arms (at most ``seeds``)."""
     n_envs: int = 4
     """Parallel envs per run."""
     num_steps: int = 512
@@ -83,10 +136,18 @@ class ReproduceConfig:
     """The participant of ``study_id`` whose Human Preference Tree is used."""
 
     def __post_init__(self) -> None:
-        for name in ("timesteps", "seeds", "n_envs", "num_steps", "checkpoint_every"):
+        for name in (
+            "timesteps",
+            "seeds",
+            "extra_seeds",
+            "n_envs",
+            "num_steps",
+            "checkpoint_every",
+        ):
             if getattr(self, name) < 1:
-                raise InputError(f"--{name.replace('_', '-')} must be at least 1, "
-                                 f"got {getattr(self, name)}")
+                raise InputError(
+                    f"--{name.replace('_', '-')} must be at least 1, got {getattr(self, name)}"
+                )
         if self.candidates < 2:
             raise InputError(f"--candidates must be at least 2, got {self.candidates}")
         if not 0.0 <= self.p <= 1.0:
@@ -103,8 +164,9 @@ class ReproduceConfig:
         return cls(**{k: v for k, v in obj.items() if k in known})
 
 
-def prepare(out: Path, config: ReproduceConfig,
-            participant_tree: TreeDocument | None = None) -> dict[str, TreeDocument]:
+def prepare(
+    out: Path, config: ReproduceConfig, participant_tree: TreeDocument | None = None
+) -> dict[str, TreeDocument]:
     """Write or check ``reproduce.json`` and return the advice trees by name.
 
     Args:
@@ -119,22 +181,29 @@ def prepare(out: Path, config: ReproduceConfig,
         saved = ReproduceConfig.from_json(json.loads(path.read_text()))
         if saved != config:
             diff = [k for k, v in config.to_json().items() if saved.to_json()[k] != v]
-            raise InputError(f"{out} holds a reproduction with other settings "
-                             f"({', '.join(diff)}): resume it as it was or choose another --out")
+            raise InputError(
+                f"{out} holds a reproduction with other settings "
+                f"({', '.join(diff)}): resume it as it was or choose another --out"
+            )
     else:
         path.write_text(json.dumps(config.to_json(), indent=1) + "\n")
     return advice_trees(out, config, participant_tree)
 
 
-def advice_trees(out: Path, config: ReproduceConfig,
-                 participant_tree: TreeDocument | None = None) -> dict[str, TreeDocument]:
+def advice_trees(
+    out: Path, config: ReproduceConfig, participant_tree: TreeDocument | None = None
+) -> dict[str, TreeDocument]:
     """``good`` and ``standing`` advice over one bracket (made once, then reloaded)."""
     folder = out / "advice"
     if (folder / "standing.json").is_file() and (folder / "good.json").is_file():
         return {name: load_tree(folder / f"{name}.json") for name in ("good", "standing")}
     standing = participant_tree or run_tournament(
-        env_id=config.env_id, n_candidates=config.candidates, p=config.p,
-        seed=config.bracket_seed, teacher="standing")
+        env_id=config.env_id,
+        n_candidates=config.candidates,
+        p=config.p,
+        seed=config.bracket_seed,
+        teacher="standing",
+    )
     trees = {"good": replay_with_teacher(standing, "good"), "standing": standing}
     folder.mkdir(parents=True, exist_ok=True)
     for name, doc in trees.items():
@@ -151,30 +220,62 @@ def train_config(config: ReproduceConfig, arm: Arm, seed: int):
     """The :class:`engine.rl.config.TrainConfig` of one arm and seed."""
     from engine.rl.config import TrainConfig
 
-    return TrainConfig(algo=arm.algo, env_id=config.env_id, total_timesteps=config.timesteps,
-                       seed=seed, n_envs=config.n_envs, num_steps=config.num_steps,
-                       checkpoint_every=config.checkpoint_every)
+    return TrainConfig(
+        algo=arm.algo,
+        env_id=config.env_id,
+        total_timesteps=config.timesteps,
+        seed=seed,
+        n_envs=config.n_envs,
+        num_steps=config.num_steps,
+        checkpoint_every=config.checkpoint_every,
+        advice_mode=arm.advice_mode,
+        advice_depth_factor=arm.depth_factor,
+    )
 
 
-def train_all(out: Path, config: ReproduceConfig, trees: dict[str, TreeDocument],
-              jobs: int = 1) -> None:
+def arm_seeds(config: ReproduceConfig, arm: Arm) -> range:
+    """The training seeds of ``arm``."""
+    return range(config.seeds if arm.core else min(config.extra_seeds, config.seeds))
+
+
+def tasks(config: ReproduceConfig) -> list[tuple[Arm, int]]:
+    """Every (arm, seed) to train, seed by seed (so that seed 0 of every arm comes first)."""
+    return [
+        (arm, seed)
+        for seed in range(config.seeds)
+        for arm in ARMS
+        if seed in arm_seeds(config, arm)
+    ]
+
+
+def train_all(
+    out: Path, config: ReproduceConfig, trees: dict[str, TreeDocument], jobs: int = 1
+) -> None:
     """Train (or finish training) every arm and seed, ``jobs`` runs at a time."""
-    tasks = [(arm, seed) for seed in range(config.seeds) for arm in ARMS]
+    todo = tasks(config)
     if jobs <= 1:
-        for i, (arm, seed) in enumerate(tasks):
+        for i, (arm, seed) in enumerate(todo):
             train_arm(out, config, arm, seed, trees, i)
         return
     # Runs are independent and single-threaded (torch uses one thread per run): processes
     # give a near-linear speed-up; spawn, because torch and MuJoCo are not fork-safe.
     with ProcessPoolExecutor(max_workers=jobs, mp_context=get_context("spawn")) as pool:
-        futures = [pool.submit(train_arm, out, config, arm, seed, trees, i % jobs)
-                   for i, (arm, seed) in enumerate(tasks)]
+        futures = [
+            pool.submit(train_arm, out, config, arm, seed, trees, i % jobs)
+            for i, (arm, seed) in enumerate(todo)
+        ]
         for future in futures:
             future.result()
 
 
-def train_arm(out: Path, config: ReproduceConfig, arm: Arm, seed: int,
-              trees: dict[str, TreeDocument], position: int = 0) -> None:
+def train_arm(
+    out: Path,
+    config: ReproduceConfig,
+    arm: Arm,
+    seed: int,
+    trees: dict[str, TreeDocument],
+    position: int = 0,
+) -> None:
     """Train one arm and seed to the end, resuming from its last checkpoint if it has one."""
     from tqdm import tqdm
 
@@ -190,13 +291,27 @@ def train_arm(out: Path, config: ReproduceConfig, arm: Arm, seed: int,
     if not found and path.exists():  # killed before its first checkpoint: start again
         shutil.rmtree(path)
     start = max(found) if found else 0
-    with tqdm(total=done, initial=start, unit="step", position=position, leave=True,
-              desc=f"{arm.name} seed {seed}", dynamic_ncols=True) as bar:
+    with tqdm(
+        total=done,
+        initial=start,
+        unit="step",
+        position=position,
+        leave=True,
+        desc=f"{arm.name} seed {seed}",
+        dynamic_ncols=True,
+    ) as bar:
+
         def progress(row: dict) -> None:
             bar.update(row["timesteps"] - bar.n)
             ret = row.get("return_100")
-            bar.set_postfix(ret="-" if ret is None else f"{ret:.0f}",
-                            z=f"{row['z_mean']:.2f}", refresh=False)
+            bar.set_postfix(
+                ret="-" if ret is None else f"{ret:.0f}", z=f"{row['z_mean']:.2f}", refresh=False
+            )
 
-        train(cfg, trees[arm.advice] if arm.advice else None, path, progress=progress,
-              resume=bool(found))
+        train(
+            cfg,
+            trees[arm.advice] if arm.advice else None,
+            path,
+            progress=progress,
+            resume=bool(found),
+        )

@@ -15,12 +15,15 @@ import os
 import re
 import secrets
 import time
+import weakref
+from dataclasses import dataclass
 from pathlib import Path
 
 from fastapi import Response
-from sqlalchemy import select
+from sqlalchemy import Connection, Engine, bindparam, select
 from sqlalchemy.orm import Session
 
+from app.db import engine_of
 from app.models import Participant, token_digest
 from app.services.errors import AuthError
 from app.settings import Settings
@@ -70,7 +73,8 @@ def ensure_admin_token(settings: Settings) -> str:
         raise InputError(
             f"the admin token in {where} has {len(token)} characters; use at least "
             f"{MIN_ADMIN_TOKEN_CHARS}, e.g. python3 -c 'import secrets; "
-            f"print(secrets.token_urlsafe(32))'")
+            f"print(secrets.token_urlsafe(32))'"
+        )
     return token
 
 
@@ -122,25 +126,34 @@ def researcher_cookie_value(*, admin_token: str, issued_at: float | None = None)
     return f"{payload}.{_sign(admin_token, payload)}"
 
 
-def valid_researcher_cookie(*, cookie: str | None, admin_token: str, max_age_s: float,
-                            now: float | None = None) -> bool:
+def valid_researcher_cookie(
+    *, cookie: str | None, admin_token: str, max_age_s: float, now: float | None = None
+) -> bool:
     """Whether ``cookie`` was signed with this admin token less than ``max_age_s`` ago."""
     if not cookie or len(cookie) > _MAX_TOKEN_CHARS or cookie.count(".") != 2:
         return False
     issued, nonce, signature = cookie.split(".")
-    if not (issued.isascii() and issued.isdigit() and len(issued) <= 12) or \
-            not same_secret(signature, _sign(admin_token, f"{issued}.{nonce}")):
+    if not (issued.isascii() and issued.isdigit() and len(issued) <= 12) or not same_secret(
+        signature, _sign(admin_token, f"{issued}.{nonce}")
+    ):
         return False
     age = (time.time() if now is None else now) - int(issued)
     return -CLOCK_SKEW_S <= age <= max_age_s
 
 
-def is_researcher(*, admin_token: str, bearer: str | None = None, cookie: str | None = None,
-                  max_age_s: float | None = None) -> bool:
+def is_researcher(
+    *,
+    admin_token: str,
+    bearer: str | None = None,
+    cookie: str | None = None,
+    max_age_s: float | None = None,
+) -> bool:
     """Whether a bearer token, or a researcher cookie younger than ``max_age_s`` (the
     session length; without it no cookie counts), proves the researcher."""
-    return same_secret(bearer, admin_token) or (max_age_s is not None and valid_researcher_cookie(
-        cookie=cookie, admin_token=admin_token, max_age_s=max_age_s))
+    return same_secret(bearer, admin_token) or (
+        max_age_s is not None
+        and valid_researcher_cookie(cookie=cookie, admin_token=admin_token, max_age_s=max_age_s)
+    )
 
 
 def is_invite_token(session: Session, *, token: str) -> bool:
@@ -162,26 +175,88 @@ def participant_by_token(session: Session, *, token: str | None) -> Participant:
         raise AuthError("a participant invite token is required")
     if not _TOKEN_SHAPE.fullmatch(token):
         raise AuthError("unknown invite token")
-    participant = session.scalar(select(Participant).where(
-        Participant.token_hash == token_digest(token)))
-    if participant is None or not secrets.compare_digest(token.encode(),
-                                                         participant.token.encode()):
+    participant = session.scalar(
+        select(Participant).where(Participant.token_hash == token_digest(token))
+    )
+    if participant is None or not secrets.compare_digest(
+        token.encode(), participant.token.encode()
+    ):
         raise AuthError("unknown invite token")
     return participant
 
 
-def set_researcher_cookie(response: Response, *, admin_token: str, max_age_s: int,
-                          secure: bool) -> None:
+@dataclass(frozen=True)
+class ParticipantRef:
+    """A participant as the labelling hot path knows them (no row object, no session)."""
+
+    id: int
+    study_id: int
+    token: str
+
+
+#: Participants already looked up in this process, by database (engine) and token digest:
+#: invite tokens never change and participants are never deleted (and the label write
+#: checks the row is there), so the hot path needs no query to authenticate a known token.
+_known: weakref.WeakKeyDictionary[Engine, dict[str, ParticipantRef]] = weakref.WeakKeyDictionary()
+_MAX_KNOWN = 100_000
+_BY_DIGEST = select(Participant.id, Participant.study_id, Participant.token).where(
+    Participant.token_hash == bindparam("digest")
+)
+
+
+def participant_ref_by_token(db: Session | Connection, *, token: str | None) -> ParticipantRef:
+    """The participant holding invite ``token``, from this process's cache when known.
+
+    Raises:
+        AuthError: missing or unknown token.
+    """
+    if not token:
+        raise AuthError("a participant invite token is required")
+    if not _TOKEN_SHAPE.fullmatch(token):
+        raise AuthError("unknown invite token")
+    digest = token_digest(token)
+    engine = engine_of(db)
+    cache = _known.get(engine)
+    if cache is None:
+        cache = _known.setdefault(engine, {})
+    if (known := cache.get(digest)) is None:
+        row = db.execute(_BY_DIGEST, {"digest": digest}).one_or_none()
+        if row is None:
+            raise AuthError("unknown invite token")
+        known = ParticipantRef(*row)
+        if len(cache) >= _MAX_KNOWN:  # bounded memory; the busy ones come back at once
+            cache.clear()
+        cache[digest] = known
+    if not secrets.compare_digest(token.encode(), known.token.encode()):
+        raise AuthError("unknown invite token")
+    return known
+
+
+def set_researcher_cookie(
+    response: Response, *, admin_token: str, max_age_s: int, secure: bool
+) -> None:
     """Log the browser in as the researcher for ``max_age_s`` (HttpOnly, SameSite=Lax; the
     server enforces the age too, see :func:`valid_researcher_cookie`)."""
-    response.set_cookie(RESEARCHER_COOKIE, researcher_cookie_value(admin_token=admin_token),
-                        max_age=max_age_s, httponly=True, samesite="lax", secure=secure)
+    response.set_cookie(
+        RESEARCHER_COOKIE,
+        researcher_cookie_value(admin_token=admin_token),
+        max_age=max_age_s,
+        httponly=True,
+        samesite="lax",
+        secure=secure,
+    )
 
 
 def set_participant_cookie(response: Response, *, token: str, secure: bool) -> None:
     """Remember the participant in this browser, so they can resume (HttpOnly, Lax)."""
-    response.set_cookie(PARTICIPANT_COOKIE, token, max_age=PARTICIPANT_COOKIE_MAX_AGE_S,
-                        httponly=True, samesite="lax", secure=secure)
+    response.set_cookie(
+        PARTICIPANT_COOKIE,
+        token,
+        max_age=PARTICIPANT_COOKIE_MAX_AGE_S,
+        httponly=True,
+        samesite="lax",
+        secure=secure,
+    )
 
 
 def clear_cookies(response: Response) -> None:

@@ -1,10 +1,10 @@
 """The Human and the Agent Preference Tree of a run, and their conformance ("anytime").
 
-At any checkpoint the run's advice bracket is replayed with the agent as the judge
-(:func:`engine.rl.agent_judge.agent_tree`); the metrics are exactly those of ``acv compare
---json`` (:func:`engine.conformance.compare`). Agent trees are cached in the run directory
-(``agent_trees/``), keyed by checkpoint, judge and the checkpoint file's modification time,
-so a conformance curve over many checkpoints is computed once.
+Everything here reads the checkpoint artefacts that the run's executor stored
+(:mod:`app.services.artefacts`): every judge's Agent Preference Tree, its conformance to the
+run's advice tree (:class:`engine.conformance.Conformance`) and the per-candidate table. No
+function here loads a checkpoint, imports torch or builds an env; a checkpoint whose artefact
+is not stored yet raises :class:`app.services.errors.PendingError` (HTTP 202).
 """
 
 from __future__ import annotations
@@ -12,28 +12,84 @@ from __future__ import annotations
 import csv
 import io
 import json
-import os
-import tempfile
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from engine.conformance import compare
-from engine.errors import InputError
-from engine.treefile import TreeDocument, tree_from_json, tree_to_json
+from sqlalchemy.orm import Session
 
-CACHE_DIR = "agent_trees"
+from app.services import artefacts
+from app.services.errors import PendingError
+from engine.conformance import Conformance
+from engine.errors import InputError
+from engine.treefile import TreeDocument, tree_from_json
+
 #: Columns of the conformance CSV exports (one row per checkpoint).
-CSV_COLUMNS = ("checkpoint", "n_matches", "n_agree", "match_agreement", "match_agreement_ci_low",
-               "match_agreement_ci_high", "kendall_tau_b", "tree_edit_distance",
-               "same_champion", "n_rejected")
+CSV_COLUMNS = (
+    "checkpoint",
+    "n_matches",
+    "n_agree",
+    "match_agreement",
+    "match_agreement_ci_low",
+    "match_agreement_ci_high",
+    "kendall_tau_b",
+    "tree_edit_distance",
+    "same_champion",
+    "n_rejected",
+    "contested_n",
+    "contested_kept",
+    "reference_agreement",
+)
 _EPISODE_KEYS = ("episode_returns", "episode_shaped_returns")
+#: The judges whose disagreement the verdict names: what the agent's reward says, what it does.
+_REWARD_JUDGE, _BEHAVIOUR_JUDGE = "shaped", "behaviour"
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """One candidate at a checkpoint (the columns of :class:`engine.rl.report.CandidateRow`)."""
+
+    id: int
+    reward: float
+    advice: float
+    z: float
+    shaping: float
+    shaped: float
+    value: float
+    behaviour: float
+
+
+@dataclass(frozen=True)
+class CheckpointView:
+    """One checkpoint as stored: every judge's tree and conformance, and the candidates."""
+
+    step: int
+    trees: dict[str, TreeDocument]
+    conformance: dict[str, Conformance]
+    candidates: list[Candidate]
+
+    def tree(self, judge: str) -> TreeDocument:
+        """The judge's Agent Preference Tree.
+
+        Raises:
+            InputError: the artefact has no tree for this judge.
+        """
+        if judge not in self.trees:
+            raise InputError(
+                f"checkpoint {self.step} has no tree for judge {judge!r}; it has: "
+                f"{', '.join(sorted(self.trees)) or 'none'}"
+            )
+        return self.trees[judge]
+
+    def of(self, judge: str) -> Conformance:
+        """The judge's conformance to the advice tree."""
+        self.tree(judge)
+        return self.conformance[judge]
 
 
 def checkpoints(out: Path) -> list[int]:
-    """The timesteps of the run's checkpoints, in increasing order."""
-    from engine.rl.checkpoint import list_checkpoints  # torch loads on first use
-
-    return list(list_checkpoints(out))
+    """The timesteps of the run's checkpoints, in increasing order (no torch import)."""
+    return artefacts.checkpoint_steps(out)
 
 
 def pick_checkpoint(out: Path, step: int | None) -> int:
@@ -48,67 +104,130 @@ def pick_checkpoint(out: Path, step: int | None) -> int:
     if step is None:
         return steps[-1]
     if step not in steps:
-        raise InputError(f"the run has no checkpoint at step {step}; it has "
-                         f"{', '.join(map(str, steps))}")
+        raise InputError(
+            f"the run has no checkpoint at step {step}; it has {', '.join(map(str, steps))}"
+        )
     return step
 
 
-def agent_doc(out: Path, step: int, advice: TreeDocument, judge: str = "shaped") -> TreeDocument:
-    """The Agent Preference Tree at checkpoint ``step`` (cached on disk)."""
-    from engine.rl.agent_judge import agent_tree
-    from engine.rl.checkpoint import checkpoint_path
-
-    mtime = checkpoint_path(out, step).stat().st_mtime_ns
-    cached = out / CACHE_DIR / f"step_{step}.{judge}.{mtime}.json"
-    if cached.is_file():
-        return tree_from_json(json.loads(cached.read_text()))
-    doc = agent_tree(out, step, judge=judge, advice=advice)
-    _write_atomic(cached, json.dumps(tree_to_json(doc)))
-    return doc
+def view_of(step: int, body: dict[str, Any]) -> CheckpointView:
+    """A stored ``acv.checkpoint/1`` document as a :class:`CheckpointView`."""
+    judges = body.get("judges") or {}
+    return CheckpointView(
+        step=step,
+        trees={j: tree_from_json(v["tree"]) for j, v in judges.items()},
+        conformance={j: Conformance.from_json(v["conformance"]) for j, v in judges.items()},
+        candidates=[Candidate(**row) for row in body.get("candidates") or []],
+    )
 
 
-def _write_atomic(path: Path, text: str) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".tmp-")
-    with os.fdopen(fd, "w") as f:
-        f.write(text)
-    os.replace(tmp, path)
+def checkpoint_view(session: Session, *, run_id: int, step: int) -> CheckpointView:
+    """The stored artefact of one checkpoint.
+
+    Raises:
+        PendingError: not computed yet.
+    """
+    return view_of(step, artefacts.payload(session, run_id=run_id, step=step))
 
 
-def conformance(human: TreeDocument, agent: TreeDocument) -> dict[str, Any]:
-    """The metrics JSON of ``acv compare --json``."""
-    return compare(human, agent).to_json()
+def conformance_curve(
+    session: Session, *, run_id: int, out: Path, judge: str
+) -> list[tuple[int, Conformance]]:
+    """(step, conformance) at every checkpoint whose artefact is stored, increasing steps.
+
+    Raises:
+        PendingError: the run has checkpoints, but none is judged yet.
+    """
+    stored = artefacts.payloads(session, run_id=run_id)
+    if not stored and checkpoints(out):
+        raise PendingError(f"the conformance curve of run {run_id} is being computed")
+    return [(step, view_of(step, body).of(judge)) for step, body in stored.items()]
 
 
-def conformance_curve(out: Path, advice: TreeDocument,
-                      judge: str = "shaped") -> list[dict[str, Any]]:
-    """The conformance metrics at every checkpoint: ``{"checkpoint": step, **metrics}``."""
-    return [{"checkpoint": step, **conformance(advice, agent_doc(out, step, advice, judge))}
-            for step in checkpoints(out)]
+def pending_steps(session: Session, *, run_id: int, out: Path) -> list[int]:
+    """The run's checkpoints whose artefact is not stored yet."""
+    have = artefacts.computed_steps(session, run_id=run_id)
+    return [s for s in checkpoints(out) if s not in have]
 
 
-def verdict(metrics: dict[str, Any], whose: str = "your") -> str:
-    """One plain sentence: ``the agent kept 14 of 15 of your choices ...``."""
-    kept, n = metrics["n_agree"], metrics["n_matches"]
-    rejected = n - kept
-    text = f"The agent kept {kept} of {n} of {whose} choices"
-    text += " and rejected none." if rejected == 0 else \
-        f" and overturned {rejected} ({1 - kept / n:.0%})."
-    champion = "It agrees on the champion." if metrics["same_champion"] else \
-        "It crowns a different champion."
-    return f"{text} {champion}"
+def _kept(c: Conformance) -> bool:
+    """Whether a judge keeps the advice where it matters: its contested matches if any."""
+    if c.contested.n:
+        return 2 * c.contested.kept > c.contested.n
+    return 2 * c.n_agree > c.n_matches
 
 
-def csv_text(rows: list[dict[str, Any]]) -> str:
-    """Conformance metrics (one dict per checkpoint) as CSV with :data:`CSV_COLUMNS`."""
+def verdict(view: CheckpointView, judge: str, whose: str = "your") -> str:
+    """Plain sentences, contested matches first, e.g. ``Of the 5 choices where your advice
+    goes against the environment's reward, the agent kept 3. ...``."""
+    m = view.of(judge)
+    if m.contested.n:
+        text = (
+            f"Of the {m.contested.n} choices where {whose} advice goes against the "
+            f"environment's reward, the agent kept {m.contested.kept}."
+        )
+    else:
+        text = (
+            f"None of {whose} choices goes against the environment's reward, so this "
+            f"bracket cannot tell whether the agent used {whose} advice."
+        )
+    rejected = m.n_matches - m.n_agree
+    text += f" Overall it kept {m.n_agree} of {m.n_matches} of {whose} choices"
+    text += (
+        " and rejected none."
+        if rejected == 0
+        else f" and overturned {rejected} ({rejected / m.n_matches:.0%})."
+    )
+    text += " It agrees on the champion." if m.same_champion else " It crowns a different champion."
+    return f"{text}{_disagreement(view, whose)}"
+
+
+def _disagreement(view: CheckpointView, whose: str) -> str:
+    if _REWARD_JUDGE not in view.conformance or _BEHAVIOUR_JUDGE not in view.conformance:
+        return ""
+    reward, behaviour = (_kept(view.conformance[j]) for j in (_REWARD_JUDGE, _BEHAVIOUR_JUDGE))
+    if reward and not behaviour:
+        return (
+            f" The judges disagree: its reward follows {whose} advice, but its behaviour does not."
+        )
+    if behaviour and not reward:
+        return (
+            f" The judges disagree: its behaviour follows {whose} advice, but its reward does not."
+        )
+    return ""
+
+
+def highlights(m: Conformance) -> tuple[frozenset[int], frozenset[int]]:
+    """States to mark: the human's loser of each overturned match in the human tree, and the
+    human's winner (which the agent ruled against) in the agent's tree."""
+    human = frozenset(r.b if r.human_winner == r.a else r.a for r in m.rejected)
+    return human, frozenset(r.human_winner for r in m.rejected)
+
+
+def csv_text(rows: list[tuple[int, Conformance]]) -> str:
+    """Conformance metrics (one per checkpoint) as CSV with :data:`CSV_COLUMNS`."""
     out = io.StringIO()
     writer = csv.writer(out, lineterminator="\n")
     writer.writerow(CSV_COLUMNS)
-    for row in rows:
-        low, high = row["match_agreement_ci"]
-        writer.writerow((row["checkpoint"], row["n_matches"], row["n_agree"],
-                         row["match_agreement"], low, high, row["kendall_tau_b"],
-                         row["tree_edit_distance"], row["same_champion"], len(row["rejected"])))
+    for step, m in rows:
+        low, high = m.match_agreement_ci
+        writer.writerow(
+            (
+                step,
+                m.n_matches,
+                m.n_agree,
+                m.match_agreement,
+                low,
+                high,
+                m.kendall_tau_b,
+                m.tree_edit_distance,
+                m.same_champion,
+                len(m.rejected),
+                m.contested.n,
+                m.contested.kept,
+                m.reference_agreement,
+            )
+        )
     return out.getvalue()
 
 

@@ -17,7 +17,8 @@ DEMO_NAME = "Demo: upright humanoid"
 DEMO_INSTRUCTIONS = (
     "You will see two pictures of a simulated humanoid robot at a time. Pick the posture you "
     "would rather the robot be in: click the picture, or press the left or right arrow key. "
-    "Winners meet again in later rounds until one posture is left.")
+    "Winners meet again in later rounds until one posture is left."
+)
 
 
 @dataclass(frozen=True)
@@ -33,30 +34,45 @@ def ensure_demo(runtime: Runtime) -> Demo:
     """Create (once) and prepare the demo study: 16 Humanoid-v5 states, one participant
     already played by the ``standing`` teacher, and one invite nobody has used yet."""
     with runtime.sessions() as session:
-        study = session.scalar(select(Study).where(Study.name == DEMO_NAME,
-                                                   Study.status != "failed").limit(1))
+        study = session.scalar(
+            select(Study).where(Study.name == DEMO_NAME, Study.status != "failed").limit(1)
+        )
         if study is None:
-            study = create_study(session, name=DEMO_NAME, env_id="Humanoid-v5",
-                                 n_candidates=16, p=0.9, seed=0, sampling="uniform",
-                                 instructions=DEMO_INSTRUCTIONS)
+            study = create_study(
+                session,
+                name=DEMO_NAME,
+                env_id="Humanoid-v5",
+                n_candidates=16,
+                p=0.9,
+                seed=0,
+                sampling="uniform",
+                instructions=DEMO_INSTRUCTIONS,
+            )
     if study.status == "preparing":
         runtime.prepare(study.id)
     with runtime.sessions() as session:
         study = get_study(session, study_id=study.id)
-        simulated = _finished(session, study.id) or \
-            simulate(session, study_id=study.id, teacher="standing")[0]
+        simulated = (
+            _finished(session, study.id)
+            or simulate(session, study_id=study.id, teacher="standing")[0]
+        )
         return Demo(study, _unused_invite(session, study.id), simulated)
 
 
 def _finished(session: Session, study_id: int) -> Participant | None:
-    return session.scalar(select(Participant).where(
-        Participant.study_id == study_id, Participant.finished_at.is_not(None)).limit(1))
+    return session.scalar(
+        select(Participant)
+        .where(Participant.study_id == study_id, Participant.finished_at.is_not(None))
+        .limit(1)
+    )
 
 
 def _unused_invite(session: Session, study_id: int) -> str:
     unused = session.scalar(
-        select(Participant.token).outerjoin(Label, Label.participant_id == Participant.id)
-        .where(Participant.study_id == study_id, Participant.name.is_(None),
-               Label.id.is_(None)).order_by(Participant.id).limit(1))
+        select(Participant.token)
+        .outerjoin(Label, Label.participant_id == Participant.id)
+        .where(Participant.study_id == study_id, Participant.name.is_(None), Label.id.is_(None))
+        .order_by(Participant.id)
+        .limit(1)
+    )
     return unused or add_participants(session, study_id=study_id)[0].token
-

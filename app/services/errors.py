@@ -45,3 +45,9 @@ class TooManyAttemptsError(ServiceError):
     def __init__(self, detail: str, *, retry_after_s: int):
         super().__init__(detail)
         self.retry_after_s = retry_after_s
+
+
+class PendingError(ServiceError):
+    """What was asked for is being computed elsewhere (a checkpoint's artefacts); ask again."""
+
+    status_code = 202

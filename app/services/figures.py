@@ -68,9 +68,14 @@ def load_thumbs(paths: Mapping[int, Path]) -> dict[int, np.ndarray]:
     return thumbs
 
 
-def tree_figure(doc: TreeDocument, *, thumbs: Mapping[int, np.ndarray] | None = None,
-                highlight: frozenset[int] = frozenset(), title: str | None = None,
-                fmt: str = "svg") -> bytes:
+def tree_figure(
+    doc: TreeDocument,
+    *,
+    thumbs: Mapping[int, np.ndarray] | None = None,
+    highlight: frozenset[int] = frozenset(),
+    title: str | None = None,
+    fmt: str = "svg",
+) -> bytes:
     """One Preference Tree as an SVG or PNG file."""
     width, levels = _extent(doc)
     fig = Figure(figsize=(max(4.0, 1.1 * width), 0.6 + 1.5 * levels), dpi=100)
@@ -81,12 +86,18 @@ def tree_figure(doc: TreeDocument, *, thumbs: Mapping[int, np.ndarray] | None = 
     return _save(fig, fmt)
 
 
-def trees_side_by_side(left: TreeDocument, right: TreeDocument, *,
-                       thumbs: Mapping[int, np.ndarray] | None = None,
-                       highlights: tuple[frozenset[int], frozenset[int]] = (frozenset(),) * 2,
-                       frame_colors: Mapping[int, str] | None = None,
-                       titles: tuple[str, str] = ("", ""), legend: Mapping[str, str] | None = None,
-                       title: str | None = None, fmt: str = "svg") -> bytes:
+def trees_side_by_side(
+    left: TreeDocument,
+    right: TreeDocument,
+    *,
+    thumbs: Mapping[int, np.ndarray] | None = None,
+    highlights: tuple[frozenset[int], frozenset[int]] = (frozenset(),) * 2,
+    frame_colors: Mapping[int, str] | None = None,
+    titles: tuple[str, str] = ("", ""),
+    legend: Mapping[str, str] | None = None,
+    title: str | None = None,
+    fmt: str = "svg",
+) -> bytes:
     """Two trees over one bracket in one figure, same layout rules (the paper's Figure 4).
 
     Args:
@@ -95,8 +106,7 @@ def trees_side_by_side(left: TreeDocument, right: TreeDocument, *,
     """
     width, levels = map(max, zip(_extent(left), _extent(right), strict=True))
     fig = Figure(figsize=(max(8.0, 2.2 * width), 1.0 + 1.5 * levels), dpi=100)
-    for i, (doc, highlight, sub) in enumerate(zip((left, right), highlights, titles,
-                                                  strict=True)):
+    for i, (doc, highlight, sub) in enumerate(zip((left, right), highlights, titles, strict=True)):
         ax = fig.add_axes((0.01 + 0.5 * i, 0.02, 0.48, 0.86 if title else 0.92))
         draw_tree(ax, doc, thumbs=thumbs, highlight=highlight, frame_colors=frame_colors)
         ax.set_title(sub, fontsize=10)
@@ -105,22 +115,35 @@ def trees_side_by_side(left: TreeDocument, right: TreeDocument, *,
     if legend:
         from matplotlib.patches import Patch
 
-        fig.legend(handles=[Patch(facecolor="white", edgecolor=c, linewidth=2, label=label)
-                            for label, c in legend.items()], loc="lower center",
-                   ncols=len(legend), fontsize=8, frameon=False)
+        fig.legend(
+            handles=[
+                Patch(facecolor="white", edgecolor=c, linewidth=2, label=label)
+                for label, c in legend.items()
+            ],
+            loc="lower center",
+            ncols=len(legend),
+            fontsize=8,
+            frameon=False,
+        )
     return _save(fig, fmt)
 
 
-def _extent(doc: TreeDocument, pos: dict[int, tuple[float, int]] | None = None
-            ) -> tuple[float, int]:
+def _extent(
+    doc: TreeDocument, pos: dict[int, tuple[float, int]] | None = None
+) -> tuple[float, int]:
     """Width in leaves and depth in levels of a tree's layout."""
     pos = pos or tree_layout(doc)
     return max(x for x, _ in pos.values()) + 1, max(level for _, level in pos.values()) + 1
 
 
-def draw_tree(ax, doc: TreeDocument, *, thumbs: Mapping[int, np.ndarray] | None = None,
-              highlight: frozenset[int] = frozenset(),
-              frame_colors: Mapping[int, str] | None = None) -> None:
+def draw_tree(
+    ax,
+    doc: TreeDocument,
+    *,
+    thumbs: Mapping[int, np.ndarray] | None = None,
+    highlight: frozenset[int] = frozenset(),
+    frame_colors: Mapping[int, str] | None = None,
+) -> None:
     """Draw a tree on a matplotlib axis: highlighted states' edges and frames in red, unless
     ``frame_colors`` gives the frames' colours."""
     pos = tree_layout(doc)
@@ -129,7 +152,7 @@ def draw_tree(ax, doc: TreeDocument, *, thumbs: Mapping[int, np.ndarray] | None 
         if node.parent is not None:
             _edge(ax, pos[node.parent], pos[state], node.weight, state in highlight)
     for state, node in doc.tree.nodes.items():
-        color = (BAD if state in highlight else GOOD if node.parent is None else EDGE)
+        color = BAD if state in highlight else GOOD if node.parent is None else EDGE
         if frame_colors is not None and state in frame_colors:
             color = frame_colors[state]
         _node(ax, pos[state], state, node.height, (thumbs or {}).get(state), color)
@@ -139,36 +162,61 @@ def draw_tree(ax, doc: TreeDocument, *, thumbs: Mapping[int, np.ndarray] | None 
     ax.axis("off")
 
 
-def _edge(ax, parent: tuple[float, int], child: tuple[float, int], weight: int | None,
-          bad: bool) -> None:
+def _edge(
+    ax, parent: tuple[float, int], child: tuple[float, int], weight: int | None, bad: bool
+) -> None:
     (x1, l1), (x2, l2) = parent, child
     y1, y2 = -l1 * 1.5 - _THUMB / 2 - 0.22, -l2 * 1.5 + _THUMB / 2
-    ax.plot([x1, x2], [y1, y2], color=BAD if bad else EDGE, linewidth=2.5 if bad else 1.2,
-            zorder=1)
-    ax.text((x1 + x2) / 2, (y1 + y2) / 2, f"w={weight}", fontsize=7, color=MUTED, ha="center",
-            va="center", zorder=2, bbox={"facecolor": "white", "edgecolor": "none", "pad": 0.5})
+    ax.plot([x1, x2], [y1, y2], color=BAD if bad else EDGE, linewidth=2.5 if bad else 1.2, zorder=1)
+    ax.text(
+        (x1 + x2) / 2,
+        (y1 + y2) / 2,
+        f"w={weight}",
+        fontsize=7,
+        color=MUTED,
+        ha="center",
+        va="center",
+        zorder=2,
+        bbox={"facecolor": "white", "edgecolor": "none", "pad": 0.5},
+    )
 
 
-def _node(ax, at: tuple[float, int], state: int, height: int, thumb: np.ndarray | None,
-          color: str) -> None:
+def _node(
+    ax, at: tuple[float, int], state: int, height: int, thumb: np.ndarray | None, color: str
+) -> None:
     x, level = at
     y, half = -level * 1.5, _THUMB / 2
     if thumb is not None:
         ax.imshow(thumb, extent=(x - half, x + half, y - half, y + half), zorder=3)
     ax.add_patch(_frame(x, y, half, color))
-    ax.text(x, y - half - 0.12, f"#{state} · h{height}", fontsize=7, ha="center", va="center",
-            zorder=4)
+    ax.text(
+        x, y - half - 0.12, f"#{state} · h{height}", fontsize=7, ha="center", va="center", zorder=4
+    )
 
 
 def _frame(x: float, y: float, half: float, color: str):
     from matplotlib.patches import Rectangle
 
-    return Rectangle((x - half, y - half), 2 * half, 2 * half, fill=False, edgecolor=color,
-                     linewidth=2.5 if color != EDGE else 1.0, zorder=4)
+    return Rectangle(
+        (x - half, y - half),
+        2 * half,
+        2 * half,
+        fill=False,
+        edgecolor=color,
+        linewidth=2.5 if color != EDGE else 1.0,
+        zorder=4,
+    )
 
 
-def line_chart(series: Sequence[Series], *, xlabel: str, ylabel: str, title: str,
-               fmt: str = "svg", ylim: tuple[float, float] | None = None) -> bytes:
+def line_chart(
+    series: Sequence[Series],
+    *,
+    xlabel: str,
+    ylabel: str,
+    title: str,
+    fmt: str = "svg",
+    ylim: tuple[float, float] | None = None,
+) -> bytes:
     """A small line chart of one or more series, with markers."""
     fig = Figure(figsize=(6.4, 3.2), dpi=100)
     ax = fig.subplots()

@@ -16,12 +16,13 @@ from engine.candidates import Candidate
 from engine.render import RenderCache, RenderService, RenderSpec, cache_key
 
 ImageSize = Literal["full", "thumb"]
-SPECS: dict[str, RenderSpec] = {"full": RenderSpec(), "thumb": RenderSpec.thumbnail()}
+SPECS: dict[ImageSize, RenderSpec] = {"full": RenderSpec(), "thumb": RenderSpec.thumbnail()}
 MEDIA_TYPE = SPECS["full"].media_type
 
 
-def render_candidates(renderer: RenderService, *, data_dir: Path, env_id: str,
-                      candidates: Sequence[Candidate]) -> list[dict[ImageSize, str]]:
+def render_candidates(
+    renderer: RenderService, *, data_dir: Path, env_id: str, candidates: Sequence[Candidate]
+) -> list[dict[ImageSize, str]]:
     """Render every candidate at both sizes; returns their paths relative to ``data_dir``.
 
     Raises:

@@ -20,11 +20,16 @@ from app.models import Run
 from app.services import comparison, figures, studies
 from app.services.images import SPECS, image_file
 from app.services.runs import advice_label, advice_of
+from engine.conformance import Conformance
 from engine.treefile import TreeDocument
 
 REPORT_TEMPLATE = "compare_report.html"
-_templates = Environment(loader=FileSystemLoader(Path(__file__).resolve().parents[2] / "templates"),
-                         autoescape=select_autoescape(), trim_blocks=True, lstrip_blocks=True)
+_templates = Environment(
+    loader=FileSystemLoader(Path(__file__).resolve().parents[2] / "templates"),
+    autoescape=select_autoescape(),
+    trim_blocks=True,
+    lstrip_blocks=True,
+)
 
 
 def who(run: Run) -> str:
@@ -38,75 +43,117 @@ def whose(run: Run) -> str:
     return "your" if run.participant_id is not None else f"{who(run)}'s"
 
 
-def highlights(metrics: dict[str, Any]) -> tuple[frozenset[int], frozenset[int]]:
-    """States to highlight in the human's and in the agent's tree."""
-    human, agent = set(), set()
-    for r in metrics["rejected"]:
-        human.add(r["b"] if r["human_winner"] == r["a"] else r["a"])
-        agent.add(r["human_winner"])
-    return frozenset(human), frozenset(agent)
-
-
-def rejected_pairs(metrics: dict[str, Any]) -> list[dict[str, Any]]:
-    """Each overturned match as ``{round, human, agent}`` (``agent`` None for a tie)."""
-    return [{"round": r["round"], "human": r["human_winner"],
-             "agent": r["agent_winner"],
-             "other": r["b"] if r["human_winner"] == r["a"] else r["a"]}
-            for r in metrics["rejected"]]
+def rejected_pairs(metrics: Conformance) -> list[dict[str, Any]]:
+    """Each overturned match as ``{round, human, agent, other, contested}`` (``agent`` None
+    for a tie)."""
+    return [
+        {
+            "round": r.round,
+            "human": r.human_winner,
+            "agent": r.agent_winner,
+            "other": r.b if r.human_winner == r.a else r.a,
+            "contested": r.contested,
+        }
+        for r in metrics.rejected
+    ]
 
 
 def thumb_paths(session: Session, *, data_dir: Path, study_id: int) -> dict[int, Path]:
     """Candidate id -> its thumbnail file."""
-    return {c.id: image_file(data_dir, c.thumb_path)
-            for c in studies.list_candidates(session, study_id=study_id)}
-
-
-def tree_file(doc: TreeDocument, *, thumbs: dict[int, Path], highlight: frozenset[int],
-              title: str, fmt: str) -> bytes:
-    """A tree as an SVG or PNG file with thumbnails."""
-    return figures.tree_figure(doc, thumbs=figures.load_thumbs(thumbs), highlight=highlight,
-                               title=title, fmt=fmt)
-
-
-def report_context(run: Run, *, out: Path, step: int, judge: str,
-                   thumbs: dict[int, Path]) -> dict[str, Any]:
-    """Everything ``compare_report.html`` shows; images inline, so the file stands alone."""
-    human = advice_of(run)
-    agent = comparison.agent_doc(out, step, human, judge)
-    metrics = comparison.conformance(human, agent)
-    marked_human, marked_agent = highlights(metrics)
-    svg = {"human": tree_file(human, thumbs=thumbs, highlight=marked_human,
-                              title=f"Human Preference Tree ({advice_label(run)})", fmt="svg"),
-           "agent": tree_file(agent, thumbs=thumbs, highlight=marked_agent,
-                              title=f"Agent Preference Tree (step {step})", fmt="svg")}
-    curve = comparison.conformance_curve(out, human, judge)
     return {
-        "run": run, "advice": advice_label(run), "step": step, "judge": judge,
-        "metrics": metrics, "verdict": comparison.verdict(metrics, whose(run)),
-        "who": who(run), "pairs": rejected_pairs(metrics),
+        c.id: image_file(data_dir, c.thumb_path)
+        for c in studies.list_candidates(session, study_id=study_id)
+    }
+
+
+def tree_file(
+    doc: TreeDocument, *, thumbs: dict[int, Path], highlight: frozenset[int], title: str, fmt: str
+) -> bytes:
+    """A tree as an SVG or PNG file with thumbnails."""
+    return figures.tree_figure(
+        doc, thumbs=figures.load_thumbs(thumbs), highlight=highlight, title=title, fmt=fmt
+    )
+
+
+def report_context(
+    run: Run, *, session: Session, out: Path, step: int, judge: str, thumbs: dict[int, Path]
+) -> dict[str, Any]:
+    """Everything ``compare_report.html`` shows; images inline, so the file stands alone.
+
+    Raises:
+        PendingError: the checkpoint's artefact is not computed yet.
+    """
+    human = advice_of(run)
+    view = comparison.checkpoint_view(session, run_id=run.id, step=step)
+    agent, metrics = view.tree(judge), view.of(judge)
+    marked_human, marked_agent = comparison.highlights(metrics)
+    svg = {
+        "human": tree_file(
+            human,
+            thumbs=thumbs,
+            highlight=marked_human,
+            title=f"Human Preference Tree ({advice_label(run)})",
+            fmt="svg",
+        ),
+        "agent": tree_file(
+            agent,
+            thumbs=thumbs,
+            highlight=marked_agent,
+            title=f"Agent Preference Tree (step {step})",
+            fmt="svg",
+        ),
+    }
+    curve = comparison.conformance_curve(session, run_id=run.id, out=out, judge=judge)
+    return {
+        "run": run,
+        "advice": advice_label(run),
+        "step": step,
+        "judge": judge,
+        "metrics": metrics,
+        "verdict": comparison.verdict(view, judge, whose(run)),
+        "who": who(run),
+        "pairs": rejected_pairs(metrics),
+        "judges": view.conformance,
+        "candidates": view.candidates,
         "thumbs": {cid: data_uri(path) for cid, path in thumbs.items() if path.is_file()},
-        "human_svg": inline_svg(svg["human"]), "agent_svg": inline_svg(svg["agent"]),
+        "human_svg": inline_svg(svg["human"]),
+        "agent_svg": inline_svg(svg["agent"]),
         "curve_svg": inline_svg(curve_chart(curve)),
         "learning_svg": inline_svg(learning_chart(comparison.metrics_rows(out))),
-        "curve": curve}
+        "curve": curve,
+    }
 
 
-def report_html(run: Run, *, study_name: str, out: Path, step: int, judge: str,
-                thumbs: dict[int, Path]) -> str:
+def report_html(
+    run: Run,
+    *,
+    session: Session,
+    study_name: str,
+    out: Path,
+    step: int,
+    judge: str,
+    thumbs: dict[int, Path],
+) -> str:
     """The self-contained HTML report of a run at a checkpoint (no scripts, no links)."""
-    context = report_context(run, out=out, step=step, judge=judge, thumbs=thumbs)
+    context = report_context(run, session=session, out=out, step=step, judge=judge, thumbs=thumbs)
     return _templates.get_template(REPORT_TEMPLATE).render(study_name=study_name, **context)
 
 
-def curve_chart(curve: list[dict[str, Any]], fmt: str = "svg") -> bytes:
+def curve_chart(curve: list[tuple[int, Conformance]], fmt: str = "svg") -> bytes:
     """Match agreement and Kendall tau-b over training."""
-    steps = [row["checkpoint"] for row in curve]
-    tau = [math.nan if row["kendall_tau_b"] is None else row["kendall_tau_b"] for row in curve]
+    steps = [step for step, _ in curve]
+    tau = [math.nan if m.kendall_tau_b is None else m.kendall_tau_b for _, m in curve]
     return figures.line_chart(
-        [figures.Series("match agreement", steps, [row["match_agreement"] for row in curve]),
-         figures.Series("Kendall tau-b", steps, tau)],
-        xlabel="timesteps", ylabel="conformance", title="Conformance across training",
-        fmt=fmt, ylim=(-1.05, 1.05))
+        [
+            figures.Series("match agreement", steps, [m.match_agreement for _, m in curve]),
+            figures.Series("Kendall tau-b", steps, tau),
+        ],
+        xlabel="timesteps",
+        ylabel="conformance",
+        title="Conformance across training",
+        fmt=fmt,
+        ylim=(-1.05, 1.05),
+    )
 
 
 def learning_chart(rows: list[dict[str, Any]], fmt: str = "svg") -> bytes:
@@ -117,15 +164,21 @@ def learning_chart(rows: list[dict[str, Any]], fmt: str = "svg") -> bytes:
         return [math.nan if row.get(key) is None else row[key] for row in rows]
 
     return figures.line_chart(
-        [figures.Series("return (last 100 episodes)", steps, values("return_100")),
-         figures.Series("z (mean shaping weight)", steps, values("z_mean"))],
-        xlabel="timesteps", ylabel="value", title="Learning curve and z", fmt=fmt)
+        [
+            figures.Series("return (last 100 episodes)", steps, values("return_100")),
+            figures.Series("z (mean shaping weight)", steps, values("z_mean")),
+        ],
+        xlabel="timesteps",
+        ylabel="value",
+        title="Learning curve and z",
+        fmt=fmt,
+    )
 
 
 def inline_svg(data: bytes) -> str:
     """An SVG file's ``<svg>`` element, to place inside HTML."""
     text = data.decode()
-    return text[text.index("<svg"):]
+    return text[text.index("<svg") :]
 
 
 def data_uri(path: Path) -> str:

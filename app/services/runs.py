@@ -10,6 +10,7 @@ a ``bipars-em`` run on the same advice). Workers (:mod:`app.jobs`) execute queue
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from sqlalchemy import select
@@ -18,7 +19,7 @@ from sqlalchemy.orm import Session
 from app.db import writing
 from app.jobs.execute import run_dir
 from app.jobs.queue import update_if
-from app.models import Run, utcnow
+from app.models import Run, RunStatus, utcnow
 from app.services.errors import ConflictError, NotFoundError
 from app.services.participants import get_participant
 from app.services.studies import engine_candidates_of, first_round, get_ready_study
@@ -33,16 +34,25 @@ from engine.treefile import TreeDocument, make_document, tree_from_json, tree_to
 
 #: Simulated teachers a run may take its advice from (the paper's two cases).
 RUN_TEACHERS = ("good", "standing")
-RESUMABLE = ("interrupted", "failed", "cancelled")
-FINAL = ("succeeded", "failed", "cancelled")
+RESUMABLE: tuple[RunStatus, ...] = (RunStatus.INTERRUPTED, RunStatus.FAILED, RunStatus.CANCELLED)
+FINAL: tuple[RunStatus, ...] = (RunStatus.SUCCEEDED, RunStatus.FAILED, RunStatus.CANCELLED)
 MAX_TIMESTEPS = 100_000_000
 #: Checkpoints a run writes when the request does not say how often.
 DEFAULT_CHECKPOINTS = 10
 
 
-def create_run(session: Session, *, study_id: int, participant_id: int | None = None,
-               teacher: str | None = None, algo: str = "bipars-em", timesteps: int,
-               seed: int = 0, n_envs: int = 4, **options: int | float | None) -> Run:
+def create_run(
+    session: Session,
+    *,
+    study_id: int,
+    participant_id: int | None = None,
+    teacher: str | None = None,
+    algo: str = "bipars-em",
+    timesteps: int,
+    seed: int = 0,
+    n_envs: int = 4,
+    **options: int | float | None,
+) -> Run:
     """Validate and queue a new run.
 
     Args:
@@ -59,35 +69,60 @@ def create_run(session: Session, *, study_id: int, participant_id: int | None = 
         raise InputError("give participant_id or teacher, not both")
     if not 0 < timesteps <= MAX_TIMESTEPS:
         raise InputError(f"timesteps must be in 1..{MAX_TIMESTEPS}, got {timesteps}")
-    config = train_config(env_id=study.env_id, algo=algo, timesteps=timesteps, seed=seed,
-                          n_envs=n_envs, **options)
-    advice = advice_tree(session, study_id=study_id, participant_id=participant_id,
-                         teacher=teacher)
+    config = train_config(
+        env_id=study.env_id, algo=algo, timesteps=timesteps, seed=seed, n_envs=n_envs, **options
+    )
+    advice = advice_tree(session, study_id=study_id, participant_id=participant_id, teacher=teacher)
     if advice is None and config.uses_advice:
         raise InputError(f"algo {algo} trains with advice: give participant_id or teacher")
-    run = Run(study_id=study.id, participant_id=participant_id, teacher=teacher, algo=algo,
-              timesteps=timesteps, seed=seed, n_envs=n_envs, config=config.to_json(),
-              advice=None if advice is None else tree_to_json(advice), status="queued",
-              resume=False, cancel_requested=False, progress=0)
+    run = Run(
+        study_id=study.id,
+        participant_id=participant_id,
+        teacher=teacher,
+        algo=algo,
+        timesteps=timesteps,
+        seed=seed,
+        n_envs=n_envs,
+        config=config.to_json(),
+        advice=None if advice is None else tree_to_json(advice),
+        status="queued",
+        resume=False,
+        cancel_requested=False,
+        progress=0,
+    )
     with writing(session):
         session.add(run)
     return run
 
 
-def train_config(*, env_id: str, algo: str, timesteps: int, seed: int, n_envs: int,
-                 **options: int | float | None) -> TrainConfig:
+def train_config(
+    *,
+    env_id: str,
+    algo: str,
+    timesteps: int,
+    seed: int,
+    n_envs: int,
+    **options: int | float | str | None,
+) -> TrainConfig:
     """The run's configuration; by default about :data:`DEFAULT_CHECKPOINTS` checkpoints."""
-    given = {k: v for k, v in options.items() if v is not None}
-    base = TrainConfig(algo=algo, env_id=env_id, total_timesteps=timesteps, seed=seed,
-                       n_envs=n_envs, **{k: v for k, v in given.items()
-                                          if k != "checkpoint_every"})
+    given: dict[str, Any] = {k: v for k, v in options.items() if v is not None}
+    base = TrainConfig(
+        algo=algo,
+        env_id=env_id,
+        total_timesteps=timesteps,
+        seed=seed,
+        n_envs=n_envs,
+        **{k: v for k, v in given.items() if k != "checkpoint_every"},
+    )
     every = given.get("checkpoint_every") or base.batch_size * max(
-        1, base.num_updates // DEFAULT_CHECKPOINTS)
+        1, base.num_updates // DEFAULT_CHECKPOINTS
+    )
     return TrainConfig(**{**base.to_json(), "checkpoint_every": every})
 
 
-def advice_tree(session: Session, *, study_id: int, participant_id: int | None,
-                teacher: str | None) -> TreeDocument | None:
+def advice_tree(
+    session: Session, *, study_id: int, participant_id: int | None, teacher: str | None
+) -> TreeDocument | None:
     """The advice a run of ``study_id`` would take (None when it takes none)."""
     if participant_id is not None:
         person = get_participant(session, participant_id=participant_id)
@@ -103,17 +138,28 @@ def teacher_tree(session: Session, *, study_id: int, teacher: str) -> TreeDocume
     """A simulated teacher's tree over the study's bracket (as
     :func:`engine.pipeline.replay_with_teacher` makes it, without noise)."""
     if teacher not in RUN_TEACHERS:
-        raise InputError(f"unknown teacher {teacher!r}: expected one of "
-                         f"{', '.join(RUN_TEACHERS)}")
+        raise InputError(f"unknown teacher {teacher!r}: expected one of {', '.join(RUN_TEACHERS)}")
     study = get_ready_study(session, study_id=study_id)
     cands = engine_candidates_of(session, study_id=study_id)
     bracket = first_round(session, study_id=study_id)
-    judge, scores = make_teacher(teacher, cands, env_model(study.env_id), noise=0.0,
-                                 rng=np.random.default_rng([study.seed, 1]))
+    judge, scores = make_teacher(
+        teacher,
+        cands,
+        env_model(study.env_id),
+        noise=0.0,
+        rng=np.random.default_rng([study.seed, 1]),
+    )
     results = play(Bracket(bracket), {c.id: c for c in cands}, judge)
-    return make_document(env_id=study.env_id, seed=study.seed, p=study.p, judge=teacher,
-                         candidates=cands, first_round=bracket, results=results,
-                         scores=scores)
+    return make_document(
+        env_id=study.env_id,
+        seed=study.seed,
+        p=study.p,
+        judge=teacher,
+        candidates=cands,
+        first_round=bracket,
+        results=results,
+        scores=scores,
+    )
 
 
 def get_run(session: Session, *, run_id: int) -> Run:
@@ -135,11 +181,16 @@ def list_runs(session: Session, *, study_id: int | None = None) -> list[Run]:
 def same_advice_runs(session: Session, *, run: Run) -> list[Run]:
     """The runs of ``run``'s study with the same advice source (itself included), oldest
     first: what the multi-run comparison puts side by side."""
-    source = (Run.participant_id == run.participant_id if run.participant_id is not None
-              else Run.teacher == run.teacher if run.teacher is not None
-              else Run.participant_id.is_(None) & Run.teacher.is_(None))
-    return list(session.scalars(select(Run).where(Run.study_id == run.study_id, source)
-                                .order_by(Run.id)))
+    source = (
+        Run.participant_id == run.participant_id
+        if run.participant_id is not None
+        else Run.teacher == run.teacher
+        if run.teacher is not None
+        else Run.participant_id.is_(None) & Run.teacher.is_(None)
+    )
+    return list(
+        session.scalars(select(Run).where(Run.study_id == run.study_id, source).order_by(Run.id))
+    )
 
 
 def advice_of(run: Run) -> TreeDocument:
@@ -149,8 +200,10 @@ def advice_of(run: Run) -> TreeDocument:
         ConflictError: the run has no advice to compare with.
     """
     if run.advice is None:
-        raise ConflictError(f"run {run.id} has no advice tree to compare with (it was "
-                            "created without participant_id or teacher)")
+        raise ConflictError(
+            f"run {run.id} has no advice tree to compare with (it was "
+            "created without participant_id or teacher)"
+        )
     return tree_from_json(run.advice)
 
 
@@ -168,10 +221,14 @@ def cancel_run(session: Session, *, run_id: int) -> Run:
         ConflictError: the run has already ended.
     """
     get_run(session, run_id=run_id)
-    if not update_if(session, (Run.id == run_id, Run.status.in_(("queued", "interrupted"))),
-                status="cancelled", finished_at=utcnow()) \
-            and not update_if(session, (Run.id == run_id, Run.status == "running"),
-                         cancel_requested=True):
+    if not update_if(
+        session,
+        (Run.id == run_id, Run.status.in_(("queued", "interrupted"))),
+        status="cancelled",
+        finished_at=utcnow(),
+    ) and not update_if(
+        session, (Run.id == run_id, Run.status == "running"), cancel_requested=True
+    ):
         raise ConflictError(f"run {run_id} has already ended")
     return _fresh(session, run_id)
 
@@ -183,17 +240,25 @@ def resume_run(session: Session, *, run_id: int, runs_dir: Path) -> Run:
     Raises:
         ConflictError: the run is queued, running or succeeded, or has no checkpoint.
     """
-    from engine.rl.checkpoint import list_checkpoints
+    from app.services.artefacts import checkpoint_steps  # by file name: no torch in a request
 
     run = get_run(session, run_id=run_id)
     if run.status not in RESUMABLE:
-        raise ConflictError(f"run {run_id} is {run.status}; only {', '.join(RESUMABLE)} runs "
-                            "can be resumed")
-    if not list_checkpoints(run_dir(runs_dir, run_id)):
+        raise ConflictError(
+            f"run {run_id} is {run.status}; only {', '.join(RESUMABLE)} runs can be resumed"
+        )
+    if not checkpoint_steps(run_dir(runs_dir, run_id)):
         raise ConflictError(f"run {run_id} has no checkpoint to resume from")
-    if not update_if(session, (Run.id == run_id, Run.status == run.status), status="queued",
-                resume=True, cancel_requested=False, error=None, finished_at=None,
-                worker=None):
+    if not update_if(
+        session,
+        (Run.id == run_id, Run.status == run.status),
+        status="queued",
+        resume=True,
+        cancel_requested=False,
+        error=None,
+        finished_at=None,
+        worker=None,
+    ):
         raise ConflictError(f"run {run_id} changed meanwhile; try again")
     return _fresh(session, run_id)
 

@@ -22,14 +22,22 @@ def play_bracket(session: Session, *, participant: Participant, judge: Judge) ->
     sent = 0
     while (upcoming := next_match(session, participant=participant)) is not None:
         m = upcoming.match
-        submit_label(session, participant=participant, match_id=m.id,
-                     winner=judge(by_id[m.a], by_id[m.b]))
+        submit_label(
+            session, participant=participant, match_id=m.id, winner=judge(by_id[m.a], by_id[m.b])
+        )
         sent += 1
     return sent
 
 
-def simulate(session: Session, *, study_id: int, teacher: str, participants: int = 1,
-             noise: float = 0.0, seed: int = 0) -> list[Participant]:
+def simulate(
+    session: Session,
+    *,
+    study_id: int,
+    teacher: str,
+    participants: int = 1,
+    noise: float = 0.0,
+    seed: int = 0,
+) -> list[Participant]:
     """Invite ``participants`` simulated participants and let ``teacher`` play each bracket.
 
     Args:
@@ -47,11 +55,13 @@ def simulate(session: Session, *, study_id: int, teacher: str, participants: int
         raise InputError(f"noise must be in [0, 1], got {noise}")
     study = get_ready_study(session, study_id=study_id)
     cands = engine_candidates_of(session, study_id=study_id)
-    judge, _ = make_teacher(teacher, cands, env_model(study.env_id), noise=noise,
-                            rng=np.random.default_rng(seed))
+    judge, _ = make_teacher(
+        teacher, cands, env_model(study.env_id), noise=noise, rng=np.random.default_rng(seed)
+    )
     name = teacher if noise == 0 else f"{teacher}+noise{noise:g}"
-    people = add_participants(session, study_id=study_id, count=participants,
-                              name=f"simulated {name}")
+    people = add_participants(
+        session, study_id=study_id, count=participants, name=f"simulated {name}"
+    )
     for person in people:
         play_bracket(session, participant=person, judge=judge)
     return people

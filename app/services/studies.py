@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import logging
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 from sqlalchemy import select, update
@@ -18,9 +19,10 @@ from sqlalchemy.orm import Session, sessionmaker
 from app.db import writing
 from app.models import BracketSlot, Candidate, Study
 from app.services.errors import ConflictError, NotFoundError
-from app.services.images import render_candidates
+from app.services.images import ImageSize, render_candidates
 from engine import candidates as engine_candidates
 from engine.bracket import FirstRound, make_first_round
+from engine.candidates import SamplingMode
 from engine.envs import check_env_id
 from engine.errors import InputError
 from engine.render import RenderService
@@ -31,37 +33,72 @@ MAX_INSTRUCTIONS_CHARS = 20_000
 MAX_SEED = 2**63 - 1
 
 
-def create_study(session: Session, *, name: str, env_id: str, n_candidates: int, p: float,
-                 seed: int, sampling: str, instructions: str) -> Study:
+def create_study(
+    session: Session,
+    *,
+    name: str,
+    env_id: str,
+    n_candidates: int,
+    p: float,
+    seed: int,
+    sampling: str,
+    instructions: str,
+) -> Study:
     """Validate and store a new study (status ``preparing``).
 
     Raises:
         InputError: any parameter is out of range, or the env is not a MuJoCo env.
     """
-    _check_params(name=name, env_id=env_id, n_candidates=n_candidates, p=p, seed=seed,
-                  sampling=sampling, instructions=instructions)
-    study = Study(name=name.strip(), env_id=env_id, n_candidates=n_candidates, p=float(p),
-                  seed=seed, sampling=sampling, instructions=instructions, status="preparing")
+    _check_params(
+        name=name,
+        env_id=env_id,
+        n_candidates=n_candidates,
+        p=p,
+        seed=seed,
+        sampling=sampling,
+        instructions=instructions,
+    )
+    study = Study(
+        name=name.strip(),
+        env_id=env_id,
+        n_candidates=n_candidates,
+        p=float(p),
+        seed=seed,
+        sampling=sampling,
+        instructions=instructions,
+        status="preparing",
+    )
     with writing(session):
         session.add(study)
     return study
 
 
-def _check_params(*, name: str, env_id: str, n_candidates: int, p: float, seed: int,
-                  sampling: str, instructions: str) -> None:
+def _check_params(
+    *,
+    name: str,
+    env_id: str,
+    n_candidates: int,
+    p: float,
+    seed: int,
+    sampling: str,
+    instructions: str,
+) -> None:
     if not name.strip() or len(name) > MAX_NAME_CHARS:
         raise InputError(f"name must be 1..{MAX_NAME_CHARS} characters")
     check_text(name=name, instructions=instructions, env_id=env_id)
     if not 2 <= n_candidates <= engine_candidates.MAX_CANDIDATES:
-        raise InputError(f"n_candidates must be in 2..{engine_candidates.MAX_CANDIDATES}, "
-                         f"got {n_candidates}")
+        raise InputError(
+            f"n_candidates must be in 2..{engine_candidates.MAX_CANDIDATES}, got {n_candidates}"
+        )
     if not 0.0 <= p <= 1.0:
         raise InputError(f"p must be in [0, 1], got {p}")
     if not 0 <= seed <= MAX_SEED:
         raise InputError(f"seed must be in 0..2**63-1, got {seed}")
     if sampling not in engine_candidates.SAMPLING_MODES:
-        raise InputError(f"sampling must be one of {', '.join(engine_candidates.SAMPLING_MODES)}"
-                         f", got {sampling!r}")
+        raise InputError(
+            f"sampling must be one of {', '.join(engine_candidates.SAMPLING_MODES)}"
+            f", got {sampling!r}"
+        )
     if len(instructions) > MAX_INSTRUCTIONS_CHARS:
         raise InputError(f"instructions must be at most {MAX_INSTRUCTIONS_CHARS} characters")
     try:
@@ -69,8 +106,7 @@ def _check_params(*, name: str, env_id: str, n_candidates: int, p: float, seed: 
     except InputError:
         raise
     except Exception as exc:  # registered but unusable here (missing extras, ...)
-        raise InputError(f"env {env_id!r} cannot be made: {type(exc).__name__}: {exc}") \
-            from exc
+        raise InputError(f"env {env_id!r} cannot be made: {type(exc).__name__}: {exc}") from exc
 
 
 def check_text(**fields: str | None) -> None:
@@ -80,8 +116,9 @@ def check_text(**fields: str | None) -> None:
             raise InputError(f"{field} must not contain NUL characters")
 
 
-def prepare_study(sessions: sessionmaker[Session], *, study_id: int, renderer: RenderService,
-                  data_dir: Path) -> None:
+def prepare_study(
+    sessions: sessionmaker[Session], *, study_id: int, renderer: RenderService, data_dir: Path
+) -> None:
     """Sample, seed and render a ``preparing`` study, then mark it ``ready``.
 
     Never raises: a failure is stored on the study (status ``failed``, ``error``) and logged.
@@ -94,37 +131,55 @@ def prepare_study(sessions: sessionmaker[Session], *, study_id: int, renderer: R
         return
     try:  # the slow part holds no database connection
         cands, bracket = _sample(study)
-        paths = render_candidates(renderer, data_dir=data_dir, env_id=study.env_id,
-                                  candidates=cands)
+        paths = render_candidates(
+            renderer, data_dir=data_dir, env_id=study.env_id, candidates=cands
+        )
         with sessions() as session:
             _store(session, study_id, cands, bracket, paths)
     except Exception as exc:  # any failure must end up on the study, not in a thread's log
         log.exception("preparing study %d failed", study_id)
         with sessions() as session, writing(session):  # unless another process finished it
-            session.execute(update(Study).where(Study.id == study_id,
-                                                Study.status == "preparing").values(
-                status="failed", error=f"{type(exc).__name__}: {exc}".splitlines()[0]))
+            session.execute(
+                update(Study)
+                .where(Study.id == study_id, Study.status == "preparing")
+                .values(status="failed", error=f"{type(exc).__name__}: {exc}".splitlines()[0])
+            )
 
 
 def _sample(study: Study) -> tuple[list[engine_candidates.Candidate], FirstRound]:
     """Candidates, then the first round, from one generator (as ``run_tournament`` does)."""
     rng = np.random.default_rng(study.seed)
-    cands = engine_candidates.sample_candidates(study.env_id, study.n_candidates, rng=rng,
-                                                mode=study.sampling)
+    cands = engine_candidates.sample_candidates(
+        study.env_id, study.n_candidates, rng=rng, mode=cast(SamplingMode, study.sampling)
+    )
     abilities = np.array([c.env_reward for c in cands])
     return cands, make_first_round([c.id for c in cands], abilities, study.p, rng)
 
 
-def _store(session: Session, study_id: int, cands: list[engine_candidates.Candidate],
-           bracket: FirstRound, paths: list[dict[str, str]]) -> None:
+def _store(
+    session: Session,
+    study_id: int,
+    cands: list[engine_candidates.Candidate],
+    bracket: FirstRound,
+    paths: list[dict[ImageSize, str]],
+) -> None:
     with writing(session):
-        session.add_all(Candidate(
-            study_id=study_id, id=c.id, qpos=c.qpos.tolist(), qvel=c.qvel.tolist(),
-            env_reward=float(c.env_reward), image_path=path["full"], thumb_path=path["thumb"])
-            for c, path in zip(cands, paths, strict=True))
+        session.add_all(
+            Candidate(
+                study_id=study_id,
+                id=c.id,
+                qpos=c.qpos.tolist(),
+                qvel=c.qvel.tolist(),
+                env_reward=float(c.env_reward),
+                image_path=path["full"],
+                thumb_path=path["thumb"],
+            )
+            for c, path in zip(cands, paths, strict=True)
+        )
         session.flush()  # candidates before the slots that reference them
-        session.add_all(BracketSlot(study_id=study_id, slot=k, a=a, b=b)
-                        for k, (a, b) in enumerate(bracket))
+        session.add_all(
+            BracketSlot(study_id=study_id, slot=k, a=a, b=b) for k, (a, b) in enumerate(bracket)
+        )
         session.execute(update(Study).where(Study.id == study_id).values(status="ready"))
 
 
@@ -145,16 +200,21 @@ def get_ready_study(session: Session, *, study_id: int) -> Study:
     """The study if its candidates and bracket exist; :class:`ConflictError` otherwise."""
     study = get_study(session, study_id=study_id)
     if study.status != "ready":
-        raise ConflictError(f"study {study_id} is {study.status}, not ready"
-                            + (f": {study.error}" if study.error else ""))
+        raise ConflictError(
+            f"study {study_id} is {study.status}, not ready"
+            + (f": {study.error}" if study.error else "")
+        )
     return study
 
 
 def list_candidates(session: Session, *, study_id: int) -> list[Candidate]:
     """The study's candidates in id order (empty while it is preparing)."""
     get_study(session, study_id=study_id)
-    return list(session.scalars(
-        select(Candidate).where(Candidate.study_id == study_id).order_by(Candidate.id)))
+    return list(
+        session.scalars(
+            select(Candidate).where(Candidate.study_id == study_id).order_by(Candidate.id)
+        )
+    )
 
 
 def get_candidate(session: Session, *, study_id: int, candidate_id: int) -> Candidate:
@@ -167,16 +227,25 @@ def get_candidate(session: Session, *, study_id: int, candidate_id: int) -> Cand
 
 def first_round(session: Session, *, study_id: int) -> FirstRound:
     """The study's first round in bracket order, ``(a, None)`` for a bye."""
-    rows = session.execute(select(BracketSlot.a, BracketSlot.b).where(
-        BracketSlot.study_id == study_id).order_by(BracketSlot.slot))
+    rows = session.execute(
+        select(BracketSlot.a, BracketSlot.b)
+        .where(BracketSlot.study_id == study_id)
+        .order_by(BracketSlot.slot)
+    )
     return [(a, b) for a, b in rows]
 
 
 def engine_candidates_of(session: Session, *, study_id: int) -> list[engine_candidates.Candidate]:
     """The study's candidates as engine objects (float64 arrays), ids ``0 .. N-1``."""
-    return [engine_candidates.Candidate(c.id, np.asarray(c.qpos, dtype=np.float64),
-                                        np.asarray(c.qvel, dtype=np.float64), c.env_reward)
-            for c in list_candidates(session, study_id=study_id)]
+    return [
+        engine_candidates.Candidate(
+            c.id,
+            np.asarray(c.qpos, dtype=np.float64),
+            np.asarray(c.qvel, dtype=np.float64),
+            c.env_reward,
+        )
+        for c in list_candidates(session, study_id=study_id)
+    ]
 
 
 def preparing_study_ids(session: Session) -> list[int]:

@@ -10,7 +10,16 @@ from __future__ import annotations
 
 from fastapi import APIRouter
 
-from app.web import auth_pages, downloads, participant_pages, runs_pages, studies_pages
+from app.web import (
+    auth_pages,
+    crowd_pages,
+    crowd_study_pages,
+    downloads,
+    participant_pages,
+    runs_pages,
+    studies_pages,
+    surveys_pages,
+)
 
 router = APIRouter()
 router.include_router(auth_pages.router)
@@ -18,5 +27,8 @@ router.include_router(participant_pages.router)
 router.include_router(downloads.router)
 router.include_router(studies_pages.router)
 router.include_router(runs_pages.router)
+router.include_router(surveys_pages.router)
+router.include_router(crowd_pages.router)
+router.include_router(crowd_study_pages.router)
 
 __all__ = ["router"]

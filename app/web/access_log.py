@@ -1,4 +1,6 @@
-"""Invite tokens stay out of the access log: ``/p/<token>`` is logged as ``/p/***``.
+"""Invite tokens stay out of the access log: ``/p/<token>`` is logged as ``/p/***`` (and a
+survey respondent's ``/r/<token>`` as ``/r/***``; a study's open link ``/s/<slug>`` and its
+query string, which carries crowd platforms' participant ids, as ``/s/***``).
 
 An invite token is a participant's only credential, and access logs are kept and shared far
 more widely (journald, docker logs) than the database. uvicorn logs each request on the
@@ -11,12 +13,12 @@ import logging
 import re
 
 ACCESS_LOGGER = "uvicorn.access"
-_INVITE_PATH = re.compile(r"^/p/[^/?#]+")
+_INVITE_PATH = re.compile(r"^/([pr])/[^/?#]+|^/(s)/[^#]*")  # invite and open links
 
 
 def mask_invite_tokens(path: str) -> str:
     """``path`` with the token of an invite link replaced by ``***``."""
-    return _INVITE_PATH.sub("/p/***", path, count=1)
+    return _INVITE_PATH.sub(lambda m: f"/{m.group(1) or m.group(2)}/***", path, count=1)
 
 
 class MaskInviteTokens(logging.Filter):

@@ -27,11 +27,18 @@ router = APIRouter(route_class=PageRoute, include_in_schema=False)
 
 
 @router.get("/")
-def home(runtime: RuntimeDep, session: SessionDep, researcher: ResearcherCookie = None,
-         participant: ParticipantCookie = None) -> RedirectResponse:
+def home(
+    runtime: RuntimeDep,
+    session: SessionDep,
+    researcher: ResearcherCookie = None,
+    participant: ParticipantCookie = None,
+) -> RedirectResponse:
     """The researcher's studies, a participant's bracket, or the login page."""
-    if auth.is_researcher(admin_token=runtime.admin_token, cookie=researcher,
-                          max_age_s=runtime.settings.session_max_age_s):
+    if auth.is_researcher(
+        admin_token=runtime.admin_token,
+        cookie=researcher,
+        max_age_s=runtime.settings.session_max_age_s,
+    ):
         return redirect("/studies")
     if participant:
         try:
@@ -43,8 +50,9 @@ def home(runtime: RuntimeDep, session: SessionDep, researcher: ResearcherCookie 
 
 
 @router.get("/login")
-def login_page(request: Request,
-               next_path: Annotated[str | None, Query(alias="next")] = None) -> HTMLResponse:
+def login_page(
+    request: Request, next_path: Annotated[str | None, Query(alias="next")] = None
+) -> HTMLResponse:
     """The researcher login form; ``next`` is where to go after logging in."""
     return render(request, "login.html", {"next": safe_next(next_path)})
 
@@ -57,22 +65,40 @@ def login(request: Request, runtime: RuntimeDep, fields: FormFields) -> Response
     limiter, address = login_limiter(request), client_address(request)
     if limiter.blocked(address):  # refused before the token is even compared
         wait_s = limiter.retry_after_s(address)
-        response = render(request, "login.html", {"next": target, "error": (
-            f"Too many failed logins from this address. Try again in {wait_s} s.")},
-            status_code=429)
+        response = render(
+            request,
+            "login.html",
+            {
+                "next": target,
+                "error": (f"Too many failed logins from this address. Try again in {wait_s} s."),
+            },
+            status_code=429,
+        )
         response.headers["Retry-After"] = str(wait_s)
         return response
     if not auth.is_researcher(admin_token=runtime.admin_token, bearer=token):
         limiter.failed(address)
         log.warning("failed researcher login from %s", address)
-        return render(request, "login.html", {"next": target, "error": (
-            "That is not the admin token. It is printed when the server starts, and kept "
-            "in the data directory's admin_token file.")}, status_code=401)
-    response = redirect(target)
-    auth.set_researcher_cookie(response, admin_token=runtime.admin_token,
-                               max_age_s=runtime.settings.session_max_age_s,
-                               secure=is_https(request))
-    return response
+        return render(
+            request,
+            "login.html",
+            {
+                "next": target,
+                "error": (
+                    "That is not the admin token. It is printed when the server starts, and kept "
+                    "in the data directory's admin_token file."
+                ),
+            },
+            status_code=401,
+        )
+    logged_in = redirect(target)
+    auth.set_researcher_cookie(
+        logged_in,
+        admin_token=runtime.admin_token,
+        max_age_s=runtime.settings.session_max_age_s,
+        secure=is_https(request),
+    )
+    return logged_in
 
 
 @router.post("/logout", dependencies=[CsrfChecked])

@@ -44,8 +44,13 @@ def form_token(admin_token: str, value: str) -> str:
 def remember(request: Request, response: Response, value: str) -> None:
     """Set the CSRF cookie on ``response`` unless the browser already holds ``value``."""
     if request.cookies.get(CSRF_COOKIE) != value:
-        response.set_cookie(CSRF_COOKIE, value, httponly=True, samesite="strict",
-                            secure=request.url.scheme == "https")
+        response.set_cookie(
+            CSRF_COOKIE,
+            value,
+            httponly=True,
+            samesite="strict",
+            secure=request.url.scheme == "https",
+        )
 
 
 async def form_fields(request: Request) -> dict[str, str]:
@@ -65,11 +70,18 @@ def verify_csrf(request: Request, runtime: RuntimeDep, fields: FormFields) -> No
     """
     value = request.cookies.get(CSRF_COOKIE, "")
     given = fields.get(CSRF_FIELD, "")
-    if not value or len(value) > _MAX_CHARS or len(given) > _MAX_CHARS or \
-            not secrets.compare_digest(given.encode(), form_token(runtime.admin_token,
-                                                                  value).encode()):
-        raise ForbiddenError("This form has expired or did not come from this site. "
-                             "Go back, reload the page and try again.")
+    if (
+        not value
+        or len(value) > _MAX_CHARS
+        or len(given) > _MAX_CHARS
+        or not secrets.compare_digest(
+            given.encode(), form_token(runtime.admin_token, value).encode()
+        )
+    ):
+        raise ForbiddenError(
+            "This form has expired or did not come from this site. "
+            "Go back, reload the page and try again."
+        )
 
 
 CsrfChecked = Depends(verify_csrf)

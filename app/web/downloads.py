@@ -15,8 +15,7 @@ from app.web.guards import ResearcherPage
 from app.web.rendering import PageRoute
 from engine.treefile import dumps
 
-router = APIRouter(route_class=PageRoute, include_in_schema=False,
-                   dependencies=[ResearcherPage])
+router = APIRouter(route_class=PageRoute, include_in_schema=False, dependencies=[ResearcherPage])
 
 
 def tree_filename(study_id: int, participant_id: int) -> str:
@@ -24,9 +23,15 @@ def tree_filename(study_id: int, participant_id: int) -> str:
 
 
 def _attachment(content: bytes | str, media_type: str, filename: str) -> Response:
-    return Response(content, media_type=media_type, headers={
-        "Content-Disposition": f'attachment; filename="{filename}"',
-        "X-Content-Type-Options": "nosniff", "Cache-Control": "no-store"})
+    return Response(
+        content,
+        media_type=media_type,
+        headers={
+            "Content-Disposition": f'attachment; filename="{filename}"',
+            "X-Content-Type-Options": "nosniff",
+            "Cache-Control": "no-store",
+        },
+    )
 
 
 @router.get("/studies/{study_id}/participants/{participant_id}/tree.json")
@@ -36,8 +41,7 @@ def participant_tree(study_id: DbId, participant_id: DbId, session: SessionDep) 
     if person.study_id != study_id:
         raise NotFoundError(f"participant {participant_id} is not in study {study_id}")
     doc = trees.participant_tree(session, participant_id=participant_id)
-    return _attachment(dumps(doc), "application/json",
-                       tree_filename(study_id, participant_id))
+    return _attachment(dumps(doc), "application/json", tree_filename(study_id, participant_id))
 
 
 @router.get("/studies/{study_id}/trees.zip")

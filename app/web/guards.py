@@ -18,11 +18,11 @@ ResearcherCookie = Annotated[str | None, Cookie(alias=auth.RESEARCHER_COOKIE)]
 ParticipantCookie = Annotated[str | None, Cookie(alias=auth.PARTICIPANT_COOKIE)]
 
 
-def researcher_page(request: Request, runtime: RuntimeDep,
-                    cookie: ResearcherCookie = None) -> None:
+def researcher_page(request: Request, runtime: RuntimeDep, cookie: ResearcherCookie = None) -> None:
     """Let the researcher through; send anyone else to the login page (and back after)."""
-    if not auth.is_researcher(admin_token=runtime.admin_token, cookie=cookie,
-                              max_age_s=runtime.settings.session_max_age_s):
+    if not auth.is_researcher(
+        admin_token=runtime.admin_token, cookie=cookie, max_age_s=runtime.settings.session_max_age_s
+    ):
         raise RedirectTo(login_url(request.url.path))
 
 
@@ -38,8 +38,10 @@ def page_participant(session: SessionDep, cookie: ParticipantCookie = None) -> P
     try:
         return auth.participant_by_token(session, token=cookie)
     except AuthError:
-        raise AuthError("This browser has no valid invitation. Open the invite link you "
-                        "were sent (it looks like /p/...) to start or continue.") from None
+        raise AuthError(
+            "This browser has no valid invitation. Open the invite link you "
+            "were sent (it looks like /p/...) to start or continue."
+        ) from None
 
 
 PageParticipant = Annotated[Participant, Depends(page_participant)]
@@ -47,7 +49,13 @@ PageParticipant = Annotated[Participant, Depends(page_participant)]
 
 def safe_next(target: str | None) -> str:
     """``target`` if it is a path on this site, else the study list (no open redirects)."""
-    if not target or not target.startswith("/") or target.startswith("//") \
-            or "\\" in target or not target.isprintable() or len(target) > 500:
+    if (
+        not target
+        or not target.startswith("/")
+        or target.startswith("//")
+        or "\\" in target
+        or not target.isprintable()
+        or len(target) > 500
+    ):
         return DEFAULT_NEXT
     return target

@@ -15,7 +15,7 @@ from sqlalchemy.orm import Session
 
 from app.api.deps import SessionDep
 from app.models import Participant
-from app.services import auth, participants, studies
+from app.services import auth, crowd, crowd_check, participants, studies
 from app.services.errors import AuthError, NotFoundError
 from app.web.guards import PageParticipant
 from app.web.rendering import PageRoute, RedirectTo, is_https, redirect, render, thumb_template
@@ -27,7 +27,7 @@ LABEL = "/participate/label"
 THANKS = "/participate/thanks"
 
 
-def _where(progress: participants.Progress) -> str:
+def where_next(progress: participants.Progress) -> str:
     """Where a participant continues: instructions, the next match, or the thank-you page."""
     if progress.finished:
         return THANKS
@@ -40,22 +40,27 @@ def invite_link(token: str, request: Request, session: SessionDep) -> RedirectRe
     try:
         person = auth.participant_by_token(session, token=token)
     except AuthError:
-        raise NotFoundError("This invite link is not valid. Check that you copied all of it, "
-                            "or ask the researcher for a new one.") from None
-    response = redirect(_where(participants.progress(session, participant=person)))
+        raise NotFoundError(
+            "This invite link is not valid. Check that you copied all of it, "
+            "or ask the researcher for a new one."
+        ) from None
+    response = redirect(where_next(participants.progress(session, participant=person)))
     auth.set_participant_cookie(response, token=token, secure=is_https(request))
     return response
 
 
 def _context(session: Session, person: Participant) -> dict[str, Any]:
     study = studies.get_study(session, study_id=person.study_id)
-    return {"study": study, "participant": person, "thumb_template": thumb_template(study.id),
-            "progress": participants.progress(session, participant=person)}
+    return {
+        "study": study,
+        "participant": person,
+        "thumb_template": thumb_template(study.id),
+        "progress": participants.progress(session, participant=person),
+    }
 
 
 @router.get(INSTRUCTIONS)
-def instructions(request: Request, session: SessionDep,
-                 person: PageParticipant) -> HTMLResponse:
+def instructions(request: Request, session: SessionDep, person: PageParticipant) -> HTMLResponse:
     """The study's instructions and a start (or continue) button."""
     return render(request, "instructions.html", _context(session, person))
 
@@ -75,4 +80,7 @@ def thanks(request: Request, session: SessionDep, person: PageParticipant) -> Re
     context = _context(session, person)
     if not context["progress"].finished:
         raise RedirectTo(LABEL)
+    if crowd_check.pending_pair(session, participant=person) is not None:
+        raise RedirectTo("/participate/check")
+    context["crowd"] = crowd.crowd_settings(session, study_id=person.study_id)
     return render(request, "thanks.html", context)

@@ -29,13 +29,26 @@ from engine.errors import InputError
 
 TEMPLATES_DIR = Path(__file__).resolve().parents[2] / "templates"
 
-CSP = "; ".join((
-    "default-src 'self'", "script-src 'self'", "style-src 'self'", "img-src 'self' data:",
-    "connect-src 'self'", "object-src 'none'", "base-uri 'none'", "form-action 'self'",
-    "frame-ancestors 'none'"))
+CSP = "; ".join(
+    (
+        "default-src 'self'",
+        "script-src 'self'",
+        "style-src 'self'",
+        "img-src 'self' data:",
+        "connect-src 'self'",
+        "object-src 'none'",
+        "base-uri 'none'",
+        "form-action 'self'",
+        "frame-ancestors 'none'",
+    )
+)
 SECURITY_HEADERS = {
-    "Content-Security-Policy": CSP, "X-Content-Type-Options": "nosniff",
-    "Referrer-Policy": "no-referrer", "X-Frame-Options": "DENY", "Cache-Control": "no-store"}
+    "Content-Security-Policy": CSP,
+    "X-Content-Type-Options": "nosniff",
+    "Referrer-Policy": "no-referrer",
+    "X-Frame-Options": "DENY",
+    "Cache-Control": "no-store",
+}
 
 
 def _when(moment: datetime | None) -> str:
@@ -52,15 +65,20 @@ def is_https(request: Request) -> bool:
     return request.url.scheme == "https"
 
 
-def render(request: Request, name: str, context: dict[str, Any] | None = None, *,
-           status_code: int = 200) -> HTMLResponse:
+def render(
+    request: Request, name: str, context: dict[str, Any] | None = None, *, status_code: int = 200
+) -> HTMLResponse:
     """Render template ``name`` with the CSRF field value and the security headers."""
     admin_token: str = request.app.state.runtime.admin_token
     value = csrf.browser_value(request)
-    ctx = {"csrf_field": csrf.CSRF_FIELD, "csrf_token": csrf.form_token(admin_token, value),
-           **(context or {})}
-    response = templates.TemplateResponse(request, name, ctx, status_code=status_code,
-                                          headers=SECURITY_HEADERS)
+    ctx = {
+        "csrf_field": csrf.CSRF_FIELD,
+        "csrf_token": csrf.form_token(admin_token, value),
+        **(context or {}),
+    }
+    response = templates.TemplateResponse(
+        request, name, ctx, status_code=status_code, headers=SECURITY_HEADERS
+    )
     csrf.remember(request, response, value)
     return response
 
@@ -93,9 +111,12 @@ def error_page(request: Request, status_code: int, message: str) -> HTMLResponse
         title = HTTPStatus(status_code).phrase
     except ValueError:
         title = "Error"
-    return render(request, "error.html", {"title": title, "message": message,
-                                          "status_code": status_code},
-                  status_code=status_code)
+    return render(
+        request,
+        "error.html",
+        {"title": title, "message": message, "status_code": status_code},
+        status_code=status_code,
+    )
 
 
 def _page_error(request: Request, exc: Exception) -> HTMLResponse:

@@ -18,59 +18,115 @@ from sqlalchemy.orm import Session
 from app.api.deps import MAX_DB_ID, DbId, SessionDep
 from app.api.run_schemas import Judge, RunCreate, RunOut
 from app.api.runs import RunsRootDep
+from app.api.schemas import FORM_INPUT
 from app.jobs.execute import run_dir
 from app.models import Run
 from app.services import comparison, participants, run_report, runs, studies
+from app.services.errors import PendingError
 from app.web.csrf import CsrfChecked, FormFields
 from app.web.guards import ResearcherPage
 from app.web.rendering import PageRoute, redirect, render, thumb_template
 from engine.errors import InputError
-from engine.rl.config import ALGOS
+from engine.rl.config import ADVICE_MODES, ALGOS
 
-router = APIRouter(route_class=PageRoute, include_in_schema=False,
-                   dependencies=[ResearcherPage])
+router = APIRouter(route_class=PageRoute, include_in_schema=False, dependencies=[ResearcherPage])
 
-FORM_DEFAULTS = {"advice": "teacher:standing", "algo": "bipars-em", "timesteps": "200000",
-                 "seed": "0", "n_envs": "4", "num_steps": "", "checkpoint_every": ""}
-_OPTIONAL = ("num_steps", "checkpoint_every")
+FORM_DEFAULTS = {
+    "advice": "teacher:standing",
+    "algo": "bipars-em",
+    "timesteps": "200000",
+    "seed": "0",
+    "n_envs": "4",
+    "num_steps": "",
+    "checkpoint_every": "",
+    "advice_mode": "",
+}
+_OPTIONAL = ("num_steps", "checkpoint_every", "advice_mode")
 _DB_ID = TypeAdapter(DbId)
-JUDGE_LABELS = (("shaped", "its shaped reward R + z F"), ("shaping", "the advice part z F"),
-                ("value", "its shaped critic V"))
+JUDGE_LABELS = (
+    ("shaped", "its shaped reward R + z F"),
+    ("shaping", "the advice part z F"),
+    ("value", "its shaped critic V"),
+    ("behaviour", "its behaviour: a revealed-preference tree of the postures it actually adopts"),
+)
 
 
 @router.get("/runs")
-def run_list(request: Request, session: SessionDep,
-             study_id: Annotated[int | None, Query(ge=1, le=MAX_DB_ID)] = None) -> HTMLResponse:
+def run_list(
+    request: Request,
+    session: SessionDep,
+    study_id: Annotated[int | None, Query(ge=1, le=MAX_DB_ID)] = None,
+) -> HTMLResponse:
     """Every run (or one study's), newest first, with a link to launch one."""
     study = studies.get_study(session, study_id=study_id) if study_id else None
-    return render(request, "runs.html", {
-        "study": study, "runs": [RunOut.of(r) for r in runs.list_runs(session,
-                                                                      study_id=study_id)],
-        "studies": [s for s in studies.list_studies(session) if s.status == "ready"]})
+    return render(
+        request,
+        "runs.html",
+        {
+            "study": study,
+            "runs": [RunOut.of(r) for r in runs.list_runs(session, study_id=study_id)],
+            "studies": [s for s in studies.list_studies(session) if s.status == "ready"],
+        },
+    )
 
 
 def _advice_choices(session: Session, study_id: int) -> list[tuple[str, str]]:
-    finished = [s.participant for s in participants.list_participants(session,
-                                                                      study_id=study_id)
-                if s.progress.finished]
-    return ([(f"participant:{p.id}", f"participant #{p.id}" + (f" ({p.name})" if p.name
-                                                               else "")) for p in finished]
-            + [(f"teacher:{t}", f"simulated teacher: {t}") for t in runs.RUN_TEACHERS]
-            + [("none", "none (ppo only)")])
+    finished = [
+        s.participant
+        for s in participants.list_participants(session, study_id=study_id)
+        if s.progress.finished
+    ]
+    return (
+        [
+            (f"participant:{p.id}", f"participant #{p.id}" + (f" ({p.name})" if p.name else ""))
+            for p in finished
+        ]
+        + [(f"teacher:{t}", f"simulated teacher: {t}") for t in runs.RUN_TEACHERS]
+        + [("none", "none (ppo only)")]
+    )
 
 
-def _form_page(request: Request, session: Session, study_id: int, values: dict[str, str],
-               errors: dict[str, str], status_code: int = 200) -> HTMLResponse:
+def _form_page(
+    request: Request,
+    session: Session,
+    study_id: int,
+    values: dict[str, str],
+    errors: dict[str, str],
+    status_code: int = 200,
+) -> HTMLResponse:
     study = studies.get_ready_study(session, study_id=study_id)
-    return render(request, "run_new.html", {
-        "study": study, "values": values, "errors": errors, "algos": ALGOS,
-        "advice_choices": _advice_choices(session, study_id)}, status_code=status_code)
+    return render(
+        request,
+        "run_new.html",
+        {
+            "study": study,
+            "values": values,
+            "errors": errors,
+            "algos": ALGOS,
+            "advice_modes": ADVICE_MODES,
+            "advice_choices": _advice_choices(session, study_id),
+        },
+        status_code=status_code,
+    )
 
 
 @router.get("/runs/new")
-def new_run_form(request: Request, session: SessionDep,
-                 study_id: Annotated[int, Query(ge=1, le=MAX_DB_ID)]) -> HTMLResponse:
-    """The launch form for a run of ``study_id``."""
+def new_run_form(
+    request: Request,
+    session: SessionDep,
+    study_id: Annotated[int | None, Query(ge=1, le=MAX_DB_ID)] = None,
+) -> HTMLResponse:
+    """The launch form for a run of ``study_id``; without one, the study picker (a bookmarked
+    or typed ``/runs/new``)."""
+    if study_id is None:
+        return render(
+            request,
+            "run_pick_study.html",
+            {
+                "study": None,
+                "studies": [s for s in studies.list_studies(session) if s.status == "ready"],
+            },
+        )
     return _form_page(request, session, study_id, dict(FORM_DEFAULTS), {})
 
 
@@ -97,26 +153,34 @@ def create_run(request: Request, session: SessionDep, fields: FormFields) -> Res
     except ValidationError:
         raise InputError("the form names no study") from None
     try:
-        run = runs.create_run(session, **RunCreate.model_validate(
-            _body(study_id, values)).model_dump())
+        run = runs.create_run(
+            session,
+            **RunCreate.model_validate(_body(study_id, values), context=FORM_INPUT).model_dump(),
+        )
     except ValidationError as exc:
         errors = {str(e["loc"][0]) if e["loc"] else "form": e["msg"] for e in exc.errors()}
         return _form_page(request, session, study_id, values, errors, status_code=422)
     except InputError as exc:
-        return _form_page(request, session, study_id, values, {"form": str(exc)},
-                          status_code=422)
+        return _form_page(request, session, study_id, values, {"form": str(exc)}, status_code=422)
     return redirect(f"/runs/{run.id}")
 
 
 @router.get("/runs/{run_id}")
-def run_page(run_id: DbId, request: Request, session: SessionDep,
-             root: RunsRootDep) -> HTMLResponse:
+def run_page(
+    run_id: DbId, request: Request, session: SessionDep, root: RunsRootDep
+) -> HTMLResponse:
     """Live progress, metrics, the learning curve and z, the checkpoints, cancel/resume."""
     run = runs.get_run(session, run_id=run_id)
-    return render(request, "run.html", {
-        "run": RunOut.of(run), "study": studies.get_study(session, study_id=run.study_id),
-        "checkpoints": comparison.checkpoints(run_dir(root, run_id)),
-        "has_advice": run.advice is not None})
+    return render(
+        request,
+        "run.html",
+        {
+            "run": RunOut.of(run),
+            "study": studies.get_study(session, study_id=run.study_id),
+            "checkpoints": comparison.checkpoints(run_dir(root, run_id)),
+            "has_advice": run.advice is not None,
+        },
+    )
 
 
 @router.post("/runs/{run_id}/cancel", dependencies=[CsrfChecked])
@@ -132,45 +196,75 @@ def resume(run_id: DbId, session: SessionDep, root: RunsRootDep) -> Response:
 
 
 @router.get("/runs/{run_id}/compare")
-def compare_page(run_id: DbId, request: Request, session: SessionDep, root: RunsRootDep,
-                 checkpoint: Annotated[int | None, Query(ge=0)] = None,
-                 judge: Judge = "shaped") -> HTMLResponse:
+def compare_page(
+    run_id: DbId,
+    request: Request,
+    session: SessionDep,
+    root: RunsRootDep,
+    checkpoint: Annotated[int | None, Query(ge=0)] = None,
+    judge: Judge = "shaped",
+) -> HTMLResponse:
     """Human and Agent Preference Tree side by side, the rejected advice, the metrics with a
     verdict, a checkpoint selector and the conformance curve."""
     run = runs.get_run(session, run_id=run_id)
     runs.advice_of(run)  # 409 page for a run without advice
     steps = comparison.checkpoints(run_dir(root, run_id))
-    return render(request, "compare.html", {
-        "run": RunOut.of(run), "study": studies.get_study(session, study_id=run.study_id),
-        "checkpoints": steps, "who": run_report.who(run), "whose": run_report.whose(run),
-        "selected": checkpoint if checkpoint in steps else (steps[-1] if steps else None),
-        "thumb_template": thumb_template(run.study_id),
-        "image_template": thumb_template(run.study_id).removesuffix("?size=thumb"),
-        "others": len(runs.same_advice_runs(session, run=run)), "judge": judge,
-        "judges": JUDGE_LABELS})
+    return render(
+        request,
+        "compare.html",
+        {
+            "run": RunOut.of(run),
+            "study": studies.get_study(session, study_id=run.study_id),
+            "checkpoints": steps,
+            "who": run_report.who(run),
+            "whose": run_report.whose(run),
+            "selected": checkpoint if checkpoint in steps else (steps[-1] if steps else None),
+            "thumb_template": thumb_template(run.study_id),
+            "image_template": thumb_template(run.study_id).removesuffix("?size=thumb"),
+            "others": len(runs.same_advice_runs(session, run=run)),
+            "judge": judge,
+            "judges": JUDGE_LABELS,
+        },
+    )
 
 
 @router.get("/runs/{run_id}/compare-runs")
-def compare_runs_page(run_id: DbId, request: Request, session: SessionDep,
-                      root: RunsRootDep) -> HTMLResponse:
+def compare_runs_page(
+    run_id: DbId, request: Request, session: SessionDep, root: RunsRootDep
+) -> HTMLResponse:
     """Every run on the same advice as ``run_id`` (e.g. ``ppo`` vs ``bipars-em``): metrics at
     each one's latest checkpoint, side by side, and their conformance curves."""
     run = runs.get_run(session, run_id=run_id)
     runs.advice_of(run)
-    rows = [_latest(r, root) for r in runs.same_advice_runs(session, run=run)]
-    return render(request, "compare_runs.html", {
-        "run": RunOut.of(run), "study": studies.get_study(session, study_id=run.study_id),
-        "rows": rows, "whose": run_report.whose(run), "advice": runs.advice_label(run)})
+    rows = [_latest(session, r, root) for r in runs.same_advice_runs(session, run=run)]
+    return render(
+        request,
+        "compare_runs.html",
+        {
+            "run": RunOut.of(run),
+            "study": studies.get_study(session, study_id=run.study_id),
+            "rows": rows,
+            "whose": run_report.whose(run),
+            "advice": runs.advice_label(run),
+        },
+    )
 
 
-def _latest(run: Run, root: Any) -> dict[str, Any]:
-    """A run with its metrics at its latest checkpoint (None before the first one)."""
-    out = run_dir(root, run.id)
-    steps = comparison.checkpoints(out)
-    metrics = None
-    if steps:
-        human = runs.advice_of(run)
-        metrics = comparison.conformance(human, comparison.agent_doc(out, steps[-1], human))
-    last = (run.metrics or {})
-    return {"run": RunOut.of(run), "step": steps[-1] if steps else None, "metrics": metrics,
-            "return_100": last.get("return_100"), "z_mean": last.get("z_mean")}
+def _latest(session: Session, run: Run, root: Any) -> dict[str, Any]:
+    """A run with its metrics at its latest judged checkpoint (None before the first one)."""
+    try:
+        curve = comparison.conformance_curve(
+            session, run_id=run.id, out=run_dir(root, run.id), judge="shaped"
+        )
+    except PendingError:
+        curve = []
+    steps = [step for step, _ in curve]
+    metrics = curve[-1][1] if curve else None
+    last = run.metrics or {}
+    return {
+        "run": RunOut.of(run),
+        "step": steps[-1] if steps else None,
+        "metrics": metrics,
+        "return_100": last.get("return_100"),
+        "z_mean": last.get("z_mean"),
+    }

@@ -14,10 +14,11 @@ from pydantic import ValidationError
 from sqlalchemy.orm import Session
 
 from app.api.deps import DbId, RuntimeDep, SessionDep
-from app.api.schemas import StudyCreate
+from app.api.schemas import FORM_INPUT, StudyCreate
 from app.api.urls import image_url
 from app.services import participants, studies
 from app.services.participants import MAX_BATCH
+from app.web.crowd_study_pages import crowd_context
 from app.web.csrf import CsrfChecked, FormFields
 from app.web.guards import ResearcherPage
 from app.web.rendering import PageRoute, redirect, render, thumb_template
@@ -25,18 +26,32 @@ from engine.candidates import MAX_CANDIDATES, SAMPLING_MODES
 from engine.envs import DEFAULT_ENV_ID
 from engine.errors import InputError
 
-router = APIRouter(route_class=PageRoute, include_in_schema=False,
-                   dependencies=[ResearcherPage])
+router = APIRouter(route_class=PageRoute, include_in_schema=False, dependencies=[ResearcherPage])
 
 #: Suggestions for the env field; any Gymnasium MuJoCo id is accepted.
-SUGGESTED_ENVS = ("Humanoid-v5", "HumanoidStandup-v5", "Walker2d-v5", "Hopper-v5",
-                  "HalfCheetah-v5", "Ant-v5", "Swimmer-v5")
+SUGGESTED_ENVS = (
+    "Humanoid-v5",
+    "HumanoidStandup-v5",
+    "Walker2d-v5",
+    "Hopper-v5",
+    "HalfCheetah-v5",
+    "Ant-v5",
+    "Swimmer-v5",
+)
 DEFAULT_INSTRUCTIONS = (
     "You will see two pictures of a simulated robot at a time. Pick the one you would rather "
     "the robot be in: click it, or press the left or right arrow key. Winners meet again in "
-    "later rounds until one is left.")
-FORM_DEFAULTS = {"name": "", "env_id": DEFAULT_ENV_ID, "n_candidates": "16", "p": "0.9",
-                 "seed": "0", "sampling": "uniform", "instructions": DEFAULT_INSTRUCTIONS}
+    "later rounds until one is left."
+)
+FORM_DEFAULTS = {
+    "name": "",
+    "env_id": DEFAULT_ENV_ID,
+    "n_candidates": "16",
+    "p": "0.9",
+    "seed": "0",
+    "sampling": "uniform",
+    "instructions": DEFAULT_INSTRUCTIONS,
+}
 
 
 @router.get("/studies")
@@ -45,12 +60,21 @@ def study_list(request: Request, session: SessionDep) -> HTMLResponse:
     return render(request, "studies.html", {"studies": studies.list_studies(session)})
 
 
-def _form_page(request: Request, values: dict[str, str], errors: dict[str, str],
-               status_code: int = 200) -> HTMLResponse:
-    return render(request, "study_new.html", {
-        "values": values, "errors": errors, "envs": SUGGESTED_ENVS,
-        "sampling_modes": SAMPLING_MODES, "max_candidates": MAX_CANDIDATES},
-        status_code=status_code)
+def _form_page(
+    request: Request, values: dict[str, str], errors: dict[str, str], status_code: int = 200
+) -> HTMLResponse:
+    return render(
+        request,
+        "study_new.html",
+        {
+            "values": values,
+            "errors": errors,
+            "envs": SUGGESTED_ENVS,
+            "sampling_modes": SAMPLING_MODES,
+            "max_candidates": MAX_CANDIDATES,
+        },
+        status_code=status_code,
+    )
 
 
 @router.get("/studies/new")
@@ -59,13 +83,16 @@ def new_study_form(request: Request) -> HTMLResponse:
 
 
 @router.post("/studies", dependencies=[CsrfChecked])
-def create_study(request: Request, session: SessionDep, runtime: RuntimeDep,
-                 fields: FormFields) -> Response:
+def create_study(
+    request: Request, session: SessionDep, runtime: RuntimeDep, fields: FormFields
+) -> Response:
     """Validate like ``POST /api/studies``; errors are shown next to the form's fields."""
     values = {k: fields.get(k, "") for k in FORM_DEFAULTS}
     try:
-        body = StudyCreate.model_validate({k: v.strip() if k != "instructions" else v
-                                           for k, v in values.items()})
+        body = StudyCreate.model_validate(
+            {k: v.strip() if k != "instructions" else v for k, v in values.items()},
+            context=FORM_INPUT,
+        )
         study = studies.create_study(session, **body.model_dump())
     except ValidationError as exc:
         errors = {str(e["loc"][0]) if e["loc"] else "form": e["msg"] for e in exc.errors()}
@@ -77,32 +104,56 @@ def create_study(request: Request, session: SessionDep, runtime: RuntimeDep,
 
 
 @router.get("/studies/{study_id}")
-def study_page(study_id: DbId, request: Request, session: SessionDep,
-               invited: Annotated[int, Query(ge=0, le=MAX_BATCH)] = 0) -> HTMLResponse:
+def study_page(
+    study_id: DbId,
+    request: Request,
+    session: SessionDep,
+    invited: Annotated[int, Query(ge=0, le=MAX_BATCH)] = 0,
+) -> HTMLResponse:
     """Candidates, participants with progress and invite links, and finished trees."""
     study = studies.get_study(session, study_id=study_id)
-    return render(request, "study.html", {
-        "study": study, "invited": invited, "max_batch": MAX_BATCH,
-        "thumb_template": thumb_template(study_id),
-        "candidates": _candidates(session, study_id),
-        "participants": _participants(request, session, study_id)})
+    return render(
+        request,
+        "study.html",
+        {
+            "study": study,
+            "invited": invited,
+            "max_batch": MAX_BATCH,
+            "thumb_template": thumb_template(study_id),
+            "candidates": _candidates(session, study_id),
+            "participants": _participants(request, session, study_id),
+            **(crowd_context(request, session, study_id) if study.status == "ready" else {}),
+        },
+    )
 
 
 def _candidates(session: Session, study_id: int) -> list[dict[str, Any]]:
-    return [{"id": c.id, "env_reward": c.env_reward, "thumb_url": image_url(study_id, c.id,
-                                                                            "thumb"),
-             "image_url": image_url(study_id, c.id)}
-            for c in studies.list_candidates(session, study_id=study_id)]
+    return [
+        {
+            "id": c.id,
+            "env_reward": c.env_reward,
+            "thumb_url": image_url(study_id, c.id, "thumb"),
+            "image_url": image_url(study_id, c.id),
+        }
+        for c in studies.list_candidates(session, study_id=study_id)
+    ]
 
 
 def _participants(request: Request, session: Session, study_id: int) -> list[dict[str, Any]]:
     base = str(request.base_url)
-    return [{"id": s.participant.id, "name": s.participant.name,
-             "done": s.progress.done, "total": s.progress.total,
-             "finished": s.progress.finished, "started": s.progress.done > 0,
-             "finished_at": s.participant.finished_at,
-             "invite_url": participants.invite_url(base, s.participant.token)}
-            for s in participants.list_participants(session, study_id=study_id)]
+    return [
+        {
+            "id": s.participant.id,
+            "name": s.participant.name,
+            "done": s.progress.done,
+            "total": s.progress.total,
+            "finished": s.progress.finished,
+            "started": s.progress.done > 0,
+            "finished_at": s.participant.finished_at,
+            "invite_url": participants.invite_url(base, s.participant.token),
+        }
+        for s in participants.list_participants(session, study_id=study_id)
+    ]
 
 
 @router.post("/studies/{study_id}/participants", dependencies=[CsrfChecked])
@@ -111,8 +162,9 @@ def invite(study_id: DbId, session: SessionDep, fields: FormFields) -> Response:
     try:
         count = int(fields.get("count", "1").strip() or "1")
     except ValueError:
-        raise InputError(f"the number of participants must be a whole number in "
-                         f"1..{MAX_BATCH}") from None
+        raise InputError(
+            f"the number of participants must be a whole number in 1..{MAX_BATCH}"
+        ) from None
     name = fields.get("name", "").strip()[:200] or None
     people = participants.add_participants(session, study_id=study_id, count=count, name=name)
     return redirect(f"/studies/{study_id}?invited={len(people)}#participants")

@@ -32,8 +32,24 @@ from engine.render.views import (
 )
 
 __all__ = [
-    "DEFAULT_SIZE", "DEFAULT_VIEW", "FORMATS", "MAX_SIZE", "MIN_SIZE", "THUMBNAIL_SIZE", "VIEWS",
-    "BackendError", "FrameRenderer", "RenderCache", "RenderService", "RenderSpec", "View",
-    "activate", "cache_key", "default_cache_dir", "encode", "get_render_service",
-    "select_backend", "shutdown_render_service",
+    "DEFAULT_SIZE",
+    "DEFAULT_VIEW",
+    "FORMATS",
+    "MAX_SIZE",
+    "MIN_SIZE",
+    "THUMBNAIL_SIZE",
+    "VIEWS",
+    "BackendError",
+    "FrameRenderer",
+    "RenderCache",
+    "RenderService",
+    "RenderSpec",
+    "View",
+    "activate",
+    "cache_key",
+    "default_cache_dir",
+    "encode",
+    "get_render_service",
+    "select_backend",
+    "shutdown_render_service",
 ]

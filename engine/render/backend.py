@@ -16,6 +16,7 @@ import os
 import subprocess
 import sys
 import threading
+from typing import Any
 
 from engine.mujoco_gl import check_mujoco_gl
 
@@ -40,17 +41,24 @@ def missing_backend_message(tried: tuple[str, ...] = AUTO_BACKENDS) -> str:
     """The one-line error shown when no backend works, naming the Debian packages."""
     names = " or ".join(b.upper() if b == "egl" else "OSMesa" for b in tried)
     packages = " / ".join(f"'{DEBIAN_PACKAGES[b]}'" for b in tried if b in DEBIAN_PACKAGES)
-    return (f"no off-screen OpenGL backend for MuJoCo rendering ({names} unavailable): "
-            f"install the Debian packages {packages} (apt-get install ...), "
-            "or set MUJOCO_GL to a working backend")
+    return (
+        f"no off-screen OpenGL backend for MuJoCo rendering ({names} unavailable): "
+        f"install the Debian packages {packages} (apt-get install ...), "
+        "or set MUJOCO_GL to a working backend"
+    )
 
 
 def probe(backend: str) -> bool:
     """Whether ``backend`` can create a GL context, tried in a fresh Python process."""
     env = {**os.environ, "MUJOCO_GL": backend, "PYOPENGL_PLATFORM": backend}
     try:
-        done = subprocess.run([sys.executable, "-c", _PROBE], env=env, capture_output=True,
-                              timeout=_PROBE_TIMEOUT_S, check=False)
+        done = subprocess.run(
+            [sys.executable, "-c", _PROBE],
+            env=env,
+            capture_output=True,
+            timeout=_PROBE_TIMEOUT_S,
+            check=False,
+        )
     except (OSError, subprocess.TimeoutExpired):
         return False
     return done.returncode == 0
@@ -99,9 +107,10 @@ def _install(backend: str) -> None:
     os.environ.setdefault("PYOPENGL_PLATFORM", backend)
     try:
         context_cls = importlib.import_module(f"mujoco.{backend}").GLContext
-        gl_context = importlib.import_module("mujoco.rendering.classic.gl_context")
+        gl_context: Any = importlib.import_module("mujoco.rendering.classic.gl_context")
     except (ImportError, OSError, AttributeError) as exc:
-        raise BackendError(f"cannot load the {backend} backend ({exc}); "
-                           f"{missing_backend_message((backend,))}") from exc
+        raise BackendError(
+            f"cannot load the {backend} backend ({exc}); {missing_backend_message((backend,))}"
+        ) from exc
     # `Renderer.__init__` reads this module attribute on every construction.
     gl_context.GLContext = context_cls

@@ -32,8 +32,10 @@ def cache_key(env_id: str, qpos: np.ndarray, qvel: np.ndarray, spec: RenderSpec)
     """
     h = hashlib.blake2b(digest_size=20)
     view = VIEWS[spec.view]
-    header = (f"acv-render/{RENDER_VERSION}|{env_id}|{view}|{spec.size}|{spec.fmt}|"
-              f"{spec.quality}|{np.shape(qpos)}|{np.shape(qvel)}")
+    header = (
+        f"acv-render/{RENDER_VERSION}|{env_id}|{view}|{spec.size}|{spec.fmt}|"
+        f"{spec.quality}|{np.shape(qpos)}|{np.shape(qvel)}"
+    )
     h.update(header.encode())
     for values in (qpos, qvel):
         h.update(np.ascontiguousarray(values, dtype="<f8").tobytes())

@@ -8,12 +8,13 @@ that created it: create, use and close a :class:`FrameRenderer` on one thread (t
 from __future__ import annotations
 
 from collections import OrderedDict
+from typing import TYPE_CHECKING, Any
 
 import gymnasium as gym
-import mujoco
 import numpy as np
 
 from engine.envs import make_env, restore
+from engine.gym_types import mujoco_base
 from engine.render.backend import BackendError, activate, missing_backend_message
 from engine.render.views import VIEWS, RenderSpec
 
@@ -21,6 +22,9 @@ from engine.render.views import VIEWS, RenderSpec
 FIGURE_SAMPLES = 4
 #: Renderers kept per thread; each holds a GL context and a framebuffer.
 MAX_RENDERERS = 8
+
+if TYPE_CHECKING:  # mujoco loads where an env is built, not in web processes
+    import mujoco
 
 _RendererKey = tuple[str, int, bool]  # env id, pixels per side, quality
 
@@ -38,6 +42,8 @@ def configure(model: mujoco.MjModel, pixels: int, quality: bool) -> None:
 def set_fast_flags(renderer: mujoco.Renderer, quality: bool) -> None:
     """Shadows and reflections only for figures: on CPU they cost several times the frame."""
     flags = renderer.scene.flags
+    import mujoco
+
     flags[mujoco.mjtRndFlag.mjRND_SHADOW] = quality
     flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = quality
 
@@ -46,11 +52,12 @@ class FrameRenderer:
     """Renders stored states of any Gymnasium MuJoCo env; confined to one thread."""
 
     def __init__(self) -> None:
-        self._envs: dict[str, gym.Env] = {}
+        self._envs: dict[str, gym.Env[Any, Any]] = {}
         self._renderers: OrderedDict[_RendererKey, mujoco.Renderer] = OrderedDict()
 
-    def frame(self, env_id: str, qpos: np.ndarray, qvel: np.ndarray,
-              spec: RenderSpec) -> np.ndarray:
+    def frame(
+        self, env_id: str, qpos: np.ndarray, qvel: np.ndarray, spec: RenderSpec
+    ) -> np.ndarray:
         """Render state ``(qpos, qvel)`` of ``env_id``.
 
         Returns:
@@ -64,15 +71,16 @@ class FrameRenderer:
         env = self._env(env_id)
         restore(env, qpos, qvel)
         renderer = self._renderer(env_id, spec.size * spec.supersample, spec.quality)
-        renderer.update_scene(env.unwrapped.data, VIEWS[spec.view].camera())
-        return renderer.render()
+        renderer.update_scene(mujoco_base(env).data, VIEWS[spec.view].camera())
+        image: np.ndarray = renderer.render()
+        return image
 
     def warm_up(self, env_id: str, spec: RenderSpec) -> None:
         """Make the env and renderer for ``spec`` and draw the model's initial state once.
 
         The first draw compiles shaders and uploads textures: about half a second on CPU.
         """
-        model = self._env(env_id).unwrapped.model
+        model = mujoco_base(self._env(env_id)).model
         self.frame(env_id, model.qpos0.copy(), np.zeros(model.nv), spec)
 
     @property
@@ -88,7 +96,7 @@ class FrameRenderer:
             env.close()
         self._envs.clear()
 
-    def _env(self, env_id: str) -> gym.Env:
+    def _env(self, env_id: str) -> gym.Env[Any, Any]:
         if env_id not in self._envs:
             self._envs[env_id] = make_env(env_id)
         return self._envs[env_id]
@@ -100,14 +108,18 @@ class FrameRenderer:
             return self._renderers[key]
         if len(self._renderers) >= MAX_RENDERERS:
             self._renderers.popitem(last=False)[1].close()
-        model = self._env(env_id).unwrapped.model
+        model = mujoco_base(self._env(env_id)).model
         configure(model, pixels, quality)
         backend = activate()
         try:
+            import mujoco
+
             renderer = mujoco.Renderer(model, height=pixels, width=pixels)
         except Exception as exc:  # any failure to make a context is a set-up problem
-            raise BackendError(f"MUJOCO_GL={backend} cannot render ({type(exc).__name__}: "
-                               f"{exc}); {missing_backend_message()}") from exc
+            raise BackendError(
+                f"MUJOCO_GL={backend} cannot render ({type(exc).__name__}: "
+                f"{exc}); {missing_backend_message()}"
+            ) from exc
         set_fast_flags(renderer, quality)
         self._renderers[key] = renderer
         return renderer

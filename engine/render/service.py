@@ -18,7 +18,7 @@ from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import Future
 from functools import partial
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -47,16 +47,23 @@ class RenderService:
 
     def __init__(self, cache: RenderCache | None = None) -> None:
         self.cache = cache
-        self._jobs: queue.SimpleQueue[tuple[Future, Callable[[FrameRenderer], Any]] | None] = (
-            queue.SimpleQueue())
+        self._jobs: queue.SimpleQueue[tuple[Future[Any], Callable[[FrameRenderer], Any]] | None]
+        self._jobs = queue.SimpleQueue()
         self._lock = threading.Lock()
         self._thread: threading.Thread | None = None
         self._closed = False
         self._cache_warned = False
 
-    def render(self, env_id: str, qpos: np.ndarray, qvel: np.ndarray,
-               view: str = DEFAULT_VIEW, size: int = DEFAULT_SIZE, fmt: ImageFormat = "jpg",
-               quality: bool = False) -> bytes:
+    def render(
+        self,
+        env_id: str,
+        qpos: np.ndarray,
+        qvel: np.ndarray,
+        view: str = DEFAULT_VIEW,
+        size: int = DEFAULT_SIZE,
+        fmt: ImageFormat = "jpg",
+        quality: bool = False,
+    ) -> bytes:
         """Encoded image of one state; see :class:`RenderSpec` for the options.
 
         Raises:
@@ -66,21 +73,28 @@ class RenderService:
         spec = RenderSpec(view=view, size=size, fmt=fmt, quality=quality)
         return next(self.iter_render(env_id, [(qpos, qvel)], spec))
 
-    def render_many(self, env_id: str, states: Iterable[State], view: str = DEFAULT_VIEW,
-                    size: int = DEFAULT_SIZE, fmt: ImageFormat = "jpg",
-                    quality: bool = False) -> list[bytes]:
+    def render_many(
+        self,
+        env_id: str,
+        states: Iterable[State],
+        view: str = DEFAULT_VIEW,
+        size: int = DEFAULT_SIZE,
+        fmt: ImageFormat = "jpg",
+        quality: bool = False,
+    ) -> list[bytes]:
         """Encoded images of many states of one env, in order, through one renderer."""
         spec = RenderSpec(view=view, size=size, fmt=fmt, quality=quality)
         return list(self.iter_render(env_id, states, spec))
 
-    def iter_render(self, env_id: str, states: Iterable[State],
-                    spec: RenderSpec) -> Iterator[bytes]:
+    def iter_render(
+        self, env_id: str, states: Iterable[State], spec: RenderSpec
+    ) -> Iterator[bytes]:
         """Yield each state's encoded image in order (cache hits without rendering).
 
         Up to :data:`LOOKAHEAD` renders run ahead of the consumer; closing the iterator
         early cancels those not started.
         """
-        window: deque[tuple[str, bytes | None, Future | None]] = deque()
+        window: deque[tuple[str, bytes | None, Future[Any] | None]] = deque()
         try:
             for qpos, qvel in states:
                 window.append(self._start(env_id, qpos, qvel, spec))
@@ -93,8 +107,9 @@ class RenderService:
                 if job is not None:
                     job.cancel()
 
-    def warm_up(self, env_id: str, view: str = DEFAULT_VIEW, size: int = DEFAULT_SIZE,
-                quality: bool = False) -> None:
+    def warm_up(
+        self, env_id: str, view: str = DEFAULT_VIEW, size: int = DEFAULT_SIZE, quality: bool = False
+    ) -> None:
         """Make the renderer for these settings now, so that the first request does not wait.
 
         Call it at web-app start-up, for example; it blocks until done.
@@ -122,8 +137,9 @@ class RenderService:
     def __exit__(self, *exc_info: object) -> None:
         self.close()
 
-    def _start(self, env_id: str, qpos: np.ndarray, qvel: np.ndarray,
-               spec: RenderSpec) -> tuple[str, bytes | None, Future | None]:
+    def _start(
+        self, env_id: str, qpos: np.ndarray, qvel: np.ndarray, spec: RenderSpec
+    ) -> tuple[str, bytes | None, Future[Any] | None]:
         """Cache key, and either the cached image or the queued render."""
         key = cache_key(env_id, qpos, qvel, spec)
         hit = self.cache.get(key, spec.fmt) if self.cache is not None else None
@@ -134,36 +150,37 @@ class RenderService:
         task = partial(FrameRenderer.frame, env_id=env_id, qpos=qpos, qvel=qvel, spec=spec)
         return key, None, self._submit(task)
 
-    def _finish(self, key: str, hit: bytes | None, job: Future | None,
-                spec: RenderSpec) -> bytes:
+    def _finish(
+        self, key: str, hit: bytes | None, job: Future[Any] | None, spec: RenderSpec
+    ) -> bytes:
         if hit is not None:
             return hit
-        data = encode(job.result(), spec)
+        data = encode(cast("Future[Any]", job).result(), spec)  # no hit: a queued render
         if self.cache is not None:
-            self._store(key, spec.fmt, data)
+            self._store(self.cache, key, spec.fmt, data)
         return data
 
-    def _store(self, key: str, fmt: str, data: bytes) -> None:
+    def _store(self, cache: RenderCache, key: str, fmt: str, data: bytes) -> None:
         """Cache an image if possible: a cache that cannot be written only costs speed."""
         try:
-            self.cache.put(key, fmt, data)
+            cache.put(key, fmt, data)
         except OSError as exc:
             if not self._cache_warned:  # once per service: not one line per image
                 self._cache_warned = True
-                log.warning("render cache %s is not writable (%s); rendering without it",
-                            self.cache.root, exc)
+                log.warning(
+                    "render cache %s is not writable (%s); rendering without it", cache.root, exc
+                )
 
-    def _submit(self, task: Callable[[FrameRenderer], Any]) -> Future:
+    def _submit(self, task: Callable[[FrameRenderer], Any]) -> Future[Any]:
         """Queue ``task(frame_renderer)`` for the render thread (started on first use)."""
         with self._lock:
             if self._closed:
                 raise RuntimeError("the render service is closed")
             if self._thread is None:
-                self._thread = threading.Thread(target=self._loop, name="acv-render",
-                                                daemon=True)
+                self._thread = threading.Thread(target=self._loop, name="acv-render", daemon=True)
                 self._thread.start()
                 atexit.register(self.close)
-            job: Future = Future()
+            job: Future[Any] = Future()
             self._jobs.put((job, task))
         return job
 

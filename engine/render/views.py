@@ -8,11 +8,12 @@ body's subtree centre of mass, which keeps the whole body centred whatever the s
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal
-
-import mujoco
+from typing import TYPE_CHECKING, Literal
 
 from engine.errors import InputError
+
+if TYPE_CHECKING:  # mujoco loads where an env is built, not in web processes
+    import mujoco
 
 ImageFormat = Literal["jpg", "png"]
 FORMATS: tuple[str, ...] = ("jpg", "png")
@@ -42,6 +43,8 @@ class View:
 
     def camera(self) -> mujoco.MjvCamera:
         """A MuJoCo camera for this view, tracking body 1."""
+        import mujoco
+
         cam = mujoco.MjvCamera()
         cam.type = mujoco.mjtCamera.mjCAMERA_TRACKING
         cam.trackbodyid = 1
@@ -50,11 +53,14 @@ class View:
 
 
 #: Robots face +x at reset; azimuth 180 puts the camera ahead of them, looking back.
-VIEWS: dict[str, View] = {v.name: v for v in (
-    View("side", azimuth=90.0),
-    View("three-quarter", azimuth=135.0),
-    View("front", azimuth=180.0),
-)}
+VIEWS: dict[str, View] = {
+    v.name: v
+    for v in (
+        View("side", azimuth=90.0),
+        View("three-quarter", azimuth=135.0),
+        View("front", azimuth=180.0),
+    )
+}
 DEFAULT_VIEW = "side"
 
 
@@ -81,10 +87,14 @@ class RenderSpec:
     def __post_init__(self) -> None:
         if self.view not in VIEWS:
             raise InputError(f"unknown view {self.view!r}: expected one of {', '.join(VIEWS)}")
-        if isinstance(self.size, bool) or not isinstance(self.size, int) \
-                or not MIN_SIZE <= self.size <= MAX_SIZE:
-            raise InputError(f"image size must be an integer in {MIN_SIZE}..{MAX_SIZE} "
-                             f"pixels, got {self.size!r}")
+        if (
+            isinstance(self.size, bool)
+            or not isinstance(self.size, int)
+            or not MIN_SIZE <= self.size <= MAX_SIZE
+        ):
+            raise InputError(
+                f"image size must be an integer in {MIN_SIZE}..{MAX_SIZE} pixels, got {self.size!r}"
+            )
         fmt = _FORMAT_ALIASES.get(str(self.fmt).lower())
         if fmt is None:
             raise InputError(f"unknown image format {self.fmt!r}: expected jpg or png")

@@ -21,8 +21,13 @@ from __future__ import annotations
 from importlib import import_module
 from typing import Any
 
-_EXPORTS = {"TrainConfig": "config", "ALGOS": "config", "train": "runner",
-            "agent_tree": "agent_judge", "plot_runs": "plot"}
+_EXPORTS = {
+    "TrainConfig": "config",
+    "ALGOS": "config",
+    "train": "runner",
+    "agent_tree": "agent_judge",
+    "plot_runs": "plot",
+}
 
 __all__ = sorted(_EXPORTS)
 

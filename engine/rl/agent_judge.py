@@ -6,18 +6,24 @@ round) is played again with the higher score winning each match. Judges:
 
 - ``shaped`` (default): g(s) = R(s) + z_phi(s) F(s), the agent's shaped reward;
 - ``shaping``: z_phi(s) F(s), the part of it that comes from the advice;
-- ``value``: the shaped critic V(s).
+- ``value``: the shaped critic V(s);
+- ``behaviour``: what the agent does: its mean occupancy near s over deterministic rollouts
+  (:mod:`engine.rl.behaviour`), a *revealed-preference* tree.
 
-R(s) is the candidate's stored env reward, F the advice reward the agent trained with (built
-from the run's ``advice.json``, times ``advice_scale``), and z_phi and V are evaluated on the
-candidate's observation (restored with :func:`engine.envs.restore`, normalised as in
-training). The tree being replayed supplies only the bracket and the candidates; F comes from
-it only for a run saved without ``advice.json`` (trained with a plain F callable). ``ppo`` runs
-have z = 0 and ``ppo-shaped`` runs z = 1.
+R(s) is the reward the agent gets in s: the candidate's stored env reward minus the control
+cost of the policy's mean action there (the stored reward has no action, so no control cost).
+F is the advice reward the agent trained with (built from the run's ``advice.json``, times
+``advice_scale``; F = R for advice mode ``reward``; none for ``ppo``), and z_phi, V and the
+action are evaluated on the candidate's observation (restored with
+:func:`engine.envs.restore`, normalised as in training). The tree being replayed supplies
+only the bracket and the candidates; F comes from it only for a run saved without
+``advice.json`` (trained with a plain F callable). ``ppo`` runs have z = 0 and ``ppo-shaped``
+runs z = 1.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -26,17 +32,26 @@ import torch
 
 from engine.envs import make_env, restore
 from engine.errors import InputError
+from engine.gym_types import box
 from engine.pipeline import replay
+from engine.rewards import control_cost
+from engine.rl.behaviour import (
+    RolloutOptions,
+    cached_visited_states,
+    occupancy_scores,
+    visited_states,
+)
 from engine.rl.checkpoint import find_checkpoint, load_checkpoint
 from engine.rl.config import TrainConfig
+from engine.rl.inference import NumpyAgent
 from engine.rl.networks import Agent
 from engine.rl.normalize import ObsNormalizer
-from engine.rl.runner import advice_reward, load_run_advice
-from engine.rl.shaping import AdviceFn
+from engine.rl.runner import advice_reward, load_run_advice, load_run_pool, pool_reward
+from engine.rl.shaping import AdviceFn, EnvRewardAdvice
 from engine.tournament import ScoreJudge
 from engine.treefile import TreeDocument
 
-JUDGES: tuple[str, ...] = ("shaped", "shaping", "value")
+JUDGES: tuple[str, ...] = ("shaped", "shaping", "value", "behaviour")
 
 
 @dataclass(frozen=True)
@@ -65,69 +80,176 @@ def load_agent(path: Path) -> TrainedAgent:
     state = load_checkpoint(path)
     try:
         cfg = TrainConfig.from_json(state["config"])
-        agent = Agent(int(state["obs_dim"]), int(state["act_dim"]), cfg.hidden, cfg.algo,
-                      cfg.z_max, cfg.z_init)
+        agent = Agent(
+            int(state["obs_dim"]),
+            int(state["act_dim"]),
+            cfg.hidden,
+            cfg.algo,
+            cfg.z_max,
+            cfg.z_init,
+        )
         agent.load_state_dict(state["agent"])
         obs_norm = ObsNormalizer((int(state["obs_dim"]),), enabled=cfg.norm_obs)
         obs_norm.load_state_dict(state["obs_norm"])
     except (KeyError, TypeError, ValueError, RuntimeError) as exc:
         if isinstance(exc, InputError):
             raise
-        raise InputError(f"{path} is a damaged checkpoint ({type(exc).__name__}: {exc})"
-                         ) from exc
+        raise InputError(f"{path} is a damaged checkpoint ({type(exc).__name__}: {exc})") from exc
     return TrainedAgent(cfg, agent.eval(), obs_norm, int(state["timesteps"]))
 
 
+@dataclass(frozen=True)
+class CandidateTerms:
+    """The agent's reward terms at each candidate, arrays of shape ``(N,)`` in id order.
+
+    Attributes:
+        reward: R(s): stored env reward minus the control cost of the policy's mean action.
+        advice: F(s) after ``advice_scale`` (0 without advice).
+        z: the shaping weight z_phi(s).
+        value: V(s) of the shaped critic.
+    """
+
+    reward: np.ndarray
+    advice: np.ndarray
+    z: np.ndarray
+    value: np.ndarray
+
+    @property
+    def shaping(self) -> np.ndarray:
+        """z_phi(s) F(s)."""
+        shaping: np.ndarray = self.z * self.advice
+        return shaping
+
+    @property
+    def shaped(self) -> np.ndarray:
+        """R(s) + z_phi(s) F(s)."""
+        shaped: np.ndarray = self.reward + self.shaping
+        return shaped
+
+
 @torch.no_grad()
-def agent_scores(trained: TrainedAgent, doc: TreeDocument, judge: str = "shaped",
-                 advice: AdviceFn | None = None) -> dict[int, float]:
+def candidate_terms(
+    trained: TrainedAgent, doc: TreeDocument, advice: AdviceFn | None = None
+) -> CandidateTerms:
+    """R, F, z and V of every candidate of ``doc`` (see the module docstring).
+
+    Args:
+        advice: the F the agent trained with; built from ``doc`` when None (right only when
+            ``doc`` is the run's own advice tree).
+    """
+    cfg = trained.config
+    if doc.env_id != cfg.env_id:
+        raise InputError(f"the tree is for {doc.env_id}, but the agent was trained on {cfg.env_id}")
+    env = make_env(doc.env_id)
+    try:
+        x = torch.from_numpy(
+            trained.obs_norm(np.stack([restore(env, c.qpos, c.qvel) for c in doc.candidates]))
+        )
+        z = trained.agent.z(x)
+        space = box(env.action_space)
+        actions = trained.agent.actor(x, z).double().numpy().clip(space.low, space.high)
+        costs = np.array([control_cost(env, a) for a in actions])
+    finally:
+        env.close()
+    reward = np.array([c.env_reward for c in doc.candidates]) - costs
+    return CandidateTerms(
+        reward,
+        _advice_values(cfg, doc, advice, reward),
+        z.double().numpy(),
+        trained.agent.values(x)[0].double().numpy(),
+    )
+
+
+def _advice_values(
+    cfg: TrainConfig, doc: TreeDocument, advice: AdviceFn | None, reward: np.ndarray
+) -> np.ndarray:
+    """F at the candidates, times ``advice_scale``; 0 for a run without advice."""
+    if not cfg.uses_advice:
+        return np.zeros(len(doc.candidates))
+    f = advice if advice is not None else advice_reward(cfg, doc)
+    raw = (
+        reward if isinstance(f, EnvRewardAdvice) else f(np.stack([c.qpos for c in doc.candidates]))
+    )
+    return cfg.advice_scale * np.asarray(raw, dtype=np.float64)
+
+
+def agent_scores(
+    trained: TrainedAgent,
+    doc: TreeDocument,
+    judge: str = "shaped",
+    advice: AdviceFn | None = None,
+    *,
+    run_dir: Path | None = None,
+    rollouts: RolloutOptions = RolloutOptions(),
+) -> dict[int, float]:
     """The agent's score of every candidate of ``doc`` under ``judge``.
 
     Args:
         trained: the checkpoint's networks.
         doc: the tree whose candidates are scored.
         judge: one of :data:`JUDGES`.
-        advice: the F the agent trained with; built from ``doc`` when None (right only when
-            ``doc`` is the run's own advice tree).
+        advice: the F the agent trained with (see :func:`candidate_terms`).
+        run_dir: where the behaviour judge caches its rollouts (no cache when None).
+        rollouts: the behaviour judge's rollouts.
     """
     if judge not in JUDGES:
         raise InputError(f"unknown judge {judge!r}: expected one of {', '.join(JUDGES)}")
-    cfg = trained.config
-    if doc.env_id != cfg.env_id:
-        raise InputError(f"the tree is for {doc.env_id}, but the agent was trained on "
-                         f"{cfg.env_id}")
-    x = candidate_inputs(trained, doc)
-    if judge == "value":
-        scores = trained.agent.values(x)[0].double().numpy()
-    else:
-        qpos = np.stack([c.qpos for c in doc.candidates])
-        f = advice if advice is not None else advice_reward(cfg, doc)
-        shaping = trained.agent.z(x).double().numpy() * cfg.advice_scale * f(qpos)
-        reward = np.array([c.env_reward for c in doc.candidates])
-        scores = shaping if judge == "shaping" else reward + shaping
-    return {c.id: float(s) for c, s in zip(doc.candidates, scores, strict=True)}
+    if judge == "behaviour":
+        return behaviour_scores(trained, doc, run_dir=run_dir, rollouts=rollouts)
+    terms = candidate_terms(trained, doc, advice)
+    values = {"shaped": terms.shaped, "shaping": terms.shaping, "value": terms.value}[judge]
+    return {c.id: float(v) for c, v in zip(doc.candidates, values, strict=True)}
 
 
-def candidate_inputs(trained: TrainedAgent, doc: TreeDocument) -> torch.Tensor:
-    """The candidates' observations, normalised as the agent saw them, shape ``(N, obs_dim)``.
-    """
-    env = make_env(doc.env_id)
-    try:
-        obs = np.stack([restore(env, c.qpos, c.qvel) for c in doc.candidates])
-    finally:
-        env.close()
-    return torch.from_numpy(trained.obs_norm(obs))
+def behaviour_scores(
+    trained: TrainedAgent,
+    doc: TreeDocument,
+    *,
+    run_dir: Path | None = None,
+    rollouts: RolloutOptions = RolloutOptions(),
+) -> dict[int, float]:
+    """The behaviour judge's scores: occupancy of the policy's rollouts near each candidate."""
+    if doc.env_id != trained.config.env_id:
+        raise InputError(
+            f"the tree is for {doc.env_id}, but the agent was trained on {trained.config.env_id}"
+        )
+    visited = cached_visited_states(
+        run_dir,
+        trained.timesteps,
+        lambda: visited_states(deterministic_policy(trained), doc.env_id, rollouts),
+        rollouts,
+    )
+    return occupancy_scores(visited, doc)
+
+
+def deterministic_policy(trained: TrainedAgent) -> Callable[[np.ndarray], np.ndarray]:
+    """The checkpoint's policy without exploration noise: observation -> action mean (to be
+    clipped by the env's action space, as training does)."""
+    net = NumpyAgent(trained.agent)
+
+    def act(obs: np.ndarray) -> np.ndarray:
+        x = trained.obs_norm(np.asarray(obs, dtype=np.float64)[None])
+        action: np.ndarray = net.mean(x, net.z(x))[0]
+        return action
+
+    return act
 
 
 @torch.no_grad()
 def candidate_z(trained: TrainedAgent, doc: TreeDocument) -> dict[int, float]:
     """The shaping weight z_phi(s) the agent gives each candidate (0 for ``ppo``)."""
-    z = trained.agent.z(candidate_inputs(trained, doc)).double().numpy()
+    z = candidate_terms(trained, doc).z
     return {c.id: float(v) for c, v in zip(doc.candidates, z, strict=True)}
 
 
-def agent_tree(run_dir: Path, step: int | None = None, judge: str = "shaped",
-               advice: TreeDocument | None = None) -> TreeDocument:
+def agent_tree(
+    run_dir: Path,
+    step: int | None = None,
+    judge: str = "shaped",
+    advice: TreeDocument | None = None,
+    *,
+    rollouts: RolloutOptions = RolloutOptions(),
+) -> TreeDocument:
     """The Agent Preference Tree of a run's checkpoint over the advice tree's bracket.
 
     Args:
@@ -136,24 +258,28 @@ def agent_tree(run_dir: Path, step: int | None = None, judge: str = "shaped",
         judge: one of :data:`JUDGES`.
         advice: the tree whose bracket is replayed; by default the run's ``advice.json``.
             The judge's F is always the run's own (see the module docstring).
+        rollouts: the behaviour judge's rollouts.
 
     Raises:
         InputError: no advice tree, no such checkpoint, a damaged checkpoint, another env.
     """
     own, doc = _advice_trees(run_dir, advice)  # before the checkpoint: the clearer error
-    return _replay_as(load_agent(find_checkpoint(run_dir, step)), doc, own, judge)
+    trained = load_agent(find_checkpoint(run_dir, step))
+    return _judged(trained, doc, own, judge, run_dir, rollouts)
 
 
-def trained_agent_tree(trained: TrainedAgent, run_dir: Path, judge: str = "shaped",
-                       advice: TreeDocument | None = None) -> TreeDocument:
+def trained_agent_tree(
+    trained: TrainedAgent, run_dir: Path, judge: str = "shaped", advice: TreeDocument | None = None
+) -> TreeDocument:
     """:func:`agent_tree` for a checkpoint already loaded from ``run_dir`` (callers that also
     need its z or scores load it once)."""
     own, doc = _advice_trees(run_dir, advice)
-    return _replay_as(trained, doc, own, judge)
+    return _judged(trained, doc, own, judge, run_dir, RolloutOptions())
 
 
-def _advice_trees(run_dir: Path, advice: TreeDocument | None
-                  ) -> tuple[TreeDocument | None, TreeDocument]:
+def _advice_trees(
+    run_dir: Path, advice: TreeDocument | None
+) -> tuple[TreeDocument | None, TreeDocument]:
     """The run's own advice tree (None without ``advice.json``) and the tree to replay."""
     own = load_run_advice(run_dir)
     doc = advice if advice is not None else own
@@ -162,9 +288,39 @@ def _advice_trees(run_dir: Path, advice: TreeDocument | None
     return own, doc
 
 
-def _replay_as(trained: TrainedAgent, doc: TreeDocument, own: TreeDocument | None,
-               judge: str) -> TreeDocument:
+def run_advice_fn(
+    trained: TrainedAgent, own: TreeDocument | None, run_dir: Path | None = None
+) -> AdviceFn | None:
+    """The F the agent trained with: from the run's advice pool when it has one, else from
+    its own advice tree (None without either)."""
+    pool = load_run_pool(run_dir) if run_dir is not None else None
+    if pool is not None:
+        return pool_reward(trained.config, pool)
+    return advice_reward(trained.config, own) if own is not None else None
+
+
+def _judged(
+    trained: TrainedAgent,
+    doc: TreeDocument,
+    own: TreeDocument | None,
+    judge: str,
+    run_dir: Path | None,
+    rollouts: RolloutOptions,
+) -> TreeDocument:
     """``doc``'s bracket replayed with the agent's scores (F from its own advice)."""
-    f = advice_reward(trained.config, own) if own is not None else None
-    scores = agent_scores(trained, doc, judge, f)
+    scores = agent_scores(
+        trained,
+        doc,
+        judge,
+        run_advice_fn(trained, own, run_dir),
+        run_dir=run_dir,
+        rollouts=rollouts,
+    )
+    return replay_as(trained, doc, judge, scores)
+
+
+def replay_as(
+    trained: TrainedAgent, doc: TreeDocument, judge: str, scores: dict[int, float]
+) -> TreeDocument:
+    """``doc``'s bracket replayed by ``scores``, named ``agent:<judge>@<timesteps>``."""
     return replay(doc, ScoreJudge(scores), f"agent:{judge}@{trained.timesteps}", scores=scores)

@@ -52,8 +52,14 @@ class Rollout:
         return self.env_reward + self.boot_true
 
 
-def gae(rewards: torch.Tensor, values: torch.Tensor, dones: torch.Tensor,
-        last_values: torch.Tensor, gamma: float, lam: float) -> torch.Tensor:
+def gae(
+    rewards: torch.Tensor,
+    values: torch.Tensor,
+    dones: torch.Tensor,
+    last_values: torch.Tensor,
+    gamma: float,
+    lam: float,
+) -> torch.Tensor:
     """Generalised advantage estimates, shape (T, N).
 
     Args:

@@ -71,13 +71,15 @@ def find_checkpoint(run_dir: Path, step: int | None = None) -> Path:
     """
     found = list_checkpoints(run_dir)
     if not found:
-        raise InputError(f"{run_dir} has no checkpoints (expected {checkpoint_dir(run_dir)}/"
-                         "step_<timesteps>.pt)")
+        raise InputError(
+            f"{run_dir} has no checkpoints (expected {checkpoint_dir(run_dir)}/step_<timesteps>.pt)"
+        )
     if step is None:
         return found[max(found)]
     if step not in found:
-        raise InputError(f"{run_dir} has no checkpoint at step {step}; it has "
-                         f"{', '.join(map(str, found))}")
+        raise InputError(
+            f"{run_dir} has no checkpoint at step {step}; it has {', '.join(map(str, found))}"
+        )
     return found[step]
 
 
@@ -92,8 +94,14 @@ def load_checkpoint(path: Path) -> dict[str, Any]:
         raise InputError(f"no checkpoint file {path}")
     try:
         state = torch.load(path, map_location="cpu", weights_only=True)
-    except (RuntimeError, pickle.UnpicklingError, zipfile.BadZipFile, EOFError, ValueError,
-            OSError) as exc:
+    except (
+        RuntimeError,
+        pickle.UnpicklingError,
+        zipfile.BadZipFile,
+        EOFError,
+        ValueError,
+        OSError,
+    ) as exc:
         raise InputError(f"{path} is not a readable checkpoint ({type(exc).__name__})") from exc
     if not isinstance(state, dict) or state.get("format") != FORMAT:
         raise InputError(f"{path} is not an ACV checkpoint (expected format {FORMAT})")

@@ -18,6 +18,13 @@ ADVISED_ALGOS: frozenset[str] = frozenset(ALGOS[1:])
 BIPARS_ALGOS: frozenset[str] = frozenset(ALGOS[2:])
 """Algorithms that learn the shaping weight z_phi (Hu et al. 2020)."""
 
+REWARD_ADVICE = "reward"
+"""The advice mode in which F is the env's own step reward (the paper's Case 1, F = R)."""
+
+ADVICE_MODES: tuple[str, ...] = ("nearest", "softmax", "paper-min", REWARD_ADVICE)
+"""F modes: the three of :class:`engine.advice.AdviceReward` (F from the advice tree), or
+``reward`` (F = R; the advice tree is then only what the agent is compared against)."""
+
 MIN_MINIBATCH = 2
 """Fewest transitions per minibatch: advantages are normalised by their std over it, and the
 std of one value is NaN (silently NaN training)."""
@@ -68,7 +75,7 @@ class TrainConfig:
     advice_scale: float = 1.0
     """multiplies F(s) before shaping"""
     advice_mode: str = "nearest"
-    """F mode of :class:`engine.advice.AdviceReward` (nearest, softmax, paper-min)"""
+    """one of :data:`ADVICE_MODES`: how F is made from the advice tree, or ``reward`` (F = R)"""
     advice_depth_factor: str = "none"
     """depth factor D of F (none or paper)"""
     advice_kappa: float = 10.0
@@ -98,8 +105,10 @@ class TrainConfig:
             (seed_error(self.seed) is None, seed_error(self.seed) or ""),
             (self.n_envs >= 1 and self.num_steps >= 2, "n_envs must be >= 1, num_steps >= 2"),
             (self.num_minibatches >= 1, "num_minibatches must be >= 1"),
-            (self.num_minibatches < 1 or self.minibatch_size >= MIN_MINIBATCH,
-             self._minibatch_message()),
+            (
+                self.num_minibatches < 1 or self.minibatch_size >= MIN_MINIBATCH,
+                self._minibatch_message(),
+            ),
             (self.update_epochs >= 1 and self.z_epochs >= 1, "epochs must be >= 1"),
             (0 < self.gamma <= 1 and 0 <= self.gae_lambda <= 1, "gamma/gae_lambda out of range"),
             (self.learning_rate > 0 and self.z_learning_rate > 0, "learning rates must be > 0"),
@@ -112,26 +121,35 @@ class TrainConfig:
 
     def _advice_checks(self) -> list[tuple[bool, str]]:
         # deferred: engine.advice loads mujoco and gymnasium; this module stays light
-        from engine.advice import ADVICE_MODES, DEPTH_FACTORS
+        from engine.advice import DEPTH_FACTORS
 
         return [
-            (self.advice_mode in ADVICE_MODES, f"unknown advice mode {self.advice_mode!r}: "
-                                               f"choose one of {', '.join(ADVICE_MODES)}"),
-            (self.advice_depth_factor in DEPTH_FACTORS,
-             f"unknown advice depth factor {self.advice_depth_factor!r}: choose one of "
-             f"{', '.join(DEPTH_FACTORS)}"),
-            (math.isfinite(self.advice_kappa) and self.advice_kappa > 0,
-             f"advice kappa must be a positive number, got {self.advice_kappa}"),
+            (
+                self.advice_mode in ADVICE_MODES,
+                f"unknown advice mode {self.advice_mode!r}: "
+                f"choose one of {', '.join(ADVICE_MODES)}",
+            ),
+            (
+                self.advice_depth_factor in DEPTH_FACTORS,
+                f"unknown advice depth factor {self.advice_depth_factor!r}: choose one of "
+                f"{', '.join(DEPTH_FACTORS)}",
+            ),
+            (
+                math.isfinite(self.advice_kappa) and self.advice_kappa > 0,
+                f"advice kappa must be a positive number, got {self.advice_kappa}",
+            ),
         ]
 
     def _minibatch_message(self) -> str:
         # the CLI has no --num-minibatches: name the options it does have
         n = max(self.num_minibatches, 1)
-        return (f"a rollout of n_envs x num_steps = {self.n_envs} x {self.num_steps} = "
-                f"{self.batch_size} transitions split into num_minibatches = {n} leaves "
-                f"{self.batch_size // n} per minibatch (at least {MIN_MINIBATCH} needed): raise "
-                f"--n-envs or --num-steps so that n-envs x num-steps >= {MIN_MINIBATCH * n}, "
-                "or lower num_minibatches where it can be set")
+        return (
+            f"a rollout of n_envs x num_steps = {self.n_envs} x {self.num_steps} = "
+            f"{self.batch_size} transitions split into num_minibatches = {n} leaves "
+            f"{self.batch_size // n} per minibatch (at least {MIN_MINIBATCH} needed): raise "
+            f"--n-envs or --num-steps so that n-envs x num-steps >= {MIN_MINIBATCH * n}, "
+            "or lower num_minibatches where it can be set"
+        )
 
     @property
     def batch_size(self) -> int:

@@ -45,8 +45,10 @@ class NumpyAgent:
         self.actor = _linear_layers(agent.actor.mean)
         self.z_input = agent.actor.z_input
         self.log_std = _view(agent.actor.log_std)
-        self.critics = [(_view(w), _view(b)) for w, b in
-                        zip(agent.critics.weights, agent.critics.biases, strict=True)]
+        self.critics = [
+            (_view(w), _view(b))
+            for w, b in zip(agent.critics.weights, agent.critics.biases, strict=True)
+        ]
         self.z_net = None if agent.z_net is None else _linear_layers(agent.z_net.net)
         self.z_max = 0.0 if agent.z_net is None else agent.z_net.z_max
         self.fixed_z = np.float32(agent.fixed_z)
@@ -55,7 +57,8 @@ class NumpyAgent:
         """Shaping weight per state, shape (B,)."""
         if self.z_net is None:
             return np.full(len(obs), self.fixed_z, dtype=np.float32)
-        return self.z_max * np.tanh(mlp_forward(self.z_net, obs)[:, 0])
+        z: np.ndarray = self.z_max * np.tanh(mlp_forward(self.z_net, obs)[:, 0])
+        return z
 
     def mean(self, obs: np.ndarray, z: np.ndarray) -> np.ndarray:
         """Action mean, shape (B, act_dim)."""
@@ -71,4 +74,5 @@ class NumpyAgent:
     def log_prob(self, mean: np.ndarray, actions: np.ndarray) -> np.ndarray:
         """Log density of ``actions`` under the Gaussian policy, shape (B,)."""
         u = (actions - mean) * np.exp(-self.log_std)
-        return -(0.5 * u * u + self.log_std + 0.5 * LOG_2PI).sum(-1)
+        log_prob: np.ndarray = -(0.5 * u * u + self.log_std + 0.5 * LOG_2PI).sum(-1)
+        return log_prob

@@ -59,8 +59,7 @@ class RunLogger:
 
 def _finite(row: dict[str, Any]) -> dict[str, Any]:
     """NaN and infinities become null: ``metrics.jsonl`` stays strict JSON."""
-    return {k: None if isinstance(v, float) and not math.isfinite(v) else v
-            for k, v in row.items()}
+    return {k: None if isinstance(v, float) and not math.isfinite(v) else v for k, v in row.items()}
 
 
 def read_metrics(run_dir: Path) -> list[dict[str, Any]]:
@@ -82,6 +81,7 @@ def _parse_lines(path: Path) -> list[tuple[str, dict[str, Any]]]:
         except json.JSONDecodeError as exc:
             if i == len(lines) - 1:  # kill -9 mid-write: that update was never checkpointed
                 break
-            raise InputError(f"{path} line {i + 1} is not JSON: the metrics file is damaged"
-                             ) from exc
+            raise InputError(
+                f"{path} line {i + 1} is not JSON: the metrics file is damaged"
+            ) from exc
     return rows

@@ -6,6 +6,7 @@ All networks are CleanRL's 2x64 tanh MLPs with orthogonal initialisation.
 from __future__ import annotations
 
 import math
+from typing import cast
 
 import numpy as np
 import torch
@@ -24,8 +25,10 @@ def layer_init(layer: nn.Linear, std: float = math.sqrt(2.0), bias: float = 0.0)
 def mlp(n_in: int, n_out: int, hidden: int, out_std: float, out_bias: float = 0.0) -> nn.Sequential:
     """``n_in -> hidden -> hidden -> n_out`` with tanh activations."""
     return nn.Sequential(
-        layer_init(nn.Linear(n_in, hidden)), nn.Tanh(),
-        layer_init(nn.Linear(hidden, hidden)), nn.Tanh(),
+        layer_init(nn.Linear(n_in, hidden)),
+        nn.Tanh(),
+        layer_init(nn.Linear(hidden, hidden)),
+        nn.Tanh(),
         layer_init(nn.Linear(hidden, n_out), std=out_std, bias=out_bias),
     )
 
@@ -49,8 +52,9 @@ class Actor(nn.Module):
     def forward(self, obs: torch.Tensor, z: torch.Tensor | None = None) -> torch.Tensor:
         """Action mean, shape (B, act_dim); ``z`` has shape (B,) when ``z_input``."""
         if self.z_input:
-            obs = torch.cat([obs, z.unsqueeze(-1)], dim=-1)
-        return self.mean(obs)
+            obs = torch.cat([obs, cast(torch.Tensor, z).unsqueeze(-1)], dim=-1)
+        mean: torch.Tensor = self.mean(obs)
+        return mean
 
     def log_prob(self, mean: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
         """Log density of ``actions`` (B, act_dim) under N(mean, exp(log_std)^2), shape (B,)."""
@@ -76,8 +80,11 @@ class Critics(nn.Module):
 
     def __init__(self, obs_dim: int, hidden: int = 64, n: int = 1):
         super().__init__()
-        sizes = [(obs_dim, hidden, math.sqrt(2.0)), (hidden, hidden, math.sqrt(2.0)),
-                 (hidden, 1, 1.0)]
+        sizes = [
+            (obs_dim, hidden, math.sqrt(2.0)),
+            (hidden, hidden, math.sqrt(2.0)),
+            (hidden, 1, 1.0),
+        ]
         self.weights = nn.ParameterList()
         self.biases = nn.ParameterList()
         for n_in, n_out, gain in sizes:
@@ -121,8 +128,9 @@ class Agent(nn.Module):
     alone, used for the z update.
     """
 
-    def __init__(self, obs_dim: int, act_dim: int, hidden: int, algo: str, z_max: float,
-                 z_init: float):
+    def __init__(
+        self, obs_dim: int, act_dim: int, hidden: int, algo: str, z_max: float, z_init: float
+    ):
         super().__init__()
         self.actor = Actor(obs_dim, act_dim, hidden, z_input=algo == "bipars-em")
         learns_z = algo.startswith("bipars")
@@ -134,7 +142,8 @@ class Agent(nn.Module):
         """Shaping weight per state, shape (B,): z_phi(s), or the algorithm's constant."""
         if self.z_net is None:
             return torch.full(obs.shape[:1], self.fixed_z)
-        return self.z_net(obs)
+        z: torch.Tensor = self.z_net(obs)
+        return z
 
     def policy_params(self) -> list[nn.Parameter]:
         """Parameters trained by the PPO loss (actor and critics, not z_phi)."""

@@ -7,6 +7,8 @@ states that never came from a rollout (the agent preference tree).
 
 from __future__ import annotations
 
+from typing import SupportsFloat, cast
+
 import numpy as np
 from gymnasium.wrappers.utils import RunningMeanStd
 
@@ -39,14 +41,17 @@ class ObsNormalizer:
 
     def state_dict(self) -> dict[str, object]:
         """Statistics as plain values (checkpoint friendly)."""
-        return {"mean": self.rms.mean.tolist(), "var": self.rms.var.tolist(),
-                "count": float(self.rms.count)}
+        return {
+            "mean": self.rms.mean.tolist(),
+            "var": self.rms.var.tolist(),
+            "count": float(self.rms.count),
+        }
 
     def load_state_dict(self, state: dict[str, object]) -> None:
         """Restore the statistics saved by :meth:`state_dict`."""
         self.rms.mean = np.asarray(state["mean"], dtype=np.float64)
         self.rms.var = np.asarray(state["var"], dtype=np.float64)
-        self.rms.count = float(state["count"])
+        self.rms.count = float(cast(SupportsFloat, state["count"]))
 
 
 class RewardScaler:
@@ -85,12 +90,17 @@ class RewardScaler:
 
     def state_dict(self) -> dict[str, object]:
         """Statistics and per-env returns as plain values."""
-        return {"var": float(self.rms.var), "mean": float(self.rms.mean),
-                "count": float(self.rms.count), "returns": self.returns.tolist()}
+        return {
+            "var": float(self.rms.var),
+            "mean": float(self.rms.mean),
+            "count": float(self.rms.count),
+            "returns": self.returns.tolist(),
+        }
 
     def load_state_dict(self, state: dict[str, object]) -> None:
         """Restore the state saved by :meth:`state_dict`."""
-        self.rms.mean = np.float64(state["mean"])
-        self.rms.var = np.float64(state["var"])
-        self.rms.count = float(state["count"])
+        # gymnasium infers ndarray for these; with shape () a float64 scalar is what it keeps
+        self.rms.mean = np.float64(cast(SupportsFloat, state["mean"]))  # type: ignore[assignment]
+        self.rms.var = np.float64(cast(SupportsFloat, state["var"]))  # type: ignore[assignment]
+        self.rms.count = float(cast(SupportsFloat, state["count"]))
         self.returns = np.asarray(state["returns"], dtype=np.float64)

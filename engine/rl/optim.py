@@ -23,8 +23,8 @@ def flatten_(params: list[nn.Parameter]) -> nn.Parameter:
     offset = 0
     for p in params:
         n = p.numel()
-        p.data = flat.data[offset:offset + n].view_as(p)
-        p.grad = flat.grad[offset:offset + n].view_as(p)
+        p.data = flat.data[offset : offset + n].view_as(p)
+        p.grad = flat.grad[offset : offset + n].view_as(p)
         offset += n
     return flat
 

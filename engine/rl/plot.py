@@ -25,8 +25,9 @@ def seed_runs(path: Path) -> list[Path]:
     path = Path(path)
     if (path / METRICS_FILE).is_file():
         return [path]
-    runs = sorted(p for p in path.iterdir() if (p / METRICS_FILE).is_file()) if path.is_dir() \
-        else []
+    runs = (
+        sorted(p for p in path.iterdir() if (p / METRICS_FILE).is_file()) if path.is_dir() else []
+    )
     if not runs:
         raise InputError(f"{path} is not a training run (no {METRICS_FILE}) nor a folder of runs")
     return runs
@@ -37,8 +38,10 @@ def curve(run_dir: Path) -> tuple[np.ndarray, np.ndarray]:
     rows = [r for r in read_metrics(run_dir) if r.get("return_100") is not None]
     if not rows:
         raise InputError(f"{run_dir} has no finished episode yet")
-    return (np.array([r["timesteps"] for r in rows], dtype=float),
-            np.array([r["return_100"] for r in rows], dtype=float))
+    return (
+        np.array([r["timesteps"] for r in rows], dtype=float),
+        np.array([r["return_100"] for r in rows], dtype=float),
+    )
 
 
 def seed_band(curves: list[tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray, ...]:
@@ -50,8 +53,9 @@ def seed_band(curves: list[tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray, 
     return grid, ys.mean(0), ys.min(0), ys.max(0)
 
 
-def plot_runs(paths: list[Path], out: Path, labels: list[str] | None = None,
-              title: str | None = None) -> Path:
+def plot_runs(
+    paths: list[Path], out: Path, labels: list[str] | None = None, title: str | None = None
+) -> Path:
     """Draw one curve per path into ``out`` (PNG, or any format matplotlib knows by suffix)."""
     if labels is not None and len(labels) != len(paths):
         raise InputError(f"{len(labels)} labels for {len(paths)} runs")

@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Iterator
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 import torch
@@ -39,18 +40,31 @@ class Batch:
 
 def make_batch(rollout: Rollout, cfg: TrainConfig) -> Batch:
     """GAE for both critics (side by side in one pass) and flattening of the rollout."""
-    both = gae(torch.cat([rollout.shaped_reward, rollout.true_reward], 1),
-               torch.cat([rollout.values, rollout.true_values], 1), rollout.dones.repeat(1, 2),
-               torch.cat([rollout.last_values, rollout.last_true_values]), cfg.gamma,
-               cfg.gae_lambda)
+    both = gae(
+        torch.cat([rollout.shaped_reward, rollout.true_reward], 1),
+        torch.cat([rollout.values, rollout.true_values], 1),
+        rollout.dones.repeat(1, 2),
+        torch.cat([rollout.last_values, rollout.last_true_values]),
+        cfg.gamma,
+        cfg.gae_lambda,
+    )
     adv, true_adv = both.chunk(2, dim=1)
-    flat = lambda x: x.reshape(-1, *x.shape[2:])  # noqa: E731
-    return Batch(obs=flat(rollout.obs), actions=flat(rollout.actions),
-                 logprobs=flat(rollout.logprobs), z=flat(rollout.z),
-                 advantages=flat(adv), returns=flat(adv + rollout.values),
-                 values=flat(rollout.values), true_advantages=flat(true_adv),
-                 true_returns=flat(true_adv + rollout.true_values),
-                 true_values=flat(rollout.true_values))
+
+    def flat(x: torch.Tensor) -> torch.Tensor:
+        return x.reshape(-1, *x.shape[2:])
+
+    return Batch(
+        obs=flat(rollout.obs),
+        actions=flat(rollout.actions),
+        logprobs=flat(rollout.logprobs),
+        z=flat(rollout.z),
+        advantages=flat(adv),
+        returns=flat(adv + rollout.values),
+        values=flat(rollout.values),
+        true_advantages=flat(true_adv),
+        true_returns=flat(true_adv + rollout.true_values),
+        true_values=flat(rollout.true_values),
+    )
 
 
 def normalise(x: torch.Tensor) -> torch.Tensor:
@@ -63,8 +77,9 @@ def clipped_surrogate(ratio: torch.Tensor, advantages: torch.Tensor, clip: float
     return -torch.min(advantages * ratio, advantages * ratio.clamp(1 - clip, 1 + clip)).mean()
 
 
-def value_loss(new: torch.Tensor, old: torch.Tensor, returns: torch.Tensor,
-               clip: float) -> torch.Tensor:
+def value_loss(
+    new: torch.Tensor, old: torch.Tensor, returns: torch.Tensor, clip: float
+) -> torch.Tensor:
     """CleanRL's clipped value loss, ``0.5 * max(unclipped, clipped)`` squared errors."""
     clipped = old + (new - old).clamp(-clip, clip)
     return 0.5 * torch.max((new - returns).square(), (clipped - returns).square()).mean()
@@ -76,11 +91,12 @@ def minibatches(batch: Batch, minibatch_size: int, rng: np.random.Generator) -> 
     fields = [f.name for f in dataclasses.fields(Batch)]
     shuffled = [getattr(batch, name)[order] for name in fields]
     for start in range(0, len(order) - minibatch_size + 1, minibatch_size):
-        yield Batch(*(x[start:start + minibatch_size] for x in shuffled))
+        yield Batch(*(x[start : start + minibatch_size] for x in shuffled))
 
 
-def ppo_loss(agent: Agent, mb: Batch,
-             cfg: TrainConfig) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
+def ppo_loss(
+    agent: Agent, mb: Batch, cfg: TrainConfig
+) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
     """Total PPO loss of one minibatch (policy + critics - entropy) and its parts."""
     mean = agent.actor(mb.obs, mb.z)
     ratio = (agent.actor.log_prob(mean, mb.actions) - mb.logprobs).exp()
@@ -97,8 +113,13 @@ def ppo_loss(agent: Agent, mb: Batch,
     return loss, parts
 
 
-def ppo_update(agent: Agent, optimizer: torch.optim.Optimizer, batch: Batch, cfg: TrainConfig,
-               rng: np.random.Generator) -> dict[str, float]:
+def ppo_update(
+    agent: Agent,
+    optimizer: torch.optim.Optimizer,
+    batch: Batch,
+    cfg: TrainConfig,
+    rng: np.random.Generator,
+) -> dict[str, float]:
     """``update_epochs`` passes of minibatch Adam steps; returns the mean of each loss part.
 
     ``optimizer`` holds the actor and critics, possibly flattened (:mod:`engine.rl.optim`).
@@ -123,7 +144,7 @@ def clip_grad_norm(params: list[torch.Tensor], max_norm: float) -> None:
     if len(params) != 1:
         nn.utils.clip_grad_norm_(params, max_norm, foreach=True)
         return
-    grad = params[0].grad
+    grad = cast(torch.Tensor, params[0].grad)  # zero_grad(set_to_none=False) keeps it
     grad.mul_((max_norm / (grad.norm() + 1e-6)).clamp_(max=1.0))
 
 
@@ -134,12 +155,13 @@ def diagnostics(agent: Agent, batch: Batch, cfg: TrainConfig) -> dict[str, float
     ``approx_kl`` (Schulman's k3 estimator) and ``clipfrac`` compare the updated policy with
     the one that collected the batch; ``explained_variance`` is that of the old values.
     """
-    logratio = agent.actor.log_prob(agent.actor(batch.obs, batch.z), batch.actions) \
-        - batch.logprobs
+    logratio = agent.actor.log_prob(agent.actor(batch.obs, batch.z), batch.actions) - batch.logprobs
     ratio = logratio.exp()
-    return {"approx_kl": float(((ratio - 1) - logratio).mean()),
-            "clipfrac": float(((ratio - 1.0).abs() > cfg.clip_coef).float().mean()),
-            "explained_variance": explained_variance(batch.values, batch.returns)}
+    return {
+        "approx_kl": float(((ratio - 1) - logratio).mean()),
+        "clipfrac": float(((ratio - 1.0).abs() > cfg.clip_coef).float().mean()),
+        "explained_variance": explained_variance(batch.values, batch.returns),
+    }
 
 
 def explained_variance(pred: torch.Tensor, target: torch.Tensor) -> float:

@@ -20,41 +20,58 @@ from __future__ import annotations
 import json
 import shutil
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeGuard, cast
 
 import torch
 
-from engine.advice import AdviceReward
+from engine.advice import AdviceMode, AdviceReward
 from engine.errors import InputError
 from engine.rl.checkpoint import find_checkpoint, list_checkpoints, load_checkpoint, save_checkpoint
-from engine.rl.config import TrainConfig
+from engine.rl.config import REWARD_ADVICE, TrainConfig
 from engine.rl.logger import METRICS_FILE, RunLogger
-from engine.rl.shaping import AdviceFn
+from engine.rl.shaping import AdviceFn, EnvRewardAdvice
 from engine.rl.trainer import Trainer
 from engine.treefile import TreeDocument, dump_tree, load_tree
 
 CONFIG_FILE = "config.json"
 ADVICE_FILE = "advice.json"
+#: Pooled advice: every person's tree (``0.json``, ``1.json``, ...); ``advice.json`` then holds
+#: the pooled verdict (:func:`engine.pooling.pooled_tree`).
+POOL_DIR = "advice_pool"
+
+Advice = TreeDocument | Sequence[TreeDocument] | AdviceFn | None
+"""A run's advice: one tree, several trees over one bracket (pooled), an F callable, or none."""
 
 Progress = Callable[[dict[str, Any]], None]
+#: Called with (timesteps, path) after a checkpoint the run goes on from is written.
+OnCheckpoint = Callable[[int, Path], None]
 
 
-def train(config: TrainConfig, advice: TreeDocument | AdviceFn | None, out_dir: Path,
-          progress: Progress | None = None, should_stop: Callable[[], bool] | None = None,
-          resume: bool = False) -> Path:
+def train(
+    config: TrainConfig,
+    advice: Advice,
+    out_dir: Path,
+    progress: Progress | None = None,
+    should_stop: Callable[[], bool] | None = None,
+    resume: bool = False,
+    on_checkpoint: OnCheckpoint | None = None,
+) -> Path:
     """Train (or continue training) and return the path of the last checkpoint written.
 
     Args:
         config: the run's configuration.
         advice: a Human Preference Tree (F is built from it with the config's advice options
-            and saved as ``advice.json``), any F callable on ``qpos`` batches, or None (only
-            for ``ppo``; on resume, ``advice.json`` is reloaded when present).
+            and saved as ``advice.json``), a list of trees over one bracket (pooled: F is the
+            mean of their F; saved in ``advice_pool/``), any F callable on ``qpos`` batches,
+            or None (only for ``ppo``; on resume, the saved advice is reloaded).
         out_dir: the run directory (created).
         progress: called with every metrics row (``sps`` included).
         should_stop: polled after every update; True writes a checkpoint and returns.
         resume: continue from the latest checkpoint in ``out_dir``; the config must match.
+        on_checkpoint: called after each checkpoint and its ``progress`` (not after the one
+            a stop writes, so that stopping stays quick), e.g. to judge the checkpoint.
 
     Raises:
         InputError: missing or mismatched advice, an existing run without ``resume``, a
@@ -63,20 +80,26 @@ def train(config: TrainConfig, advice: TreeDocument | AdviceFn | None, out_dir: 
     torch.set_num_threads(1)
     out_dir = Path(out_dir)
     if advice is None and resume:
-        advice = load_run_advice(out_dir)
+        advice = load_run_pool(out_dir) or load_run_advice(out_dir)
     advice_fn = _advice_fn(config, advice)
-    state = _resume_state(config, out_dir) if resume else _check_new_dir(out_dir)
+    state = _resume_state(config, out_dir) if resume else None
+    if not resume:
+        _check_new_dir(out_dir)
     trainer, logger = _start(config, advice, advice_fn, out_dir, state)
     try:
-        return _loop(trainer, out_dir, logger, progress, should_stop)
+        return _loop(trainer, out_dir, logger, progress, should_stop, on_checkpoint)
     finally:
         logger.close()
         trainer.close()
 
 
-def _start(config: TrainConfig, advice: TreeDocument | AdviceFn | None,
-           advice_fn: AdviceFn | None, out_dir: Path,
-           state: dict[str, Any] | None) -> tuple[Trainer, RunLogger]:
+def _start(
+    config: TrainConfig,
+    advice: Advice,
+    advice_fn: AdviceFn | None,
+    out_dir: Path,
+    state: dict[str, Any] | None,
+) -> tuple[Trainer, RunLogger]:
     """The trainer (restored from ``state`` on resume) and the logger of the run.
 
     The trainer (envs, networks: what bad input makes fail) is built before anything is
@@ -98,25 +121,38 @@ def _start(config: TrainConfig, advice: TreeDocument | AdviceFn | None,
         raise
 
 
-def _loop(trainer: Trainer, out_dir: Path, logger: RunLogger, progress: Progress | None,
-          should_stop: Callable[[], bool] | None) -> Path:
+def _loop(
+    trainer: Trainer,
+    out_dir: Path,
+    logger: RunLogger,
+    progress: Progress | None,
+    should_stop: Callable[[], bool] | None,
+    on_checkpoint: OnCheckpoint | None = None,
+) -> Path:
     """Iterate until done or stopped, checkpointing every ``checkpoint_every`` steps."""
     cfg = trainer.cfg
     start_steps, start_time = trainer.timesteps, time.perf_counter()
-    last_saved = None
+    last_saved = saved_now = None
     while not trainer.done:
         row = trainer.iterate()
         row["sps"] = (trainer.timesteps - start_steps) / (time.perf_counter() - start_time)
         logger.write(row)
         stop = should_stop is not None and should_stop()
-        due = trainer.timesteps // cfg.checkpoint_every > (
-            trainer.timesteps - cfg.batch_size) // cfg.checkpoint_every
+        due = (
+            trainer.timesteps // cfg.checkpoint_every
+            > (trainer.timesteps - cfg.batch_size) // cfg.checkpoint_every
+        )
         if due or stop or trainer.done:
-            last_saved = save_checkpoint(trainer.state_dict(), out_dir, trainer.timesteps)
+            last_saved = saved_now = save_checkpoint(
+                trainer.state_dict(), out_dir, trainer.timesteps
+            )
         if progress is not None:  # after the checkpoint: progress shown is progress kept
             progress(row)
         if stop:
             break
+        if saved_now is not None and on_checkpoint is not None:
+            on_checkpoint(trainer.timesteps, saved_now)
+        saved_now = None
     return last_saved or find_checkpoint(out_dir)
 
 
@@ -126,12 +162,19 @@ def _check_new_dir(out_dir: Path) -> None:
         raise InputError(f"{out_dir} already holds a run: resume it or choose another --out")
 
 
-def _write_new_run(config: TrainConfig, advice: TreeDocument | AdviceFn | None,
-                   out_dir: Path) -> None:
-    """Create the run directory with ``config.json`` (and ``advice.json`` for a tree)."""
+def _write_new_run(config: TrainConfig, advice: Advice, out_dir: Path) -> None:
+    """Create the run directory with ``config.json`` (and ``advice.json`` for a tree; the
+    pool and its pooled verdict for several)."""
+    from engine.pooling import pooled_tree
+
     out_dir.mkdir(parents=True, exist_ok=True)
     if isinstance(advice, TreeDocument):
         dump_tree(advice, out_dir / ADVICE_FILE)
+    elif _is_pool(advice):
+        (out_dir / POOL_DIR).mkdir(exist_ok=True)
+        for i, doc in enumerate(advice):
+            dump_tree(doc, out_dir / POOL_DIR / f"{i}.json")
+        dump_tree(pooled_tree(advice), out_dir / ADVICE_FILE)
     (out_dir / CONFIG_FILE).write_text(json.dumps(config.to_json(), indent=1) + "\n")
 
 
@@ -142,6 +185,7 @@ def _undo_new_run(out_dir: Path, existed: bool) -> None:
         return
     for name in (CONFIG_FILE, ADVICE_FILE, METRICS_FILE):  # never what the caller made
         (out_dir / name).unlink(missing_ok=True)
+    shutil.rmtree(out_dir / POOL_DIR, ignore_errors=True)
 
 
 def _resume_state(config: TrainConfig, out_dir: Path) -> dict[str, Any]:
@@ -166,27 +210,60 @@ def load_run_config(run_dir: Path) -> TrainConfig:
 
 
 def load_run_advice(run_dir: Path) -> TreeDocument | None:
-    """The advice tree saved with a run, or None."""
+    """The advice tree saved with a run (the pooled verdict for pooled advice), or None."""
     path = Path(run_dir) / ADVICE_FILE
     return load_tree(path) if path.is_file() else None
 
 
-def _advice_fn(config: TrainConfig, advice: TreeDocument | AdviceFn | None) -> AdviceFn | None:
-    """F for the run; a tree must be over the run's env."""
+def load_run_pool(run_dir: Path) -> list[TreeDocument] | None:
+    """The trees of a run trained on pooled advice, in order; None for any other run."""
+    folder = Path(run_dir) / POOL_DIR
+    paths = sorted(folder.glob("*.json"), key=lambda p: int(p.stem)) if folder.is_dir() else []
+    return [load_tree(p) for p in paths] or None
+
+
+def _is_pool(advice: Advice) -> TypeGuard[Sequence[TreeDocument]]:
+    return isinstance(advice, list | tuple) and all(isinstance(d, TreeDocument) for d in advice)
+
+
+def _advice_fn(config: TrainConfig, advice: Advice) -> AdviceFn | None:
+    """F for the run; trees must be over the run's env."""
     if advice is None:
         if config.uses_advice:
             raise InputError(f"--algo {config.algo} needs advice (an acv.tree/1 file)")
         return None
-    if not isinstance(advice, TreeDocument):
-        return advice
-    if advice.env_id != config.env_id:
-        raise InputError(f"the advice tree is for {advice.env_id}, but the run trains on "
-                         f"{config.env_id}")
-    return advice_reward(config, advice)
+    docs = (
+        list(advice) if _is_pool(advice) else [advice] if isinstance(advice, TreeDocument) else None
+    )
+    if docs is None:
+        return advice  # type: ignore[return-value]  # an F callable
+    for doc in docs:
+        if doc.env_id != config.env_id:
+            raise InputError(
+                f"the advice tree is for {doc.env_id}, but the run trains on {config.env_id}"
+            )
+    return advice_reward(config, docs[0]) if len(docs) == 1 else pool_reward(config, docs)
+
+
+def pool_reward(config: TrainConfig, docs: Sequence[TreeDocument]) -> AdviceFn:
+    """F of pooled advice: the mean of the trees' F with the config's options (F = R for the
+    ``reward`` mode, whatever the trees)."""
+    from engine.pooling import pooled_advice
+
+    if config.advice_mode == REWARD_ADVICE:
+        return EnvRewardAdvice()
+    return pooled_advice(docs, config.advice_mode, config.advice_depth_factor, config.advice_kappa)
 
 
 def advice_reward(config: TrainConfig, doc: TreeDocument) -> AdviceFn:
-    """F built from a tree with the config's mode, depth factor and kappa."""
-    return AdviceReward.from_tree(doc, mode=config.advice_mode,
-                                  depth_factor=config.advice_depth_factor,
-                                  kappa=config.advice_kappa)
+    """F built from a tree with the config's mode, depth factor and kappa (F = R for the
+    ``reward`` mode, whatever the tree)."""
+    if config.advice_mode == REWARD_ADVICE:
+        return EnvRewardAdvice()
+    # TrainConfig.__post_init__ has checked that the mode is one of ADVICE_MODES
+    return AdviceReward.from_tree(
+        doc,
+        mode=cast(AdviceMode, config.advice_mode),
+        depth_factor=config.advice_depth_factor,
+        kappa=config.advice_kappa,
+    )

@@ -14,10 +14,12 @@ z_phi(s, a). The agent preference tree evaluates both at the candidate state.
 
 from __future__ import annotations
 
-from typing import Any, Protocol
+from typing import Any, Protocol, SupportsFloat
 
 import gymnasium as gym
 import numpy as np
+
+from engine.gym_types import mujoco_base
 
 
 class AdviceFn(Protocol):
@@ -29,16 +31,28 @@ class AdviceFn(Protocol):
     def __call__(self, qpos: np.ndarray) -> np.ndarray: ...
 
 
+class EnvRewardAdvice:
+    """F = R: the environment's own step reward as the advice (the paper's Case 1, "good
+    advice"). It is no function of ``qpos``: :class:`AdviceShaping` reads the step's reward,
+    and the agent's judge reads the candidate's R."""
+
+    def __call__(self, qpos: np.ndarray) -> np.ndarray:
+        raise TypeError("F = R is the step reward: AdviceShaping and the judges read it")
+
+
 class StateInfo(gym.Wrapper):
     """Replace the env's ``info`` by ``{"qpos": <the state reached>}``, shape (nq,)."""
 
     def reset(self, **kwargs: Any) -> tuple[np.ndarray, dict[str, Any]]:
         obs, _ = self.env.reset(**kwargs)
-        return obs, {"qpos": self.env.unwrapped.data.qpos.copy()}
+        return obs, {"qpos": mujoco_base(self.env).data.qpos.copy()}
 
-    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+    def step(
+        self, action: np.ndarray
+    ) -> tuple[np.ndarray, SupportsFloat, bool, bool, dict[str, Any]]:
         obs, reward, terminated, truncated, _ = self.env.step(action)
-        return obs, reward, terminated, truncated, {"qpos": self.env.unwrapped.data.qpos.copy()}
+        qpos = mujoco_base(self.env).data.qpos.copy()
+        return obs, reward, terminated, truncated, {"qpos": qpos}
 
 
 def reached_qpos(info: dict[str, Any], done: np.ndarray) -> np.ndarray:
@@ -47,7 +61,7 @@ def reached_qpos(info: dict[str, Any], done: np.ndarray) -> np.ndarray:
     With ``autoreset_mode=SAME_STEP`` a finished env has already been reset: its ``qpos`` is
     the new episode's first state and the reached one sits in ``info["final_info"]``.
     """
-    qpos = info["qpos"]
+    qpos: np.ndarray = info["qpos"]
     if done.any():
         qpos = qpos.copy()
         qpos[done] = info["final_info"]["qpos"][done]
@@ -62,7 +76,8 @@ class AdviceShaping(gym.vector.VectorWrapper):
 
     Args:
         env: a vector env whose sub-envs are wrapped in :class:`StateInfo`.
-        advice: the advice reward F, or None for zeros (the ``ppo`` baseline).
+        advice: the advice reward F (:class:`EnvRewardAdvice` for F = R), or None for zeros
+            (the ``ppo`` baseline).
         scale: multiplies F (``--advice-scale``).
     """
 
@@ -71,12 +86,15 @@ class AdviceShaping(gym.vector.VectorWrapper):
         self.advice = advice
         self.scale = scale
 
-    def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
-                                                 dict[str, Any]]:
+    def step(
+        self, actions: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         obs, reward, terminated, truncated, info = self.env.step(actions)
         info["env_reward"] = reward
         if self.advice is None:
             info["advice"] = np.zeros_like(reward)
+        elif isinstance(self.advice, EnvRewardAdvice):
+            info["advice"] = self.scale * np.asarray(reward, dtype=np.float64)
         else:
             qpos = reached_qpos(info, terminated | truncated)
             info["advice"] = self.scale * np.asarray(self.advice(qpos), dtype=np.float64)

@@ -9,11 +9,13 @@ from __future__ import annotations
 
 import time
 from collections import deque
-from typing import Any
+from collections.abc import Sequence
+from typing import Any, cast
 
 import numpy as np
 import torch
 
+from engine.gym_types import box
 from engine.rl.bipars import em_update, mgl_update
 from engine.rl.config import TrainConfig
 from engine.rl.networks import Agent
@@ -39,18 +41,28 @@ class Trainer:
         self.rng = np.random.default_rng(cfg.seed)
         self.envs = make_vec_env(cfg.env_id, cfg.n_envs, advice, cfg.advice_scale)
         first_obs, _ = self.envs.reset(seed=cfg.seed)
-        obs_dim = self.envs.single_observation_space.shape[0]
-        act_dim = self.envs.single_action_space.shape[0]
+        obs_dim = box(self.envs.single_observation_space).shape[0]
+        act_dim = box(self.envs.single_action_space).shape[0]
         with torch.random.fork_rng(devices=[]):  # seeded initialisation, global RNG untouched
             torch.manual_seed(cfg.seed)
             self.agent = Agent(obs_dim, act_dim, cfg.hidden, cfg.algo, cfg.z_max, cfg.z_init)
         self.optimizer = flat_adam(self.agent.policy_params(), cfg.learning_rate)
-        self.z_optimizer = (flat_adam(list(self.agent.z_net.parameters()), cfg.z_learning_rate)
-                            if self.agent.z_net is not None else None)
+        self.z_optimizer = (
+            flat_adam(list(self.agent.z_net.parameters()), cfg.z_learning_rate)
+            if self.agent.z_net is not None
+            else None
+        )
         self.obs_norm = ObsNormalizer((obs_dim,), enabled=cfg.norm_obs)
         scaler = RewardScaler(cfg.n_envs, cfg.gamma, enabled=cfg.norm_reward)
-        self.collector = Collector(self.envs, first_obs, self.agent, self.obs_norm, scaler,
-                                   cfg.gamma, np.random.default_rng([cfg.seed, 1]))
+        self.collector = Collector(
+            self.envs,
+            first_obs,
+            self.agent,
+            self.obs_norm,
+            scaler,
+            cfg.gamma,
+            np.random.default_rng([cfg.seed, 1]),
+        )
         self.update = 0
         self.timesteps = 0
         self.recent: deque[float] = deque(maxlen=100)
@@ -65,39 +77,53 @@ class Trainer:
         cfg = self.cfg
         if cfg.anneal_lr:
             self.optimizer.param_groups[0]["lr"] = cfg.learning_rate * (
-                1.0 - self.update / cfg.num_updates)
+                1.0 - self.update / cfg.num_updates
+            )
         rollout, episodes, spread = self.collector.collect(cfg.num_steps)
         batch = make_batch(rollout, cfg)
         theta = {k: v.detach().clone() for k, v in self.agent.actor.named_parameters()}
         losses = ppo_update(self.agent, self.optimizer, batch, cfg, self.rng)
+        z_optimizer = cast(torch.optim.Optimizer, self.z_optimizer)  # set for both bipars-*
         if cfg.algo == "bipars-em":
-            losses |= em_update(self.agent, self.z_optimizer, batch, cfg)
+            losses |= em_update(self.agent, z_optimizer, batch, cfg)
         elif cfg.algo == "bipars-mgl":
-            losses |= mgl_update(self.agent, self.z_optimizer, rollout, batch, cfg, theta)
+            losses |= mgl_update(self.agent, z_optimizer, rollout, batch, cfg, theta)
         self.update += 1
         self.timesteps += cfg.batch_size
         self.recent.extend(episodes.true_returns)
-        return {"timesteps": self.timesteps, "update": self.update,
-                "episodic_return": _mean(episodes.true_returns),
-                "shaped_return": _mean(episodes.shaped_returns),
-                "episode_length": _mean(episodes.lengths), "episodes": len(episodes.lengths),
-                "return_100": _mean(list(self.recent)), **spread,
-                "learning_rate": self.optimizer.param_groups[0]["lr"], **losses,
-                "time": time.time(), "episode_returns": episodes.true_returns,
-                "episode_shaped_returns": episodes.shaped_returns}
+        return {
+            "timesteps": self.timesteps,
+            "update": self.update,
+            "episodic_return": _mean(episodes.true_returns),
+            "shaped_return": _mean(episodes.shaped_returns),
+            "episode_length": _mean(episodes.lengths),
+            "episodes": len(episodes.lengths),
+            "return_100": _mean(list(self.recent)),
+            **spread,
+            "learning_rate": self.optimizer.param_groups[0]["lr"],
+            **losses,
+            "time": time.time(),
+            "episode_returns": episodes.true_returns,
+            "episode_shaped_returns": episodes.shaped_returns,
+        }
 
     def state_dict(self) -> dict[str, Any]:
         """Everything needed to rebuild the networks and continue the run exactly."""
         return {
-            "config": self.cfg.to_json(), "update": self.update, "timesteps": self.timesteps,
+            "config": self.cfg.to_json(),
+            "update": self.update,
+            "timesteps": self.timesteps,
             "obs_dim": self.agent.critics.weights[0].shape[1],
             "act_dim": self.agent.actor.log_std.numel(),
-            "agent": self.agent.state_dict(), "optimizer": self.optimizer.state_dict(),
+            "agent": self.agent.state_dict(),
+            "optimizer": self.optimizer.state_dict(),
             "z_optimizer": None if self.z_optimizer is None else self.z_optimizer.state_dict(),
             "obs_norm": self.obs_norm.state_dict(),
             "reward_scaler": self.collector.reward_scaler.state_dict(),
-            "collector": self.collector.state_dict(), "envs": snapshot_vec(self.envs),
-            "rng": self.rng.bit_generator.state, "recent": list(self.recent),
+            "collector": self.collector.state_dict(),
+            "envs": snapshot_vec(self.envs),
+            "rng": self.rng.bit_generator.state,
+            "recent": list(self.recent),
         }
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
@@ -119,6 +145,6 @@ class Trainer:
         self.envs.close()
 
 
-def _mean(values: list[float]) -> float | None:
+def _mean(values: Sequence[float]) -> float | None:
     """Mean, or None (JSON null) when no episode finished."""
     return float(np.mean(values)) if values else None

@@ -3,32 +3,14 @@
 // options), the overturned matches highlighted in both and listed as image pairs, the metrics
 // with a one-line verdict, a checkpoint slider, and the conformance curve across training.
 // Several runs on the same advice (#compare-runs): their agreement curves on one chart.
-/* global ACV, ACVTree, ACVChart */
+/* global ACV, ACVTree, acvPlots */
 "use strict";
 
 (function () {
   const THUMB = 64;
 
-  // "The agent kept 14 of 15 of your choices ..." (as app.services.comparison.verdict).
-  function verdict(m, whose) {
-    const kept = m.n_agree, n = m.n_matches, rejected = n - kept;
-    let text = `The agent kept ${kept} of ${n} of ${whose} choices`;
-    text += rejected === 0 ? " and rejected none." :
-      ` and overturned ${rejected} (${Math.round(100 * rejected / n)}%).`;
-    return `${text} ${m.same_champion ? "It agrees on the champion." :
-      "It crowns a different champion."}`;
-  }
-
-  // States to mark: the human's loser of each overturned match in the human tree, the human's
-  // winner (which the agent ruled against) in the agent's tree.
-  function highlights(m) {
-    const human = new Set(), agent = new Set();
-    for (const r of m.rejected) {
-      human.add(r.human_winner === r.a ? r.b : r.a);
-      agent.add(r.human_winner);
-    }
-    return { human, agent };
-  }
+  const POLL_MS = 2000;
+  const sleep = (ms) => new Promise((done) => setTimeout(done, ms));
 
   function figure(url, fullUrl, caption, cls, open) {
     const fig = document.createElement("figure");
@@ -67,6 +49,12 @@
       text.textContent = `Round ${r.round}: ${who} preferred #${r.human_winner}, ` +
         (r.agent_winner === null ? `the agent could not decide against #${other}.` :
           `the agent preferred #${r.agent_winner}.`);
+      if (r.contested) {
+        item.classList.add("contested");
+        const tag = document.createElement("strong");
+        tag.textContent = "Contested: the advice went against the environment's reward. ";
+        text.prepend(tag);
+      }
       item.append(imgs, text);
       return item;
     });
@@ -82,10 +70,54 @@
     set("same_champion", m.same_champion ? "yes" : "no");
   }
 
-  async function getJson(url) {
-    const result = await ACV.api("GET", url);
-    if (result.status !== 200) throw new Error(ACV.errorText(result));
-    return result.data;
+  // A checkpoint's artefact may still be computing (202): show it, and ask again.
+  async function getJson(url, onPending) {
+    for (;;) {
+      const result = await ACV.api("GET", url);
+      if (result.status === 200) return result.data;
+      if (result.status !== 202 || !onPending) throw new Error(ACV.errorText(result));
+      onPending();
+      await sleep(POLL_MS);
+    }
+  }
+
+  function cell(row, text) {
+    const td = document.createElement("td");
+    if (text instanceof Node) td.appendChild(text); else td.textContent = text;
+    row.appendChild(td);
+  }
+
+  function showJudges(body, report) {
+    body.replaceChildren(...report.judges.map((j) => {
+      const row = document.createElement("tr");
+      row.dataset.judge = j.judge;
+      if (j.judge === report.judge) row.classList.add("selected");
+      cell(row, j.judge);
+      cell(row, `${j.n_agree} / ${j.n_matches}`);
+      cell(row, j.contested.n === 0 ? "none contested" : `${j.contested.kept} / ${j.contested.n}`);
+      return row;
+    }));
+  }
+
+  const COLUMNS = ["id", "reward", "advice", "z", "shaping", "score", "value", "behaviour"];
+  function showCandidates(table, report, urls, open) {
+    const key = table.dataset.sortKey || "id";
+    const sign = table.dataset.sortDir === "desc" ? -1 : 1;
+    const rows = [...report.candidates].sort((a, b) => sign * (a[key] - b[key]));
+    table.querySelector("tbody").replaceChildren(...rows.map((c) => {
+      const row = document.createElement("tr");
+      const link = document.createElement("a");
+      link.href = urls.full(c.id);
+      link.textContent = `#${c.id}`;
+      link.addEventListener("click", (e) => { e.preventDefault(); open(urls.full(c.id), `#${c.id}`); });
+      cell(row, link);
+      for (const col of COLUMNS.slice(1)) cell(row, c[col].toFixed(3));
+      return row;
+    }));
+    for (const th of table.querySelectorAll("th[data-sort]")) {
+      th.setAttribute("aria-sort", th.dataset.sort !== key ? "none" :
+        (sign > 0 ? "ascending" : "descending"));
+    }
   }
 
   function singleRun(root) {
@@ -106,12 +138,21 @@
     const slider = document.getElementById("checkpoint");
     const judgeBox = document.getElementById("judge");
     const human = getJson(`${api}/advice-tree`);
-    let curve = null, current = Number(root.dataset.selected), request = 0;
+    let curve = null, candidates = null, current = Number(root.dataset.selected), request = 0;
+    for (const th of document.querySelectorAll("#candidates th[data-sort]")) {
+      th.querySelector("button").addEventListener("click", () => {
+        const table = document.getElementById("candidates");
+        const same = table.dataset.sortKey === th.dataset.sort;
+        table.dataset.sortDir = same && table.dataset.sortDir !== "desc" ? "desc" : "asc";
+        table.dataset.sortKey = th.dataset.sort;
+        if (candidates) showCandidates(table, candidates, urls, open);
+      });
+    }
     const judge = () => judgeBox.value;
 
     function drawCurve() {
       if (!curve) return;
-      ACVChart.lineChart(document.getElementById("chart-curve"), [
+      acvPlots.lines(document.getElementById("chart-curve"), [
         { label: "match agreement", points: curve.map((c) => [c.checkpoint, c.match_agreement]) },
         { label: "Kendall tau-b", points: curve.map((c) => [c.checkpoint,
           c.kendall_tau_b === null ? NaN : c.kendall_tau_b]) },
@@ -140,17 +181,25 @@
       const verdictBox = document.getElementById("verdict");
       try {
         const query = `checkpoint=${step}&judge=${judge()}`;
-        const [h, agent, m] = await Promise.all([human, getJson(`${api}/agent-tree?${query}`),
-          getJson(`${api}/conformance?${query}`)]);
+        const pending = () => { if (mine === request) verdictBox.textContent =
+          `Checkpoint ${step} is still computing; this page updates when it is ready.`; };
+        const [h, agent, report] = await Promise.all([human,
+          getJson(`${api}/agent-tree?${query}`, pending),
+          getJson(`${api}/checkpoint-report?${query}`, pending)]);
         if (mine !== request) return;  // a later checkpoint was picked meanwhile
-        const marks = highlights(m);
+        const m = report.conformance;
+        const marks = { human: new Set(report.highlights.human),
+          agent: new Set(report.highlights.agent) };
         const opts = { thumb: THUMB, imageUrl: urls.thumb };
         const pick = (doc) => (id) => open(urls.full(id), `#${id} (${doc})`);
         ACVTree.drawPreferenceTree(document.getElementById("human-tree"), h,
           Object.assign({}, opts, { highlight: marks.human, onSelect: pick("human tree") }));
         ACVTree.drawPreferenceTree(document.getElementById("agent-tree"), agent,
           Object.assign({}, opts, { highlight: marks.agent, onSelect: pick("agent tree") }));
-        verdictBox.textContent = verdict(m, root.dataset.whose);
+        verdictBox.textContent = report.verdict;
+        showJudges(document.getElementById("judges-body"), report);
+        candidates = report;
+        showCandidates(document.getElementById("candidates"), report, urls, open);
         verdictBox.classList.toggle("all-kept", m.rejected.length === 0);
         showMetrics(root, m);
         drawRejected(document.getElementById("rejected"), m, root.dataset.who, urls, open);
@@ -166,7 +215,8 @@
     slider.addEventListener("change", () => select(steps[Number(slider.value)]));
     const loadCurve = () => {
       const asked = judge();
-      return getJson(`${api}/conformance-curve?judge=${asked}`)
+      return getJson(`${api}/conformance-curve?judge=${asked}`, () => {
+        document.getElementById("chart-curve").textContent = "Computing…"; })
         .then((c) => {
           if (asked !== judge()) return;  // another judge was picked meanwhile
           curve = c;
@@ -194,7 +244,7 @@
     }
     const box = document.getElementById("chart-runs");
     if (series.some((s) => s.points.length > 0)) {
-      ACVChart.lineChart(box, series, { xlabel: "timesteps", ylabel: "match agreement",
+      acvPlots.lines(box, series, { xlabel: "timesteps", ylabel: "match agreement",
         yDomain: [0, 1] });
     } else {
       box.textContent = "No run has a checkpoint yet.";

@@ -1,7 +1,9 @@
 // Labelling page: one match at a time through the REST API, with the invite cookie.
 // Choose with a click or tap on a picture, the Left/Right buttons, or the arrow keys; the
 // response time sent is measured from both pictures being shown to the choice. Undo takes
-// back the latest label while no later match depends on it.
+// back the latest label while no later match depends on it. A label's answer carries the
+// next match, and the next match's pictures are fetched while the participant decides, so
+// the next pair appears at once.
 /* global ACV */
 "use strict";
 
@@ -47,6 +49,12 @@ function showStatus(next) {
   $("progress").setAttribute("aria-valuenow", String(done));
 }
 
+// The match's candidates as placed on screen: the server randomises which one is on the
+// left (`left`), so the page's "a" button is the left picture, not necessarily `a`.
+function placed(next) {
+  return next.left === next.b.candidate_id ? { a: next.b, b: next.a } : { a: next.a, b: next.b };
+}
+
 // Show the two pictures; the clock starts once both are decoded and on screen.
 async function showMatch(next) {
   if (state.match && state.match.match_id === next.match_id && state.shownAt !== null) return;
@@ -55,7 +63,8 @@ async function showMatch(next) {
   const box = $("match");
   box.classList.add("loading");
   box.dataset.matchId = String(next.match_id);
-  const images = [[$("img-a"), next.a], [$("img-b"), next.b]];
+  const onScreen = placed(next);
+  const images = [[$("img-a"), onScreen.a], [$("img-b"), onScreen.b]];
   for (const [img, side] of images) {
     img.src = side.image_url;
     img.alt = `candidate ${side.candidate_id}`;
@@ -67,29 +76,78 @@ async function showMatch(next) {
   state.shownAt = performance.now();
 }
 
+// Pictures fetched ahead, kept referenced so that the browser keeps them decoded.
+const preloaded = new Map();
+
+function preload(urls) {
+  for (const url of urls) {
+    if (preloaded.has(url)) continue;
+    const img = new Image();
+    img.src = url;
+    preloaded.set(url, img);
+    img.decode().catch(() => undefined);
+  }
+}
+
+// The pictures of the match that follows `current` (the first undecided one after it with
+// both players known). A later-round match that waits for `current` is between players
+// already shown, so those never need fetching.
+function upcomingImageUrls(rounds, current) {
+  const path = (id) => current.a.image_url.replace(
+    `/candidates/${current.a.candidate_id}/`, `/candidates/${id}/`);
+  for (const cells of rounds) {
+    for (const cell of cells) {
+      if (cell.is_bye || cell.winner !== null || cell.match_id === current.match_id) continue;
+      if (cell.a !== null && cell.b !== null) return [path(cell.a), path(cell.b)];
+    }
+  }
+  return [];
+}
+
+function finish() {
+  window.location.assign($("labelling").dataset.thanksUrl);
+}
+
 // Fetch the next match, the undo state and the live bracket; go to the thank-you page at
 // the end.
 async function refresh() {
   const [next, me, bracket] = await Promise.all(
     [ACV.api("GET", API.next), ACV.api("GET", API.me), ACV.api("GET", API.bracket)]);
   if (next.status === 204) {
-    window.location.assign($("labelling").dataset.thanksUrl);
+    finish();
     return;
   }
   for (const result of [next, me, bracket]) if (result.status !== 200) throw new ApiError(result);
   state.canUndo = me.data.can_undo;
   showStatus(next.data);
   drawBracket(bracket.data.rounds, next.data.match_id);
+  preload(upcomingImageUrls(bracket.data.rounds, next.data));
   await showMatch(next.data);
 }
 
-// Run one action (label or undo) at a time, then show the new state.
+// After a label: show the next match its answer carried (its pictures are usually
+// preloaded), and redraw the live bracket meanwhile. The latest label can always be undone.
+async function advance(next) {
+  state.canUndo = true;
+  showStatus(next);
+  const bracket = ACV.api("GET", API.bracket).then((result) => {
+    if (result.status !== 200) throw new ApiError(result);
+    drawBracket(result.data.rounds, next.match_id);
+    preload(upcomingImageUrls(result.data.rounds, next));
+  });
+  await Promise.all([showMatch(next), bracket]);
+}
+
+// Run one action (label or undo) at a time, then show the new state: the next match the
+// action returned, or else whatever the server says now.
 async function act(action) {
   state.busy = true;
   setEnabled();
   try {
-    await action();
-    await refresh();
+    const next = await action();
+    if (next === null) finish();
+    else if (next !== undefined) await advance(next);
+    else await refresh();
   } catch (err) {
     say(err.message, true);
   } finally {
@@ -105,10 +163,14 @@ function choose(side) {
   $(side === "a" ? "pick-a" : "pick-b").classList.add("chosen");
   act(async () => {
     const result = await ACV.api("POST", API.label(match.match_id),
-      { winner: match[side].candidate_id, response_ms: responseMs });
-    if (result.status === 409) say("That match was already decided (in another window?).");
-    else if (result.status !== 201 && result.status !== 200) throw new ApiError(result);
-    else say("");
+      { winner: placed(match)[side].candidate_id, response_ms: responseMs });
+    if (result.status === 409) {
+      say("That match was already decided (in another window?).");
+      return undefined;
+    }
+    if (result.status !== 201 && result.status !== 200) throw new ApiError(result);
+    say("");
+    return result.data.next;  // null once the bracket is finished
   });
 }
 

@@ -1,7 +1,7 @@
 // Run page: poll the run (GET /api/runs/{id}) and its new metrics rows while it is queued or
 // running; update the progress bar, the metrics table, the learning curve, z over training
 // and the checkpoints list. The page reloads when the run ends (to show resume/compare).
-/* global ACV, ACVChart */
+/* global ACV, acvPlots */
 "use strict";
 
 (function () {
@@ -38,13 +38,13 @@
   function drawCharts() {
     const ret = rows.filter((r) => r.return_100 !== null && r.return_100 !== undefined);
     if (ret.length > 0) {
-      ACVChart.lineChart(document.getElementById("chart-return"),
+      acvPlots.lines(document.getElementById("chart-return"),
         [{ label: "return", points: ret.map((r) => [r.timesteps, r.return_100]) }],
         { xlabel: "timesteps", ylabel: "return" });
     }
     const z = rows.filter((r) => Number.isFinite(r.z_mean));
     if (z.length > 0) {
-      ACVChart.lineChart(document.getElementById("chart-z"),
+      acvPlots.lines(document.getElementById("chart-z"),
         [{ label: "z", points: z.map((r) => [r.timesteps, r.z_mean]),
            band: z.map((r) => [r.timesteps, r.z_mean - r.z_std, r.z_mean + r.z_std]) }],
         { xlabel: "timesteps", ylabel: "z" });

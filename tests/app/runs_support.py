@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from typing import Any
@@ -13,6 +12,7 @@ from app.jobs.settings import JobSettings
 from app.main import create_app
 from app.settings import Settings
 from tests.app.conftest import ADMIN, Player
+from tests.support.wait import wait_for
 
 #: A tiny PPO budget on the 5-candidate Hopper study: 128 steps per update.
 TINY = {"n_envs": 1, "num_steps": 128, "num_minibatches": 4, "update_epochs": 2}
@@ -22,12 +22,14 @@ FINAL = ("succeeded", "failed", "cancelled", "interrupted")
 
 
 @contextmanager
-def run_app(settings: Settings, *, worker: bool = True, slots: int = 2,
-            **job_settings: Any) -> Iterator[TestClient]:
+def run_app(
+    settings: Settings, *, worker: bool = True, slots: int = 2, **job_settings: Any
+) -> Iterator[TestClient]:
     """The app with its lifespan running; its run worker polls every 0.1 s."""
     app = create_app(settings)
-    app.state.job_settings = JobSettings(run_worker=worker, worker_slots=slots, poll_s=0.1,
-                                         **job_settings)
+    app.state.job_settings = JobSettings(
+        run_worker=worker, worker_slots=slots, poll_s=0.1, **job_settings
+    )
     with TestClient(app) as client:
         yield client
 
@@ -45,15 +47,16 @@ def get_run(client: TestClient, run_id: int) -> dict[str, Any]:
     return response.json()
 
 
-def wait_run(client: TestClient, run_id: int,
-             until: Callable[[dict[str, Any]], bool] = lambda r: r["status"] in FINAL,
-             timeout_s: float = 180.0) -> dict[str, Any]:
+def wait_run(
+    client: TestClient,
+    run_id: int,
+    until: Callable[[dict[str, Any]], bool] = lambda r: r["status"] in FINAL,
+    timeout_s: float = 180.0,
+) -> dict[str, Any]:
     """Poll a run until ``until`` holds (by default: it has ended); returns its JSON."""
-    deadline = time.monotonic() + timeout_s
-    while not until(run := get_run(client, run_id)):
-        assert time.monotonic() < deadline, f"run {run_id} is still {run['status']}: {run}"
-        time.sleep(0.1)
-    return run
+    return wait_for(
+        lambda: get_run(client, run_id), until, what=f"run {run_id}", timeout_s=timeout_s
+    )
 
 
 def progressed(run: dict[str, Any]) -> bool:

@@ -31,17 +31,25 @@ from app.db import make_engine, make_sessions, upgrade
 from app.services import auth
 from tests.app.conftest import ADMIN, ADMIN_TOKEN, Player
 from tests.app.runs_support import TINY, create_run, wait_run
+from tests.support.postgres import BACKENDS
+from tests.support.web import browser, csrf_token
 
 ANON, A, B, RESEARCHER = "anonymous", "participant A", "participant B", "researcher"
 EVERYONE = frozenset({ANON, A, B, RESEARCHER})
 #: (method or "*", path pattern, who may use it); first match wins.
 RULES: list[tuple[str, str, frozenset[str]]] = [
     ("GET", r"/|/login|/p/\{token\}|/healthz|/openapi\.json|/docs", EVERYONE),
+    ("*", r"/s/\{slug\}", EVERYONE),  # open links: anyone (CSRF on the consent post)
     ("*", r"/api/participants/me(/.*)?|/participate(/.*)?", frozenset({A, B})),
     ("*", r"/api/matches/\{match_id\}/label", frozenset({A})),  # A's match
     ("GET", r"/api/participants/\{participant_id\}/tree", frozenset({A, RESEARCHER})),
-    ("GET", r"/api/studies/\{study_id\}/candidates/\{candidate_id\}/image",
-     frozenset({A, RESEARCHER})),  # S1's images: not for B, who is in S2
+    (
+        "GET",
+        r"/api/studies/\{study_id\}/candidates/\{candidate_id\}/image",
+        frozenset({A, RESEARCHER}),
+    ),  # S1's images: not for B, who is in S2
+    # Survey respondents' own routes: none of these four callers is a respondent.
+    ("*", r"/api/surveys/me(/.*)?|/survey|/r/\{token\}", frozenset()),
     ("*", r"/.*", frozenset({RESEARCHER})),  # deny by default
 ]
 #: Routes that take credentials rather than need them (CSRF and rate limits: see
@@ -50,8 +58,15 @@ CREDENTIAL_FORMS = {("POST", "/login"), ("POST", "/logout")}
 BODIES: dict[tuple[str, str], dict[str, Any]] = {
     ("POST", "/api/studies"): {"name": "authz", "env_id": "Hopper-v5", "n_candidates": 2},
     ("POST", "/api/studies/{study_id}/participants/batch"): {"count": 1},
-    ("POST", "/studies"): {"name": "authz", "env_id": "Hopper-v5", "n_candidates": "2",
-                           "p": "0.9", "seed": "0", "sampling": "uniform", "instructions": ""},
+    ("POST", "/studies"): {
+        "name": "authz",
+        "env_id": "Hopper-v5",
+        "n_candidates": "2",
+        "p": "0.9",
+        "seed": "0",
+        "sampling": "uniform",
+        "instructions": "",
+    },
     ("POST", "/studies/{study_id}/participants"): {"count": "1"},
 }
 
@@ -77,8 +92,13 @@ def rule_for(method: str, path: str) -> frozenset[str]:
 
 def app_routes(app) -> list[tuple[str, str]]:
     """(method, path) of every route, reads first (writes change the state reads see)."""
-    pairs = {(m, r.path) for r in iter_route_contexts(app.routes) if r.methods
-             for m in r.methods if m != "HEAD"}
+    pairs = {
+        (m, r.path)
+        for r in iter_route_contexts(app.routes)
+        if r.methods
+        for m in r.methods
+        if m != "HEAD"
+    }
     return sorted(pairs - CREDENTIAL_FORMS, key=lambda p: (p[0] != "GET", p[1], p[0]))
 
 
@@ -86,15 +106,16 @@ def denied(response, *, may_hide: bool) -> bool:
     """Refused: 401, 403 or a login redirect; also 404 where ``may_hide``."""
     if response.status_code in (401, 403) or (may_hide and response.status_code == 404):
         return True
-    return response.status_code in (302, 303, 307) and \
-        response.headers["location"].startswith("/login")
+    return response.status_code in (302, 303, 307) and response.headers["location"].startswith(
+        "/login"
+    )
 
 
 def allowed(response) -> bool:
-    redirected = response.status_code in (302, 303, 307) and \
-        response.headers["location"].startswith("/login")
-    return response.status_code < 500 and response.status_code not in (401, 403) \
-        and not redirected
+    redirected = response.status_code in (302, 303, 307) and response.headers[
+        "location"
+    ].startswith("/login")
+    return response.status_code < 500 and response.status_code not in (401, 403) and not redirected
 
 
 @pytest.fixture(scope="module")
@@ -103,10 +124,9 @@ def world(client: TestClient, study: dict[str, Any], make_study) -> dict[str, An
     other = make_study(name="other study", seed=4)
     a, b = (_invite(client, sid) for sid in (study["id"], other["id"]))
     assert a.play() == 4
-    page = TestClient(client.app, follow_redirects=False)
-    csrf_page = page.get("/login")
-    csrf = {"acv_csrf": csrf_page.cookies["acv_csrf"]}
-    form_token = re.search(r'name="csrf_token" value="([^"]+)"', csrf_page.text).group(1)
+    page = browser(client)
+    form_token = csrf_token(page)
+    csrf = {"acv_csrf": page.cookies["acv_csrf"]}
     login = page.post("/login", data={"csrf_token": form_token, "token": ADMIN_TOKEN})
     callers = [
         Caller(ANON, {}, csrf),
@@ -116,14 +136,48 @@ def world(client: TestClient, study: dict[str, Any], make_study) -> dict[str, An
     ]
     last_match = client.get("/api/participants/me/bracket", headers=a.headers).json()
     final = last_match["rounds"][-1][0]
-    run_id = create_run(client, study_id=study["id"], teacher="good", algo="bipars-em",
-                        timesteps=256, checkpoint_every=128, **TINY)
+    run_id = create_run(
+        client,
+        study_id=study["id"],
+        teacher="good",
+        algo="bipars-em",
+        timesteps=256,
+        checkpoint_every=128,
+        **TINY,
+    )
     assert wait_run(client, run_id)["status"] == "succeeded"  # every run route has data
-    params = {"study_id": study["id"], "candidate_id": 0, "participant_id": a.id,
-              "token": a.token, "match_id": final["match_id"], "run_id": run_id,
-              "which": "human", "fmt": "svg"}
-    return {"callers": callers, "params": params, "form_token": form_token, "a": a, "b": b,
-            "label": {"winner": final["winner"]}}
+    tree = {"kind": "participant", "participant_id": a.id}
+    survey = client.post(
+        "/api/surveys",
+        headers=ADMIN,
+        json={"name": "authz", "stimuli": [{"tree1": tree, "tree2": tree}]},
+    ).json()
+    link = client.put(
+        f"/api/studies/{study['id']}/crowd",
+        headers=ADMIN,
+        json={"enabled": True, "max_participants": 100},
+    ).json()
+    params = {
+        "study_id": study["id"],
+        "candidate_id": 0,
+        "participant_id": a.id,
+        "slug": link["slug"],
+        "token": a.token,
+        "match_id": final["match_id"],
+        "run_id": run_id,
+        "which": "human",
+        "fmt": "svg",
+        "survey_id": survey["id"],
+        "position": 1,
+    }
+    return {
+        "callers": callers,
+        "params": params,
+        "form_token": form_token,
+        "a": a,
+        "b": b,
+        "label": {"winner": final["winner"]},
+    }
 
 
 def _invite(client: TestClient, study_id: int) -> Player:
@@ -131,10 +185,16 @@ def _invite(client: TestClient, study_id: int) -> Player:
     return Player(client, body["id"], body["token"], body["invite_url"])
 
 
-def _ask(client: TestClient, method: str, path: str, caller: Caller, world: dict[str, Any],
-         *, cookies: bool):
-    url = path.format(**world["params"]) + QUERIES.get((method, path), "").format(
-        **world["params"])
+def _ask(
+    client: TestClient,
+    method: str,
+    path: str,
+    caller: Caller,
+    world: dict[str, Any],
+    *,
+    cookies: bool,
+):
+    url = path.format(**world["params"]) + QUERIES.get((method, path), "").format(**world["params"])
     body = BODIES.get((method, path), world["label"] if "label" in path else None)
     headers = {} if cookies else dict(caller.headers)
     if cookies:
@@ -151,6 +211,7 @@ def _ask(client: TestClient, method: str, path: str, caller: Caller, world: dict
     return response
 
 
+@pytest.mark.training  # the world has a trained run
 def test_every_route_is_in_the_matrix_and_enforced(client, world) -> None:
     asker = TestClient(client.app, follow_redirects=False)
     failures = []
@@ -170,30 +231,38 @@ def test_every_route_is_in_the_matrix_and_enforced(client, world) -> None:
                     ok = response.status_code < 400
                 else:
                     others = caller.name in (A, B) and bool(who & {A, B})  # not theirs
-                    ok = allowed(response) if caller.name in who else \
-                        denied(response, may_hide=missing or others)
+                    ok = (
+                        allowed(response)
+                        if caller.name in who
+                        else denied(response, may_hide=missing or others)
+                    )
                 if not ok:
-                    failures.append(f"{method} {path} as {caller.name} "
-                                    f"({'cookie' if cookies else 'bearer'}): "
-                                    f"{response.status_code} {response.text[:120]}")
+                    failures.append(
+                        f"{method} {path} as {caller.name} "
+                        f"({'cookie' if cookies else 'bearer'}): "
+                        f"{response.status_code} {response.text[:120]}"
+                    )
     assert failures == [], "\n".join(failures)
 
 
+@pytest.mark.training
 def test_participants_see_only_their_own_bracket(client, world) -> None:
     a, b = world["a"], world["b"]
     assert client.get("/api/participants/me", headers=b.headers).json()["id"] == b.id
     bracket = client.get("/api/participants/me/bracket", headers=b.headers).json()
     b_matches = {c["match_id"] for r in bracket["rounds"] for c in r if c["match_id"]}
     assert world["params"]["match_id"] not in b_matches
-    response = client.post(f"/api/matches/{world['params']['match_id']}/label",
-                           headers=b.headers, json={"winner": 0})
+    response = client.post(
+        f"/api/matches/{world['params']['match_id']}/label", headers=b.headers, json={"winner": 0}
+    )
     assert response.status_code == 404
     assert client.get(f"/api/participants/{a.id}/tree", headers=b.headers).status_code == 403
 
 
 def test_invite_tokens_are_unguessable(client, study) -> None:
-    people = client.post(f"/api/studies/{study['id']}/participants/batch", headers=ADMIN,
-                         json={"count": 200}).json()
+    people = client.post(
+        f"/api/studies/{study['id']}/participants/batch", headers=ADMIN, json={"count": 200}
+    ).json()
     tokens = [p["token"] for p in people]
     assert len(set(tokens)) == len(tokens)
     for token in tokens:
@@ -219,6 +288,7 @@ def test_tokens_are_compared_in_constant_time(client, invite, monkeypatch) -> No
     assert ADMIN_TOKEN.encode() in compared
 
 
+@pytest.mark.training
 def test_admin_token_never_appears_in_pages_or_logs(client, world, caplog) -> None:
     researcher = world["callers"][2]
     asker = TestClient(client.app, follow_redirects=False)
@@ -228,30 +298,49 @@ def test_admin_token_never_appears_in_pages_or_logs(client, world, caplog) -> No
                 for cookies in (False, True):
                     response = _ask(asker, method, path, researcher, world, cookies=cookies)
                     assert ADMIN_TOKEN not in response.text, path
-        asker.post("/login", data={"csrf_token": world["form_token"], "token": ADMIN_TOKEN[:-1]},
-                   headers={"Cookie": f"acv_csrf={researcher.cookies['acv_csrf']}"})
+        asker.post(
+            "/login",
+            data={"csrf_token": world["form_token"], "token": ADMIN_TOKEN[:-1]},
+            headers={"Cookie": f"acv_csrf={researcher.cookies['acv_csrf']}"},
+        )
     assert [r.getMessage() for r in caplog.records if ADMIN_TOKEN[:-1] in r.getMessage()] == []
 
 
-@pytest.mark.parametrize("backend", ["sqlite", "postgresql"])
-def test_invite_links_from_before_the_token_hash_still_work(request, tmp_path,
-                                                            backend: str) -> None:
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_invite_links_from_before_the_token_hash_still_work(
+    request, tmp_path, backend: str
+) -> None:
     """Migration 0003 hashes the tokens of existing participants, and keeps their matches
     (no table copy whose drop would cascade)."""
-    url = (f"sqlite:///{tmp_path / 'old.sqlite3'}" if backend == "sqlite"
-           else request.getfixturevalue("postgres").create_database())
+    url = (
+        f"sqlite:///{tmp_path / 'old.sqlite3'}"
+        if backend == "sqlite"
+        else request.getfixturevalue("postgres").create_database()
+    )
     upgrade(url, "0002")
     engine = make_engine(url)
     token = auth.new_token()
     with engine.begin() as conn:
-        conn.execute(text(
-            "INSERT INTO studies (id, name, env_id, n_candidates, p, seed, sampling, "
-            "instructions, status, created_at) VALUES (1, 's', 'Hopper-v5', 2, 0.9, 0, "
-            "'uniform', '', 'ready', CURRENT_TIMESTAMP)"))
-        conn.execute(text("INSERT INTO participants (id, study_id, token, created_at) "
-                          "VALUES (1, 1, :token, CURRENT_TIMESTAMP)"), {"token": token})
-        conn.execute(text("INSERT INTO matches (id, participant_id, round, slot, a, b, "
-                          "created_at) VALUES (1, 1, 1, 0, 0, 1, CURRENT_TIMESTAMP)"))
+        conn.execute(
+            text(
+                "INSERT INTO studies (id, name, env_id, n_candidates, p, seed, sampling, "
+                "instructions, status, created_at) VALUES (1, 's', 'Hopper-v5', 2, 0.9, 0, "
+                "'uniform', '', 'ready', CURRENT_TIMESTAMP)"
+            )
+        )
+        conn.execute(
+            text(
+                "INSERT INTO participants (id, study_id, token, created_at) "
+                "VALUES (1, 1, :token, CURRENT_TIMESTAMP)"
+            ),
+            {"token": token},
+        )
+        conn.execute(
+            text(
+                "INSERT INTO matches (id, participant_id, round, slot, a, b, "
+                "created_at) VALUES (1, 1, 1, 0, 0, 1, CURRENT_TIMESTAMP)"
+            )
+        )
     engine.dispose()
     upgrade(url)
     engine = make_engine(url)

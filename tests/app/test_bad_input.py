@@ -27,16 +27,37 @@ from engine.rl.checkpoint import checkpoint_path
 from tests.app.conftest import ADMIN, ADMIN_TOKEN
 
 CANARY = "acv-canary-outside-the-data-dir"
-MALFORMED_IDS = ["abc", "0", "-1", "1.5", "1e3", "99999999999999999999", "%00", "%ff",
-                 "%2e%2e", "..%2f..%2fetc%2fpasswd", "%E2%80%AE1", "0x10", "1_000"]
+MALFORMED_IDS = [
+    "abc",
+    "0",
+    "-1",
+    "1.5",
+    "1e3",
+    "99999999999999999999",
+    "%00",
+    "%ff",
+    "%2e%2e",
+    "..%2f..%2fetc%2fpasswd",
+    "%E2%80%AE1",
+    "0x10",
+    "1_000",
+]
 TRAVERSALS = [
-    "/static/../app/settings.py", "/static/%2e%2e/app/settings.py",
-    "/static/..%2fapp%2fsettings.py", "/static/%2e%2e%2f%2e%2e%2f{canary}",
-    "/static/..%5c..%5c{canary}", "/static//{canary_abs}", "/static/%2f{canary_abs}",
-    "/static/js/%2e%2e/%2e%2e/%2e%2e/{canary}", "/static/%252e%252e/app/settings.py",
+    "/static/../app/settings.py",
+    "/static/%2e%2e/app/settings.py",
+    "/static/..%2fapp%2fsettings.py",
+    "/static/%2e%2e%2f%2e%2e%2f{canary}",
+    "/static/..%5c..%5c{canary}",
+    "/static//{canary_abs}",
+    "/static/%2f{canary_abs}",
+    "/static/js/%2e%2e/%2e%2e/%2e%2e/{canary}",
+    "/static/%252e%252e/app/settings.py",
     "/api/studies/{sid}/candidates/..%2f..%2f{canary}/image",
     "/api/studies/{sid}/candidates/0/image?size=..%2f..%2f{canary}",
-    "/p/..%2f..%2f{canary}", "/p/%2e%2e", "/studies/..%2f..%2f{canary}", "//{canary_abs}",
+    "/p/..%2f..%2f{canary}",
+    "/p/%2e%2e",
+    "/studies/..%2f..%2f{canary}",
+    "//{canary_abs}",
     "/studies/{sid}/participants/..%2f..%2f{canary}/tree.json",
 ]
 
@@ -54,19 +75,28 @@ def researcher_page(client: TestClient) -> TestClient:
     page = TestClient(client.app, follow_redirects=False)
     form = page.get("/login").text
     token = re.search(r'name="csrf_token" value="([^"]+)"', form).group(1)
-    assert page.post("/login", data={"csrf_token": token, "token": ADMIN_TOKEN}
-                     ).status_code == 303
+    assert page.post("/login", data={"csrf_token": token, "token": ADMIN_TOKEN}).status_code == 303
     return page
 
 
 def _routes_with_ids(client: TestClient) -> list[tuple[str, str]]:
-    return sorted({(m, r.path) for r in iter_route_contexts(client.app.routes) if r.methods
-                   for m in r.methods if m != "HEAD" and "{" in r.path})
+    return sorted(
+        {
+            (m, r.path)
+            for r in iter_route_contexts(client.app.routes)
+            if r.methods
+            for m in r.methods
+            if m != "HEAD" and "{" in r.path
+        }
+    )
 
 
 def _clean(response) -> None:
-    assert 400 <= response.status_code < 500, (response.url, response.status_code,
-                                               response.text[:300])
+    assert 400 <= response.status_code < 500, (
+        response.url,
+        response.status_code,
+        response.text[:300],
+    )
     assert CANARY not in response.text and "Traceback" not in response.text
 
 
@@ -83,22 +113,24 @@ def test_malformed_ids_on_every_route_are_4xx(client, researcher_page, invite) -
 
 
 @pytest.mark.parametrize("template", TRAVERSALS)
-def test_path_traversal_reads_nothing_outside(client, researcher_page, study, canary,
-                                              template: str) -> None:
-    url = template.format(sid=study["id"], canary=canary.name,
-                          canary_abs=str(canary).lstrip("/"))
+def test_path_traversal_reads_nothing_outside(
+    client, researcher_page, study, canary, template: str
+) -> None:
+    url = template.format(sid=study["id"], canary=canary.name, canary_abs=str(canary).lstrip("/"))
     for asker, headers in ((client, ADMIN), (researcher_page, {})):
         response = asker.get(url, headers=headers)
-        assert response.status_code in (400, 404, 422) or \
-            (response.status_code in (303, 307) and "canary" not in
-             response.headers["location"]), (url, response.status_code)
+        assert response.status_code in (400, 404, 422) or (
+            response.status_code in (303, 307) and "canary" not in response.headers["location"]
+        ), (url, response.status_code)
         assert CANARY not in response.text and "BaseSettings" not in response.text
 
 
-@pytest.mark.parametrize("stored", ["../{canary}", "{canary_abs}", "images/../../{canary}",
-                                    "images/link.jpg"])
-def test_stored_image_paths_outside_the_data_dir_are_refused(client, settings, study, canary,
-                                                             stored: str) -> None:
+@pytest.mark.parametrize(
+    "stored", ["../{canary}", "{canary_abs}", "images/../../{canary}", "images/link.jpg"]
+)
+def test_stored_image_paths_outside_the_data_dir_are_refused(
+    client, settings, study, canary, stored: str
+) -> None:
     """A path in the database (tampered with, or a symlink planted in the data dir) is
     never followed out of the data dir."""
     link = settings.data_dir / "images" / "link.jpg"
@@ -108,20 +140,27 @@ def test_stored_image_paths_outside_the_data_dir_are_refused(client, settings, s
     engine = make_engine(settings.sqlalchemy_url)
     with make_sessions(engine)() as session:
         original = session.get(Candidate, (study["id"], 1)).image_path
-        session.execute(update(Candidate).where(Candidate.study_id == study["id"],
-                                                Candidate.id == 1).values(image_path=stored))
+        session.execute(
+            update(Candidate)
+            .where(Candidate.study_id == study["id"], Candidate.id == 1)
+            .values(image_path=stored)
+        )
         session.commit()
     try:
         _clean(client.get(f"/api/studies/{study['id']}/candidates/1/image", headers=ADMIN))
     finally:
         with make_sessions(engine)() as session:
-            session.execute(update(Candidate).where(Candidate.study_id == study["id"],
-                                                    Candidate.id == 1)
-                            .values(image_path=original))
+            session.execute(
+                update(Candidate)
+                .where(Candidate.study_id == study["id"], Candidate.id == 1)
+                .values(image_path=original)
+            )
             session.commit()
         engine.dispose()
-    assert client.get(f"/api/studies/{study['id']}/candidates/1/image",
-                      headers=ADMIN).status_code == 200
+    assert (
+        client.get(f"/api/studies/{study['id']}/candidates/1/image", headers=ADMIN).status_code
+        == 200
+    )
 
 
 BODY_CASES: list[tuple[str, dict[str, Any]]] = [
@@ -139,19 +178,21 @@ BODY_CASES: list[tuple[str, dict[str, Any]]] = [
 
 
 @pytest.mark.parametrize(("content_type", "body"), BODY_CASES)
-@pytest.mark.parametrize("path", ["/api/studies", "/api/studies/{sid}/participants/batch",
-                                  "/api/matches/1/label"])
-def test_wrong_content_types_and_bytes_are_4xx(client, study, invite, path: str,
-                                               content_type: str | None,
-                                               body: dict[str, Any]) -> None:
+@pytest.mark.parametrize(
+    "path", ["/api/studies", "/api/studies/{sid}/participants/batch", "/api/matches/1/label"]
+)
+def test_wrong_content_types_and_bytes_are_4xx(
+    client, study, invite, path: str, content_type: str | None, body: dict[str, Any]
+) -> None:
     headers = ADMIN if "studies" in path else invite().headers
     if content_type:
         headers = headers | {"Content-Type": content_type}
     _clean(client.post(path.format(sid=study["id"]), headers=headers, **body))
 
 
-@pytest.mark.parametrize("content_type", ["application/json", "text/plain",
-                                          "multipart/form-data; boundary=zz", None])
+@pytest.mark.parametrize(
+    "content_type", ["application/json", "text/plain", "multipart/form-data; boundary=zz", None]
+)
 def test_form_posts_with_odd_bodies_are_4xx(researcher_page, study, content_type) -> None:
     headers = {"Content-Type": content_type} if content_type else {}
     for path in ("/login", "/logout", "/studies", f"/studies/{study['id']}/participants"):
@@ -170,18 +211,21 @@ def page_forms(page: TestClient, study_id: int) -> list[tuple[str, dict[str, str
     value, so that only the integer field is wrong."""
     forms = []
     for path in ("/studies/new", f"/runs/new?study_id={study_id}", f"/studies/{study_id}"):
-        for attrs, body in re.findall(r'<form ([^>]*method="post"[^>]*)>(.*?)</form>',
-                                      page.get(path).text, re.DOTALL):
+        for attrs, body in re.findall(
+            r'<form ([^>]*method="post"[^>]*)>(.*?)</form>', page.get(path).text, re.DOTALL
+        ):
             fields, integers = {}, []
             for tag in re.findall(r"<input [^>]*name=[^>]*>", body):
                 name, value, kind = _attr(tag, "name"), _attr(tag, "value"), _attr(tag, "type")
                 fields[name] = value or ("x" if kind in (None, "text") else "")
                 value = value or ""
-                if (kind == "number" and _attr(tag, "step") != "any") or \
-                        (kind == "hidden" and value.isdigit()):
+                if (kind == "number" and _attr(tag, "step") != "any") or (
+                    kind == "hidden" and value.isdigit()
+                ):
                     integers.append(name)
-            for name, options in re.findall(r'<select [^>]*name="([^"]+)"[^>]*>(.*?)</select>',
-                                            body, re.DOTALL):
+            for name, options in re.findall(
+                r'<select [^>]*name="([^"]+)"[^>]*>(.*?)</select>', body, re.DOTALL
+            ):
                 fields[name] = re.findall(r'<option value="([^"]*)"', options)[0]
             if integers:
                 forms.append((_attr(attrs, "action"), fields, integers))
@@ -194,8 +238,12 @@ def test_huge_and_negative_integers_in_every_page_form_are_4xx(researcher_page, 
     page; never a 500."""
     forms = page_forms(researcher_page, study["id"])
     checked = {(action, name) for action, _, integers in forms for name in integers}
-    assert {("/runs", "study_id"), ("/runs", "timesteps"), ("/studies", "n_candidates"),
-            (f"/studies/{study['id']}/participants", "count")} <= checked
+    assert {
+        ("/runs", "study_id"),
+        ("/runs", "timesteps"),
+        ("/studies", "n_candidates"),
+        (f"/studies/{study['id']}/participants", "count"),
+    } <= checked
     for action, fields, integers in forms:
         for name in integers:
             for bad in ("99999999999999999999", "-99999999999999999999", "-1"):
@@ -208,45 +256,80 @@ def test_huge_bodies_are_413(client, path: str) -> None:
     assert client.post(path, content=b"x" * (MAX_BODY_BYTES + 1)).status_code == 413
 
 
-@pytest.mark.parametrize("header", [b"Bearer \xff\xfe", b"Bearer " + b"a" * 10_000,
-                                    b"Basic Zm9vOmJhcg==", b"Bearer", b"bearer  x y"])
+@pytest.mark.parametrize(
+    "header",
+    [
+        b"Bearer \xff\xfe",
+        b"Bearer " + b"a" * 10_000,
+        b"Basic Zm9vOmJhcg==",
+        b"Bearer",
+        b"bearer  x y",
+    ],
+)
 def test_odd_credentials_are_401(client, header: bytes) -> None:
     for path in ("/api/studies", "/api/participants/me"):
         response = client.get(path, headers=[(b"Authorization", header)])
         assert response.status_code == 401, (path, header)
 
 
-@pytest.mark.parametrize("cookie", ["acv_participant=\xe9\xff", "acv_researcher=" + "x" * 5000,
-                                    "acv_participant=../../etc/passwd", "acv_csrf=%00"])
+@pytest.mark.parametrize(
+    "cookie",
+    [
+        "acv_participant=\xe9\xff",
+        "acv_researcher=" + "x" * 5000,
+        "acv_participant=../../etc/passwd",
+        "acv_csrf=%00",
+    ],
+)
 def test_odd_cookies_are_refused(client, cookie: str) -> None:
     headers = [(b"Cookie", cookie.encode("latin-1"))]
     assert client.get("/api/participants/me", headers=headers).status_code == 401
     assert client.get("/participate", headers=headers).status_code == 401
 
 
-@pytest.mark.parametrize(("method", "path", "allow"), [
-    ("OPTIONS", "/api/studies", "GET, POST"), ("PUT", "/api/matches/1/label", "DELETE, POST"),
-    ("DELETE", "/api/studies/{sid}/participants", "GET, POST"), ("PATCH", "/login", "GET, POST")])
-def test_wrong_methods_are_405_with_every_allowed_method(client, study, method: str, path: str,
-                                                        allow: str) -> None:
+@pytest.mark.parametrize(
+    ("method", "path", "allow"),
+    [
+        ("OPTIONS", "/api/studies", "GET, POST"),
+        ("PUT", "/api/matches/1/label", "DELETE, POST"),
+        ("DELETE", "/api/studies/{sid}/participants", "GET, POST"),
+        ("PATCH", "/login", "GET, POST"),
+    ],
+)
+def test_wrong_methods_are_405_with_every_allowed_method(
+    client, study, method: str, path: str, allow: str
+) -> None:
     response = client.request(method, path.format(sid=study["id"]), headers=ADMIN)
     assert (response.status_code, response.headers["allow"]) == (405, allow)
 
 
-@pytest.mark.parametrize("body", [
-    lambda a: {"winner": str(a)}, lambda a: {"winner": a, "response_ms": False},
-    lambda a: {"winner": a, "response_ms": "5"}, lambda a: {"winner": a + 0.5}])
+@pytest.mark.parametrize(
+    "body",
+    [
+        lambda a: {"winner": str(a)},
+        lambda a: {"winner": a, "response_ms": False},
+        lambda a: {"winner": a, "response_ms": "5"},
+        lambda a: {"winner": a + 0.5},
+    ],
+)
 def test_json_numbers_are_not_guessed_from_other_types(client, invite, body) -> None:
     """``"3"`` or ``false`` where the schema says integer are refused, not coerced (lax
     parsing would have stored these labels); ``3.0`` is an integer in JSON Schema."""
     player = invite()
     match = player.next_match()
-    response = client.post(f"/api/matches/{match['match_id']}/label", headers=player.headers,
-                           json=body(match["a"]["candidate_id"]))
+    response = client.post(
+        f"/api/matches/{match['match_id']}/label",
+        headers=player.headers,
+        json=body(match["a"]["candidate_id"]),
+    )
     assert response.status_code == 422 and player.next_match() == match
     whole = {"winner": float(match["a"]["candidate_id"])}
-    assert client.post(f"/api/matches/{match['match_id']}/label", headers=player.headers,
-                       json=whole).status_code == 201
+    assert (
+        client.post(
+            f"/api/matches/{match['match_id']}/label", headers=player.headers, json=whole
+        ).status_code
+        == 201
+    )
 
 
 @pytest.fixture(scope="module")
@@ -258,29 +341,39 @@ def no_worker(settings) -> Iterator[TestClient]:
         yield client
 
 
-@pytest.mark.parametrize("content", [b"", b"not a checkpoint", b"PK\x03\x04" + b"\x00" * 64,
-                                     b"\x80\x02garbage"])
-def test_corrupt_checkpoints_are_refused_with_a_clear_message(no_worker, settings, study,
-                                                              content: bytes) -> None:
-    run_id = no_worker.post("/api/runs", headers=ADMIN, json={
-        "study_id": study["id"], "teacher": "good", "algo": "ppo-shaped",
-        "timesteps": 1000}).json()["id"]
+@pytest.mark.parametrize(
+    "content", [b"", b"not a checkpoint", b"PK\x03\x04" + b"\x00" * 64, b"\x80\x02garbage"]
+)
+def test_corrupt_checkpoints_are_refused_with_a_clear_message(
+    no_worker, settings, study, content: bytes
+) -> None:
+    run_id = no_worker.post(
+        "/api/runs",
+        headers=ADMIN,
+        json={"study_id": study["id"], "teacher": "good", "algo": "ppo-shaped", "timesteps": 1000},
+    ).json()["id"]
     path = checkpoint_path(settings.data_dir / "runs" / str(run_id), 256)
     path.parent.mkdir(parents=True)
     path.write_bytes(content)
-    for url in (f"/api/runs/{run_id}/agent-tree", f"/api/runs/{run_id}/conformance",
-                f"/api/runs/{run_id}/trees/agent.svg"):
+    for url in (
+        f"/api/runs/{run_id}/agent-tree",
+        f"/api/runs/{run_id}/conformance",
+        f"/api/runs/{run_id}/trees/agent.svg",
+    ):
         response = no_worker.get(url, headers=ADMIN)
         assert response.status_code == 422, (url, response.text)
         assert "step_256.pt is not" in response.json()["detail"]
 
 
 @pytest.mark.parametrize("advice", [{"format": "acv.tree/9"}, {"not": "a tree"}, []])
-def test_a_corrupt_stored_tree_is_refused_with_a_clear_message(no_worker, settings, study,
-                                                               advice) -> None:
-    run_id = no_worker.post("/api/runs", headers=ADMIN, json={
-        "study_id": study["id"], "teacher": "good", "algo": "ppo-shaped",
-        "timesteps": 1000}).json()["id"]
+def test_a_corrupt_stored_tree_is_refused_with_a_clear_message(
+    no_worker, settings, study, advice
+) -> None:
+    run_id = no_worker.post(
+        "/api/runs",
+        headers=ADMIN,
+        json={"study_id": study["id"], "teacher": "good", "algo": "ppo-shaped", "timesteps": 1000},
+    ).json()["id"]
     engine = make_engine(settings.sqlalchemy_url)
     with make_sessions(engine)() as session:
         session.execute(update(Run).where(Run.id == run_id).values(advice=advice))
@@ -302,8 +395,9 @@ def test_huge_integers_in_every_query_parameter_are_answered(client) -> None:
                 if param["in"] == "query" and "integer" in types:
                     url = re.sub(r"\{\w+\}", "1", path)
                     for huge in (10**22, -(10**22)):
-                        response = client.request(method, url, params={param["name"]: huge},
-                                                  headers=ADMIN)
+                        response = client.request(
+                            method, url, params={param["name"]: huge}, headers=ADMIN
+                        )
                         assert response.status_code < 500, (url, param["name"], huge)
                         asked += 1
     assert asked >= 4

@@ -12,13 +12,8 @@ from __future__ import annotations
 
 import csv
 import io
-import os
 import re
 import shutil
-import socket
-import subprocess
-import sys
-import time
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -26,33 +21,18 @@ import httpx
 import pytest
 from playwright.sync_api import Browser, BrowserContext, Page, expect, sync_playwright
 
+from tests.support.server import acv_serve, clean_env
+
+pytestmark = pytest.mark.browser
+
 ADMIN_TOKEN = "browser-test-admin-token-0123456789"
 CHROMIUM = "/usr/bin/chromium"
 CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking"]
 PHONE = {"width": 375, "height": 667}
 DESKTOP = {"width": 1280, "height": 860}
 SCREENS_COPY = Path("/tmp/acv_screens")
-REPO = Path(__file__).resolve().parents[2]
 N_CANDIDATES = 6  # 5 matches in 3 rounds (two byes)
 LOG_LINE = re.compile(r"^(DEBUG|INFO|WARNING|ERROR|CRITICAL)\b")
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def _wait_healthy(base: str, proc: subprocess.Popen, timeout_s: float = 120.0) -> None:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        assert proc.poll() is None, f"acv serve exited with {proc.returncode}"
-        try:
-            if httpx.get(f"{base}/healthz", timeout=2).status_code == 200:
-                return
-        except httpx.TransportError:
-            time.sleep(0.2)
-    pytest.fail("acv serve did not become healthy")
 
 
 @pytest.fixture(scope="module")
@@ -60,21 +40,9 @@ def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[str, Path
     """``acv serve`` on a free port; yields ``(base URL, file with its output and logs)``."""
     data_dir = tmp_path_factory.mktemp("acv-browser-data")
     log = data_dir.parent / "server.log"
-    env = {k: v for k, v in os.environ.items() if k != "DATABASE_URL"}
-    env |= {"ACV_DATA_DIR": str(data_dir), "ACV_ADMIN_TOKEN": ADMIN_TOKEN}
-    port = _free_port()
-    with log.open("w") as output:
-        proc = subprocess.Popen(
-            [sys.executable, "-c", "from app.cli import main; main()", "serve",
-             "--host", "127.0.0.1", "--port", str(port)],
-            cwd=REPO, env=env, stdout=output, stderr=subprocess.STDOUT)
-        base = f"http://127.0.0.1:{port}"
-        try:
-            _wait_healthy(base, proc)
-            yield base, log
-        finally:
-            proc.terminate()
-            proc.wait(timeout=60)
+    env = clean_env(ACV_DATA_DIR=str(data_dir), ACV_ADMIN_TOKEN=ADMIN_TOKEN)
+    with acv_serve(env, log) as base:
+        yield base, log
 
 
 @pytest.fixture(scope="module")
@@ -99,8 +67,12 @@ def screens(tmp_path: Path) -> Iterator[Path]:
 
 def watch_errors(page: Page, errors: list[str]) -> Page:
     """Collect console errors (CSP violations among them) and uncaught script errors."""
-    page.on("console", lambda m: errors.append(f"{m.text} ({m.location.get('url')})")
-            if m.type == "error" else None)
+    page.on(
+        "console",
+        lambda m: (
+            errors.append(f"{m.text} ({m.location.get('url')})") if m.type == "error" else None
+        ),
+    )
     page.on("pageerror", lambda exc: errors.append(str(exc)))
     return page
 
@@ -137,7 +109,8 @@ def wait_for_match(page: Page, previous: str | None = None) -> str:
     page.wait_for_function(
         """prev => { const m = document.getElementById('match');
                      return m && m.dataset.ready === 'true' && m.dataset.matchId !== prev; }""",
-        arg=previous or "")
+        arg=previous or "",
+    )
     return page.get_attribute("#match", "data-match-id")
 
 
@@ -166,8 +139,9 @@ def in_view(page: Page, selector: str) -> bool:
     return box is not None and box["y"] + box["height"] <= page.viewport_size["height"]
 
 
-def test_participant_bracket_and_researcher_tree(server: tuple[str, Path], browser: Browser,
-                                                 screens: Path) -> None:
+def test_participant_bracket_and_researcher_tree(
+    server: tuple[str, Path], browser: Browser, screens: Path
+) -> None:
     base, log = server
     errors: list[str] = []
     researcher, page = new_page(browser, errors, viewport=DESKTOP)
@@ -223,7 +197,8 @@ def test_participant_bracket_and_researcher_tree(server: tuple[str, Path], brows
     page.goto(study_url)
     expect(page.locator("table.participants tr.finished")).to_have_count(1)
     expect(page.locator("table.participants")).to_contain_text(
-        f"{N_CANDIDATES - 1}/{N_CANDIDATES - 1} · finished")
+        f"{N_CANDIDATES - 1}/{N_CANDIDATES - 1} · finished"
+    )
     tree = page.locator(".tree-box svg.pref-tree")
     expect(tree.locator("g.node")).to_have_count(N_CANDIDATES)
     expect(tree.locator("image")).to_have_count(N_CANDIDATES)
@@ -240,15 +215,16 @@ def test_participant_bracket_and_researcher_tree(server: tuple[str, Path], brows
 
 def log_lines_with(log: Path, text: str) -> list[str]:
     """Log lines (the access log included) that contain ``text``."""
-    return [line for line in log.read_text().splitlines()
-            if text in line and LOG_LINE.match(line)]
+    return [line for line in log.read_text().splitlines() if text in line and LOG_LINE.match(line)]
 
 
 def _stored_labels(base: str, study_url: str) -> dict[int, int]:
     """match id -> winner, from the study's labels CSV (every label has a response time)."""
     study_id = study_url.rstrip("/").rsplit("/", 1)[1]
-    response = httpx.get(f"{base}/api/studies/{study_id}/labels.csv",
-                         headers={"Authorization": f"Bearer {ADMIN_TOKEN}"})
+    response = httpx.get(
+        f"{base}/api/studies/{study_id}/labels.csv",
+        headers={"Authorization": f"Bearer {ADMIN_TOKEN}"},
+    )
     rows = list(csv.DictReader(io.StringIO(response.text)))
     assert all(row["response_ms"] != "" for row in rows)
     return {int(row["match_id"]): int(row["winner"]) for row in rows}

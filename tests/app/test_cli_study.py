@@ -4,17 +4,13 @@ from __future__ import annotations
 
 import os
 import re
-import socket
-import subprocess
-import sys
-import time
 
 import httpx
 import pytest
-from typer.testing import CliRunner
 
-from app.cli import cli
 from engine.treefile import load_tree
+from tests.support.cli import acv
+from tests.support.server import acv_serve, clean_env
 
 
 @pytest.fixture
@@ -23,80 +19,83 @@ def run(monkeypatch, backend_url):
     data_dir, url = backend_url
     monkeypatch.setenv("ACV_DATA_DIR", str(data_dir))
     monkeypatch.setenv("DATABASE_URL", url)
-    runner = CliRunner()
-    return lambda *args: runner.invoke(cli, list(args))
+    return acv
 
 
 def test_create_invite_simulate_list(run, tmp_path) -> None:
-    created = run("study", "create", "--name", "cli study", "--env", "Hopper-v5",
-                  "--candidates", "4", "--seed", "2")
+    created = run(
+        "study",
+        "create",
+        "--name",
+        "cli study",
+        "--env",
+        "Hopper-v5",
+        "--candidates",
+        "4",
+        "--seed",
+        "2",
+    )
     assert created.exit_code == 0, created.output
     study_id = re.search(r"study (\d+) ready: 4 Hopper-v5 candidates", created.output)[1]
     added = run("participant", "add", "--study", study_id, "--count", "2")
     assert added.exit_code == 0
     assert len(re.findall(r"^http://127\.0\.0\.1:8000/p/\S{43}$", added.output, re.M)) == 2
-    simulated = run("simulate", "--study", study_id, "--teacher", "standing",
-                    "--participants", "3", "--noise", "0.1")
+    simulated = run(
+        "simulate",
+        "--study",
+        study_id,
+        "--teacher",
+        "standing",
+        "--participants",
+        "3",
+        "--noise",
+        "0.1",
+    )
     assert simulated.exit_code == 0 and simulated.output.count("finished (standing)") == 3
     finished = re.search(r"participant (\d+) finished", simulated.output)[1]
     tree = tmp_path / "human.json"
     exported = run("participant", "tree", "--participant", finished, "--out", str(tree))
     assert exported.exit_code == 0, exported.output
     assert load_tree(tree).judge == f"participant:{finished}"
-    unfinished = run("participant", "tree", "--participant", str(int(finished) - 1), "--out",
-                     str(tree))
+    unfinished = run(
+        "participant", "tree", "--participant", str(int(finished) - 1), "--out", str(tree)
+    )
     assert unfinished.exit_code == 2 and "has not finished the bracket" in unfinished.stderr
     listed = run("study", "list")
-    assert re.search(rf"^{study_id}\tready\tHopper-v5\t4\t3/5 finished\tcli study$",
-                     listed.output, re.M)
+    assert re.search(
+        rf"^{study_id}\tready\tHopper-v5\t4\t3/5 finished\tcli study$", listed.output, re.M
+    )
 
 
-@pytest.mark.parametrize(("args", "message"), [
-    (["study", "create", "--name", "x", "--env", "CartPole-v1"], "not a MuJoCo env"),
-    (["study", "create", "--name", "x", "--candidates", "200"], "n_candidates"),
-    (["participant", "add", "--study", "424242"], "study 424242 not found"),
-    (["simulate", "--study", "424242"], "study 424242 not found"),
-    (["participant", "tree", "--participant", "424242", "--out", "x.json"],
-     "participant 424242 not found"),
-    (["simulate", "--study", "1", "--teacher", "oracle"], "unknown teacher"),
-    (["simulate", "--study", "1", "--noise", "2"], "noise"),
-])
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["study", "create", "--name", "x", "--env", "CartPole-v1"], "not a MuJoCo env"),
+        (["study", "create", "--name", "x", "--candidates", "200"], "n_candidates"),
+        (["participant", "add", "--study", "424242"], "study 424242 not found"),
+        (["simulate", "--study", "424242"], "study 424242 not found"),
+        (
+            ["participant", "tree", "--participant", "424242", "--out", "x.json"],
+            "participant 424242 not found",
+        ),
+        (["simulate", "--study", "1", "--teacher", "oracle"], "unknown teacher"),
+        (["simulate", "--study", "1", "--noise", "2"], "noise"),
+    ],
+)
 def test_bad_input_is_one_line_and_exit_2(run, args: list[str], message: str) -> None:
     result = run(*args)
     assert result.exit_code == 2
     assert message in result.stderr and len(result.stderr.strip().splitlines()) == 1
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
+@pytest.mark.process
 def test_serve_migrates_a_fresh_database_and_prints_the_login_url(tmp_path) -> None:
-    port = _free_port()
-    env = {k: v for k, v in os.environ.items() if k not in ("DATABASE_URL", "ACV_ADMIN_TOKEN")}
-    env["ACV_DATA_DIR"] = str(tmp_path / "fresh")
-    server = subprocess.Popen([sys.executable, "-c", "from app.cli import main; main()",
-                               "serve", "--port", str(port), "--no-access-log"], env=env,
-                              stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    try:
-        deadline = time.monotonic() + 60
-        while True:
-            assert server.poll() is None and time.monotonic() < deadline, "server did not start"
-            try:
-                if httpx.get(f"http://127.0.0.1:{port}/healthz").status_code == 200:
-                    break
-            except httpx.TransportError:
-                time.sleep(0.1)
+    log = tmp_path / "server.log"
+    with acv_serve(clean_env(ACV_DATA_DIR=str(tmp_path / "fresh")), log, "--no-access-log") as base:
         token = (tmp_path / "fresh" / "admin_token").read_text().strip()
-        studies = httpx.get(f"http://127.0.0.1:{port}/api/studies",
-                            headers={"Authorization": f"Bearer {token}"})
+        studies = httpx.get(f"{base}/api/studies", headers={"Authorization": f"Bearer {token}"})
         assert studies.json() == []  # the schema exists: migrations ran
-    finally:
-        server.terminate()
-        output = server.communicate(timeout=30)[0]
-    assert f"researcher login: http://127.0.0.1:{port}/login#token={token}" in output
+    assert f"researcher login: {base}/login#token={token}" in log.read_text()
 
 
 def test_serve_never_prints_a_configured_admin_token(monkeypatch, tmp_path) -> None:
@@ -110,8 +109,10 @@ def test_serve_never_prints_a_configured_admin_token(monkeypatch, tmp_path) -> N
         monkeypatch.delenv(name)
     monkeypatch.setenv("ACV_DATA_DIR", str(tmp_path))
     monkeypatch.setenv("ACV_ADMIN_TOKEN", token)
-    result = CliRunner().invoke(cli, ["serve", "--port", "8123"])
+    result = acv("serve", "--port", "8123")
     assert result.exit_code == 0, result.output
     assert token not in result.output and "#token=" not in result.output
-    assert "researcher login: http://127.0.0.1:8123/login  (with the admin token set in " \
-           "ACV_ADMIN_TOKEN)" in result.output
+    assert (
+        "researcher login: http://127.0.0.1:8123/login  (with the admin token set in "
+        "ACV_ADMIN_TOKEN)" in result.output
+    )

@@ -3,25 +3,33 @@
 from __future__ import annotations
 
 import json
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
+from tests.support.cli import acv_process as acv
 
-def acv(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "app.cli", *args], cwd=cwd,
-                          capture_output=True, text=True, timeout=120)
+pytestmark = pytest.mark.process
 
 
 @pytest.fixture(scope="module")
 def trees(tmp_path_factory) -> Path:
     d = tmp_path_factory.mktemp("trees")
     for name in ("a", "b"):
-        r = acv("tournament", "--env", "Hopper-v5", "--candidates", "6", "--seed", "4",
-                "--teacher", "standing", "--out", f"{name}.json", cwd=d)
+        r = acv(
+            "tournament",
+            "--env",
+            "Hopper-v5",
+            "--candidates",
+            "6",
+            "--seed",
+            "4",
+            "--teacher",
+            "standing",
+            "--out",
+            f"{name}.json",
+            cwd=d,
+        )
         assert r.returncode == 0, r.stderr
     r = acv("tournament", "--replay", "a.json", "--teacher", "good", "--out", "good.json", cwd=d)
     assert r.returncode == 0, r.stderr
@@ -36,8 +44,14 @@ def test_compare_json(trees: Path) -> None:
     r = acv("compare", "a.json", "good.json", "--json", cwd=trees)
     assert r.returncode == 0, r.stderr
     out = json.loads(r.stdout)
-    assert {"match_agreement", "match_agreement_ci", "kendall_tau_b", "tree_edit_distance",
-            "same_champion", "rejected"} <= set(out)
+    assert {
+        "match_agreement",
+        "match_agreement_ci",
+        "kendall_tau_b",
+        "tree_edit_distance",
+        "same_champion",
+        "rejected",
+    } <= set(out)
     assert out["n_matches"] == 5
     assert len(out["rejected"]) == out["n_matches"] - out["n_agree"]
 
@@ -51,35 +65,69 @@ def _write_variants(d: Path) -> None:
     """Files for the bad-input cases: a foreign bracket, a one-candidate tree, a broken one."""
     (d / "garbage.txt").write_text("{not json")
     if not (d / "other.json").exists():
-        r = acv("tournament", "--env", "Hopper-v5", "--candidates", "6", "--seed", "9",
-                "--teacher", "good", "--out", "other.json", cwd=d)
+        r = acv(
+            "tournament",
+            "--env",
+            "Hopper-v5",
+            "--candidates",
+            "6",
+            "--seed",
+            "9",
+            "--teacher",
+            "good",
+            "--out",
+            "other.json",
+            cwd=d,
+        )
         assert r.returncode == 0, r.stderr
     doc = json.loads((d / "a.json").read_text())
-    lone = {**doc, "candidates": doc["candidates"][:1], "first_round": [[0, None]],
-            "matches": [], "tree": {"root": 0, "nodes": [
-                {"state": 0, "parent": None, "height": 0, "depth": 1, "weight": None,
-                 "reward": -doc["tree_reward"]["r_b"]}]}}
+    lone = {
+        **doc,
+        "candidates": doc["candidates"][:1],
+        "first_round": [[0, None]],
+        "matches": [],
+        "tree": {
+            "root": 0,
+            "nodes": [
+                {
+                    "state": 0,
+                    "parent": None,
+                    "height": 0,
+                    "depth": 1,
+                    "weight": None,
+                    "reward": -doc["tree_reward"]["r_b"],
+                }
+            ],
+        },
+    }
     (d / "lone.json").write_text(json.dumps(lone))
     (d / "notree.json").write_text(json.dumps({k: v for k, v in doc.items() if k != "tree"}))
     (d / "negseed.json").write_text(json.dumps({**doc, "seed": -1}))
 
 
-@pytest.mark.parametrize(("args", "words"), [
-    (["tournament", "--candidates", "1", "--out", "x.json"], "at least 2"),
-    (["tournament", "--p", "1.5", "--out", "x.json"], "--p must be in [0, 1]"),
-    (["tournament", "--seed", "-1", "--out", "x.json"], "seed must be in 0"),
-    (["tournament", "--env", "NoSuchEnv-v0", "--out", "x.json"], "unknown env"),
-    (["tournament", "--teacher", "oracle", "--out", "x.json"], "unknown teacher"),
-    (["tournament", "--replay", "missing.json", "--teacher", "good", "--out", "x.json"],
-     "cannot read tree file"),
-    (["tournament", "--replay", "negseed.json", "--teacher", "good", "--out", "x.json"],
-     "seed must be in 0"),
-    (["compare", "a.json", "garbage.txt"], "invalid JSON"),
-    (["compare", "a.json", "other.json"], "different brackets"),
-    (["compare", "lone.json", "lone.json"], "at least 2 candidates"),
-    (["compare", "a.json", "notree.json"], "missing key 'tree'"),
-    (["render", "--tree", "notree.json", "--out", "renders"], "missing key 'tree'"),
-])
+@pytest.mark.parametrize(
+    ("args", "words"),
+    [
+        (["tournament", "--candidates", "1", "--out", "x.json"], "at least 2"),
+        (["tournament", "--p", "1.5", "--out", "x.json"], "--p must be in [0, 1]"),
+        (["tournament", "--seed", "-1", "--out", "x.json"], "seed must be in 0"),
+        (["tournament", "--env", "NoSuchEnv-v0", "--out", "x.json"], "unknown env"),
+        (["tournament", "--teacher", "oracle", "--out", "x.json"], "unknown teacher"),
+        (
+            ["tournament", "--replay", "missing.json", "--teacher", "good", "--out", "x.json"],
+            "cannot read tree file",
+        ),
+        (
+            ["tournament", "--replay", "negseed.json", "--teacher", "good", "--out", "x.json"],
+            "seed must be in 0",
+        ),
+        (["compare", "a.json", "garbage.txt"], "invalid JSON"),
+        (["compare", "a.json", "other.json"], "different brackets"),
+        (["compare", "lone.json", "lone.json"], "at least 2 candidates"),
+        (["compare", "a.json", "notree.json"], "missing key 'tree'"),
+        (["render", "--tree", "notree.json", "--out", "renders"], "missing key 'tree'"),
+    ],
+)
 def test_bad_input_is_one_line_and_exit_2(trees: Path, args: list[str], words: str) -> None:
     _write_variants(trees)
     r = acv(*args, cwd=trees)
@@ -90,9 +138,7 @@ def test_bad_input_is_one_line_and_exit_2(trees: Path, args: list[str], words: s
 
 
 def test_invalid_mujoco_gl_is_one_line_and_exit_2(trees: Path) -> None:
-    r = subprocess.run([sys.executable, "-m", "app.cli", "compare", "a.json", "a.json"],
-                       cwd=trees, capture_output=True, text=True, timeout=120,
-                       env={**os.environ, "MUJOCO_GL": "foo"})
+    r = acv("compare", "a.json", "a.json", cwd=trees, env={"MUJOCO_GL": "foo"})
     assert r.returncode == 2
     assert r.stderr.startswith("acv: error: invalid MUJOCO_GL='foo'")
     assert len(r.stderr.strip().splitlines()) == 1 and "egl" in r.stderr

@@ -16,10 +16,6 @@ from __future__ import annotations
 
 import os
 import re
-import socket
-import subprocess
-import sys
-import time
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -30,62 +26,39 @@ from playwright.sync_api import Browser, Page, expect, sync_playwright
 
 from engine.envs import env_model
 from engine.teachers import standing_score
+from tests.support.a11y import assert_accessible
+from tests.support.server import acv_serve, clean_env
+from tests.support.wait import wait_for
+
+pytestmark = [pytest.mark.browser, pytest.mark.training]
 
 ADMIN_TOKEN = "compare-browser-admin-token-0123456789"
 ADMIN = {"Authorization": f"Bearer {ADMIN_TOKEN}"}
 CHROMIUM = "/usr/bin/chromium"
 CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking"]
-SCREENS = Path("/tmp/acv_screens")
-REPO = Path(__file__).resolve().parents[2]
+SCREENS = Path(os.environ.get("ACV_SCREENS", "/tmp/acv_screens"))
 N_CANDIDATES = 8
-RUN = {"algo": "bipars-em", "timesteps": 4096, "seed": 1, "n_envs": 1, "num_steps": 256,
-       "num_minibatches": 4, "update_epochs": 2, "checkpoint_every": 1024}
+RUN = {
+    "algo": "bipars-em",
+    "timesteps": 4096,
+    "seed": 1,
+    "n_envs": 1,
+    "num_steps": 256,
+    "num_minibatches": 4,
+    "update_epochs": 2,
+    "checkpoint_every": 1024,
+}
 #: The baseline on the same advice: two checkpoints, a few seconds.
 BASELINE = RUN | {"algo": "ppo", "timesteps": 512, "checkpoint_every": 256}
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def _wait(predicate, what: str, timeout_s: float = 180.0, every_s: float = 0.3):
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        value = predicate()
-        if value:
-            return value
-        time.sleep(every_s)
-    pytest.fail(f"timed out waiting for {what}")
 
 
 @pytest.fixture(scope="module")
 def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
     """``acv serve`` (with its run worker) on a free port; yields the base URL."""
     data_dir = tmp_path_factory.mktemp("acv-compare-data")
-    env = {k: v for k, v in os.environ.items() if k not in ("DATABASE_URL", "ACV_RAY_ADDRESS")}
-    env |= {"ACV_DATA_DIR": str(data_dir), "ACV_ADMIN_TOKEN": ADMIN_TOKEN}
-    port = _free_port()
-    with (data_dir.parent / "server.log").open("w") as log:
-        proc = subprocess.Popen(
-            [sys.executable, "-c", "from app.cli import main; main()", "serve", "--host",
-             "127.0.0.1", "--port", str(port), "--no-access-log"],
-            cwd=REPO, env=env, stdout=log, stderr=subprocess.STDOUT)
-        base = f"http://127.0.0.1:{port}"
-        try:
-            _wait(lambda: proc.poll() is None and _healthy(base), "acv serve", 120)
-            yield base
-        finally:
-            proc.terminate()
-            proc.wait(timeout=60)
-
-
-def _healthy(base: str) -> bool:
-    try:
-        return httpx.get(f"{base}/healthz", timeout=2).status_code == 200
-    except httpx.TransportError:
-        return False
+    env = clean_env(ACV_DATA_DIR=str(data_dir), ACV_ADMIN_TOKEN=ADMIN_TOKEN)
+    with acv_serve(env, data_dir.parent / "server.log", "--no-access-log") as base:
+        yield base
 
 
 def _standing_participant(api: httpx.Client, study_id: int) -> int:
@@ -97,8 +70,9 @@ def _standing_participant(api: httpx.Client, study_id: int) -> int:
     while (m := api.get("/api/participants/me/next-match", headers=me)).status_code == 200:
         a, b = m.json()["a"]["candidate_id"], m.json()["b"]["candidate_id"]
         winner = a if scores[a] >= scores[b] else b
-        api.post(f"/api/matches/{m.json()['match_id']}/label", headers=me,
-                 json={"winner": winner}).raise_for_status()
+        api.post(
+            f"/api/matches/{m.json()['match_id']}/label", headers=me, json={"winner": winner}
+        ).raise_for_status()
     return api.get("/api/participants/me", headers=me).json()["id"]
 
 
@@ -107,19 +81,40 @@ def finished_run(server: str) -> dict:
     """A succeeded ``bipars-em`` run on a standing-advice participant's tree, and (id under
     ``baseline``) a succeeded ``ppo`` run on the same advice."""
     with httpx.Client(base_url=server, headers=ADMIN, timeout=60) as api:
-        study = api.post("/api/studies", json={"name": "Standing advice", "env_id": "Humanoid-v5",
-                                               "n_candidates": N_CANDIDATES, "seed": 5}).json()
-        _wait(lambda: api.get(f"/api/studies/{study['id']}").json()["status"] == "ready",
-              "the study")
+        study = api.post(
+            "/api/studies",
+            json={
+                "name": "Standing advice",
+                "env_id": "Humanoid-v5",
+                "n_candidates": N_CANDIDATES,
+                "seed": 5,
+            },
+        ).json()
+        prepared = wait_for(
+            lambda: api.get(f"/api/studies/{study['id']}").json(),
+            lambda got: got["status"] != "preparing",
+            what="the study",
+            timeout_s=180,
+        )
+        assert prepared["status"] == "ready", prepared
         pid = _standing_participant(api, study["id"])
         ids = []
         for body in (RUN, BASELINE):
-            created = api.post("/api/runs", json={"study_id": study["id"],
-                                                  "participant_id": pid, **body})
+            created = api.post(
+                "/api/runs", json={"study_id": study["id"], "participant_id": pid, **body}
+            )
             assert created.status_code == 202, created.text
             ids.append(created.json()["id"])
-        run, baseline = (_wait(lambda i=i: (r := api.get(f"/api/runs/{i}").json())[
-            "status"] not in ("queued", "running") and r, f"run {i}") for i in ids)
+        run, baseline = (
+            wait_for(
+                lambda i=i: api.get(f"/api/runs/{i}").json(),
+                lambda r: r["status"] not in ("queued", "running"),
+                what=f"run {i}",
+                timeout_s=180,
+                every_s=0.3,
+            )
+            for i in ids
+        )
         assert run["status"] == baseline["status"] == "succeeded", (run, baseline)
         run["conformance"] = api.get(f"/api/runs/{run['id']}/conformance").json()
         run["baseline"] = baseline["id"]
@@ -130,8 +125,7 @@ def finished_run(server: str) -> dict:
 def page(server: str) -> Iterator[tuple[Page, list[str]]]:
     """A logged-in researcher's page; collects console errors and uncaught script errors."""
     with sync_playwright() as playwright:
-        browser: Browser = playwright.chromium.launch(executable_path=CHROMIUM,
-                                                      args=CHROMIUM_ARGS)
+        browser: Browser = playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
         context = browser.new_context(viewport={"width": 1400, "height": 1000})
         context.set_default_timeout(60_000)
         errors: list[str] = []
@@ -145,24 +139,59 @@ def page(server: str) -> Iterator[tuple[Page, list[str]]]:
 
 
 def test_comparison_page_shows_both_trees_and_the_rejected_advice(
-        server: str, finished_run: dict, page: tuple[Page, list[str]]) -> None:
+    server: str, finished_run: dict, page: tuple[Page, list[str]]
+) -> None:
     p, errors = page
     run_id, metrics = finished_run["id"], finished_run["conformance"]
     p.goto(f"{server}/runs/{run_id}/compare")
     expect(p.locator("#human-tree svg.pref-tree .node")).to_have_count(N_CANDIDATES)
     expect(p.locator("#agent-tree svg.pref-tree .node")).to_have_count(N_CANDIDATES)
     expect(p.locator("#human-tree svg image")).to_have_count(N_CANDIDATES)
-    expect(p.locator("#verdict")).to_have_text(re.compile(
-        rf"The agent kept {metrics['n_agree']} of {N_CANDIDATES - 1} of your choices"))
+    contested = metrics["contested"]
+    lead = (
+        rf"Of the {contested['n']} choices where your advice goes against the environment's "
+        rf"reward, the agent kept {contested['kept']}\."
+        if contested["n"]
+        else r"None of your choices goes against the environment's reward, so this bracket "
+        r"cannot tell whether the agent used your advice\."
+    )
+    expect(p.locator("#verdict")).to_have_text(
+        re.compile(
+            rf"^{lead} Overall it kept {metrics['n_agree']} of {N_CANDIDATES - 1} of your choices"
+        )
+    )
+    expect(p.locator("#judges-body tr")).to_have_count(4)  # every judge, side by side
+    for judge in ("shaped", "shaping", "value", "behaviour"):
+        expect(p.locator(f"#judges-body tr[data-judge='{judge}']")).to_have_count(1)
+    expect(p.locator("#judges-body tr[data-judge='shaped'] td").nth(1)).to_have_text(
+        f"{metrics['n_agree']} / {N_CANDIDATES - 1}"
+    )
+    expect(p.locator("#candidates tbody tr")).to_have_count(N_CANDIDATES)
+    expect(p.locator("#candidates tbody tr").first.locator("a")).to_have_attribute(
+        "href", re.compile(r"/candidates/0/image$")
+    )
+    p.locator("#candidates th[data-sort='behaviour'] button").click()  # sort by a column
+    expect(p.locator("#candidates th[data-sort='behaviour']")).to_have_attribute(
+        "aria-sort", "ascending"
+    )
+    cells = p.locator("#candidates tbody tr td:nth-child(8)")
+    shown = [float(t) for t in cells.all_text_contents()]
+    assert shown == sorted(shown)
+    assert_accessible(p, "compare page")
     n_rejected = len(metrics["rejected"])
     expect(p.locator("#rejected .pair")).to_have_count(n_rejected)
     expect(p.locator("#rejected .pair img")).to_have_count(2 * n_rejected)
     if n_rejected == 0:
         expect(p.locator("#rejected")).to_have_text(
-            "None: the agent kept every choice at this checkpoint.")
+            "None: the agent kept every choice at this checkpoint."
+        )
     expect(p.locator("#human-tree .node.rejected")).to_have_count(
-        len({r["b"] if r["human_winner"] == r["a"] else r["a"] for r in metrics["rejected"]}))
+        len({r["b"] if r["human_winner"] == r["a"] else r["a"] for r in metrics["rejected"]})
+    )
+    # The curve is computed over every checkpoint: slow on a loaded machine, so wait for it.
+    expect(p.locator("#compare")).to_have_attribute("data-curve-judge", "shaped", timeout=120_000)
     expect(p.locator("#chart-curve svg circle.dot")).to_have_count(2 * 4)  # 4 checkpoints
+    assert_accessible(p, "comparison page")
     SCREENS.mkdir(parents=True, exist_ok=True)
     p.screenshot(path=SCREENS / "compare.png", full_page=True)
 
@@ -171,12 +200,16 @@ def test_comparison_page_shows_both_trees_and_the_rejected_advice(
     expect(p.locator("#compare")).to_have_attribute("data-loaded", "1024:shaped")
     expect(p.locator("#agent-title")).to_have_text("(step 1024)")
     expect(p.locator("#exports a[data-export='report.html']")).to_have_attribute(
-        "href", f"/api/runs/{run_id}/report.html?judge=shaped&checkpoint=1024")
+        "href", f"/api/runs/{run_id}/report.html?judge=shaped&checkpoint=1024"
+    )
 
     p.select_option("#judge", "value")  # the shaped critic judges: other picks, same page
     expect(p.locator("#compare")).to_have_attribute("data-loaded", "1024:value")
-    rejected = httpx.get(f"{server}/api/runs/{run_id}/conformance?checkpoint=1024&judge=value",
-                         headers=ADMIN).json()["rejected"]
+    rejected = httpx.get(
+        f"{server}/api/runs/{run_id}/conformance?checkpoint=1024&judge=value",
+        headers=ADMIN,
+        timeout=60,
+    ).json()["rejected"]
     # This view overturns some advice (3 of 7 with this seed): the list must show it.
     assert len(rejected) >= 1, "no overturned match to list: change the seed or the view"
     pairs = p.locator("#rejected .pair")
@@ -184,7 +217,8 @@ def test_comparison_page_shows_both_trees_and_the_rejected_advice(
     for pair, r in zip(pairs.all(), rejected, strict=True):
         expect(pair.locator("img")).to_have_count(2)
         expect(pair.locator("img").first).to_have_attribute(
-            "src", re.compile(rf"/candidates/{r['human_winner']}/image\?size=thumb$"))
+            "src", re.compile(rf"/candidates/{r['human_winner']}/image\?size=thumb$")
+        )
         expect(pair).to_contain_text(f"Round {r['round']}: you preferred #{r['human_winner']}")
     expect(p.locator("#compare")).to_have_attribute("data-curve-judge", "value")
     p.screenshot(path=SCREENS / "compare-value.png", full_page=True)
@@ -192,24 +226,47 @@ def test_comparison_page_shows_both_trees_and_the_rejected_advice(
 
 
 def test_run_page_shows_progress_curves_and_checkpoints(
-        server: str, finished_run: dict, page: tuple[Page, list[str]]) -> None:
+    server: str, finished_run: dict, page: tuple[Page, list[str]]
+) -> None:
     p, errors = page
     p.goto(f"{server}/runs/{finished_run['id']}")
     expect(p.locator("#run-status")).to_have_text("succeeded")
     expect(p.locator("#run-checkpoints li[data-step]")).to_have_count(4)
-    expect(p.locator("#chart-z svg polyline")).to_have_count(1)
+    expect(p.locator("#chart-z svg g.line path")).to_have_count(1)  # Observable Plot's line
+    expect(p.locator("#chart-z svg g.band path")).to_have_count(1)  # mean ± std
+    expect(p.locator("svg style")).to_have_count(0)  # Plot's inline <style>: the CSP forbids it
+    assert_accessible(p, "run page")
     assert p.locator("#run-progress").get_attribute("value") == "4096"
     p.screenshot(path=SCREENS / "run.png", full_page=True)
     p.goto(f"{server}/runs/{finished_run['id']}/compare")
     expect(p.locator(f"a[href='/runs/{finished_run['id']}/compare-runs']")).to_have_text(
-        "compare the 2 runs on this advice")
+        "compare the 2 runs on this advice"
+    )
     p.goto(f"{server}/runs/{finished_run['id']}/compare-runs")
     rows = p.locator("table.runs-side-by-side tbody tr")
     expect(rows).to_have_count(2)  # bipars-em and the ppo baseline, oldest first
-    for row, (run_id, algo) in zip(rows.all(), [(finished_run["id"], "bipars-em"),
-                                                (finished_run["baseline"], "ppo")], strict=True):
+    for row, (run_id, algo) in zip(
+        rows.all(),
+        [(finished_run["id"], "bipars-em"), (finished_run["baseline"], "ppo")],
+        strict=True,
+    ):
         expect(row).to_have_attribute("data-run-id", str(run_id))
         expect(row.locator("td").nth(1)).to_have_text(algo)
-    expect(p.locator("#chart-runs svg polyline")).to_have_count(2)  # one curve per run
+    expect(p.locator("#chart-runs svg g.line path")).to_have_count(2)  # one curve per run
+    expect(p.locator("#chart-runs .plot-legend li")).to_have_count(2)
     p.screenshot(path=SCREENS / "compare-runs.png", full_page=True)
+    assert errors == []
+
+
+def test_new_run_without_a_study_picks_one(
+    server: str, finished_run: dict, page: tuple[Page, list[str]]
+) -> None:
+    """``/runs/new`` (bookmarked or typed) is the study picker; picking opens the form."""
+    p, errors = page
+    p.goto(f"{server}/runs/new")
+    assert_accessible(p, "study picker")
+    p.select_option("#study_id", str(finished_run["study_id"]))
+    p.click("text=New run…")
+    p.wait_for_url(re.compile(rf"/runs/new\?study_id={finished_run['study_id']}$"))
+    expect(p.locator("form[action='/runs'] #timesteps")).to_be_visible()
     assert errors == []

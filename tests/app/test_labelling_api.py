@@ -9,12 +9,19 @@ def test_rounds_and_match_numbers_with_byes(invite) -> None:
     player = invite()  # five candidates: one first-round match, three byes
     seen = []
     while (match := player.next_match()) is not None:
-        seen.append((match["round"], match["match_number"], match["matches_in_round"],
-                     match["n_rounds"], match["progress"]["done"], match["progress"]["total"]))
+        seen.append(
+            (
+                match["round"],
+                match["match_number"],
+                match["matches_in_round"],
+                match["n_rounds"],
+                match["progress"]["done"],
+                match["progress"]["total"],
+            )
+        )
         assert match["a"]["candidate_id"] != match["b"]["candidate_id"]
         assert player.label(match["match_id"], match["b"]["candidate_id"]).status_code == 201
-    assert seen == [(1, 1, 1, 3, 0, 4), (2, 1, 2, 3, 1, 4), (2, 2, 2, 3, 2, 4),
-                    (3, 1, 1, 3, 3, 4)]
+    assert seen == [(1, 1, 1, 3, 0, 4), (2, 1, 2, 3, 1, 4), (2, 2, 2, 3, 2, 4), (3, 1, 1, 3, 3, 4)]
 
 
 def test_label_status_codes(invite) -> None:
@@ -24,10 +31,18 @@ def test_label_status_codes(invite) -> None:
     outsider = ({0, 1, 2, 3, 4} - {a, b}).pop()
     first = player.label(match["match_id"], a, response_ms=1234)
     assert first.status_code == 201
-    assert first.json() == {"match_id": match["match_id"], "winner": a, "created": True,
-                            "progress": {"done": 1, "total": 4}, "finished": False}
+    upcoming = player.next_match()  # the answer carries the next match: one round trip
+    assert first.json() == {
+        "match_id": match["match_id"],
+        "winner": a,
+        "created": True,
+        "progress": {"done": 1, "total": 4},
+        "finished": False,
+        "next": upcoming,
+    }
     again = player.label(match["match_id"], a)
     assert again.status_code == 200 and again.json()["created"] is False
+    assert again.json()["next"] == upcoming
     other = player.label(match["match_id"], b)
     assert other.status_code == 409 and "already decided" in other.json()["detail"]
     assert player.label(match["match_id"], outsider).status_code == 422
@@ -40,28 +55,38 @@ def test_another_participants_match_is_hidden(client, invite) -> None:
     response = bob.label(match["match_id"], match["a"]["candidate_id"])
     assert response.status_code in (403, 404)
     assert alice.next_match() == match  # untouched
-    assert client.get(f"/api/participants/{alice.id}/tree",
-                      headers=bob.headers).status_code == 403
+    assert client.get(f"/api/participants/{alice.id}/tree", headers=bob.headers).status_code == 403
 
 
-@pytest.mark.parametrize("body", [
-    {}, {"winner": "left"}, {"winner": 1, "response_ms": -5}, {"winner": 1, "extra": True},
-    {"winner": 2**40}, {"winner": None},
-])
+@pytest.mark.parametrize(
+    "body",
+    [
+        {},
+        {"winner": "left"},
+        {"winner": 1, "response_ms": -5},
+        {"winner": 1, "extra": True},
+        {"winner": 2**40},
+        {"winner": None},
+    ],
+)
 def test_bad_label_bodies_are_422(invite, body: dict) -> None:
     player = invite()
     match = player.next_match()
-    response = player.client.post(f"/api/matches/{match['match_id']}/label",
-                                  headers=player.headers, json=body)
+    response = player.client.post(
+        f"/api/matches/{match['match_id']}/label", headers=player.headers, json=body
+    )
     assert response.status_code == 422
     assert player.next_match() == match
 
 
 @pytest.mark.parametrize("headers", [{}, {"Authorization": "Bearer not-a-token"}])
 def test_participant_endpoints_need_an_invite_token(client, headers) -> None:
-    for method, path in [("GET", "/api/participants/me/next-match"),
-                         ("GET", "/api/participants/me"), ("POST", "/api/participants/me/undo"),
-                         ("POST", "/api/matches/1/label")]:
+    for method, path in [
+        ("GET", "/api/participants/me/next-match"),
+        ("GET", "/api/participants/me"),
+        ("POST", "/api/participants/me/undo"),
+        ("POST", "/api/matches/1/label"),
+    ]:
         response = client.request(method, path, headers=headers, json={"winner": 0})
         assert response.status_code == 401, path
 
@@ -77,13 +102,22 @@ def test_resume_where_they_left_off(client, invite) -> None:
     resumed = client.get("/api/participants/me/next-match", headers=cookie)
     assert resumed.json() == upcoming
     me = client.get("/api/participants/me", headers=cookie).json()
-    assert (me["id"], me["progress"], me["finished"], me["can_undo"]) == \
-        (player.id, {"done": 1, "total": 4}, False, True)
+    assert (me["id"], me["progress"], me["finished"], me["can_undo"]) == (
+        player.id,
+        {"done": 1, "total": 4},
+        False,
+        True,
+    )
 
 
 def test_finished_bracket_answers_204(client, invite) -> None:
     player = invite()
     assert player.play() == 4
+    last = client.get("/api/participants/me/bracket", headers=player.headers).json()["rounds"][-1][
+        0
+    ]
+    again = player.label(last["match_id"], last["winner"])
+    assert again.status_code == 200 and again.json()["next"] is None
     response = client.get("/api/participants/me/next-match", headers=player.headers)
     assert response.status_code == 204 and response.content == b""
     me = client.get("/api/participants/me", headers=player.headers).json()
@@ -93,12 +127,16 @@ def test_finished_bracket_answers_204(client, invite) -> None:
 def test_undo_latest_reopens_it_even_after_the_final(client, invite) -> None:
     player = invite()
     player.play()
-    final = client.get("/api/participants/me/bracket", headers=player.headers).json()[
-        "rounds"][-1][0]
+    final = client.get("/api/participants/me/bracket", headers=player.headers).json()["rounds"][-1][
+        0
+    ]
     undone = client.post("/api/participants/me/undo", headers=player.headers)
     assert undone.status_code == 200
-    assert undone.json() == {"match_id": final["match_id"], "round": 3,
-                             "progress": {"done": 3, "total": 4}}
+    assert undone.json() == {
+        "match_id": final["match_id"],
+        "round": 3,
+        "progress": {"done": 3, "total": 4},
+    }
     assert player.next_match()["match_id"] == final["match_id"]
     assert client.get("/api/participants/me", headers=player.headers).json()["finished"] is False
     for _ in range(3):  # undo all the way back, latest first
@@ -118,18 +156,24 @@ def test_undo_is_refused_once_a_later_match_depends_on_it(client, make_study, in
     final = player.next_match()
     assert final["round"] == 2
     # The final exists but is undecided: undoing a first-round label removes it again.
-    assert client.delete(f"/api/matches/{r1a['match_id']}/label",
-                         headers=player.headers).status_code == 200
+    assert (
+        client.delete(f"/api/matches/{r1a['match_id']}/label", headers=player.headers).status_code
+        == 200
+    )
     assert player.next_match()["match_id"] == r1a["match_id"]
     player.label(r1a["match_id"], r1a["b"]["candidate_id"])
     final = player.next_match()
-    assert {final["a"]["candidate_id"], final["b"]["candidate_id"]} == \
-        {r1a["b"]["candidate_id"], r1b["b"]["candidate_id"]}
+    assert {final["a"]["candidate_id"], final["b"]["candidate_id"]} == {
+        r1a["b"]["candidate_id"],
+        r1b["b"]["candidate_id"],
+    }
     player.label(final["match_id"], final["a"]["candidate_id"])
     refused = client.delete(f"/api/matches/{r1a['match_id']}/label", headers=player.headers)
     assert refused.status_code == 409 and "depends" in refused.json()["detail"]
-    assert client.delete(f"/api/matches/{final['match_id']}/label",
-                         headers=player.headers).status_code == 200
+    assert (
+        client.delete(f"/api/matches/{final['match_id']}/label", headers=player.headers).status_code
+        == 200
+    )
 
 
 def test_live_bracket_shows_decisions_so_far(client, invite) -> None:

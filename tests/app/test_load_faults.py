@@ -13,7 +13,6 @@ import asyncio
 import importlib.util
 import subprocess
 import sys
-import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from types import ModuleType
@@ -21,11 +20,25 @@ from types import ModuleType
 import httpx
 import pytest
 
+from tests.support.postgres import BACKENDS
+from tests.support.wait import wait_for
+
+pytestmark = pytest.mark.process  # acv serve (and acv worker) under load, killed midway
+
 REPO = Path(__file__).resolve().parents[2]
 PARTICIPANTS, CANDIDATES = 8, 8
 #: A PPO budget that would take hours: the run is stopped once it has shown progress.
-ENDLESS_RUN = {"timesteps": 10_000_000, "n_envs": 1, "num_steps": 128, "num_minibatches": 4,
-               "update_epochs": 2, "checkpoint_every": 256}
+ENDLESS_RUN = {
+    "timesteps": 10_000_000,
+    "n_envs": 1,
+    "num_steps": 128,
+    "num_minibatches": 4,
+    "update_epochs": 2,
+    "checkpoint_every": 256,
+}
+#: Seconds a request to the loaded server may take: the first run request of a fresh server
+#: imports torch, which takes longer than httpx's 5 s default on a busy 2-core machine.
+HTTP_TIMEOUT_S = 60.0
 
 
 def load_benchmark() -> ModuleType:
@@ -37,14 +50,19 @@ def load_benchmark() -> ModuleType:
     return sys.modules[name]
 
 
-@pytest.mark.parametrize("backend", ["sqlite", "postgresql"])
+@pytest.mark.parametrize("backend", BACKENDS)
 def test_labels_survive_kill_9_under_load(request, tmp_path: Path, backend: str) -> None:
     bench = load_benchmark()
-    config = bench.LoadConfig(participants=PARTICIPANTS, candidates=CANDIDATES,
-                              env_id="Hopper-v5", think_ms=30.0, race_share=0.3, kill_at=0.4,
-                              timeout_s=90.0)
-    url = request.getfixturevalue("postgres").create_database() if backend != "sqlite" \
-        else None
+    config = bench.LoadConfig(
+        participants=PARTICIPANTS,
+        candidates=CANDIDATES,
+        env_id="Hopper-v5",
+        think_ms=30.0,
+        race_share=0.3,
+        kill_at=0.4,
+        timeout_s=90.0,
+    )
+    url = request.getfixturevalue("postgres").create_database() if backend != "sqlite" else None
     figures = bench.run_backend(config, url, tmp_path, steady=False)
     expected = PARTICIPANTS * (CANDIDATES - 1)
     assert figures["kills"] == 1 and figures["finished"] == PARTICIPANTS, figures
@@ -57,61 +75,85 @@ def test_labels_survive_kill_9_under_load(request, tmp_path: Path, backend: str)
 
 
 def _run(base: str, run_id: int) -> dict:
-    return httpx.get(f"{base}/api/runs/{run_id}", headers=load_benchmark().ADMIN
-                     ).raise_for_status().json()
+    return (
+        httpx.get(
+            f"{base}/api/runs/{run_id}", headers=load_benchmark().ADMIN, timeout=HTTP_TIMEOUT_S
+        )
+        .raise_for_status()
+        .json()
+    )
 
 
 def _wait(base: str, run_id: int, until, timeout_s: float = 120.0) -> dict:
-    deadline = time.monotonic() + timeout_s
-    while not until(run := _run(base, run_id)):
-        assert time.monotonic() < deadline, run
-        time.sleep(0.1)
-    return run
+    return wait_for(lambda: _run(base, run_id), until, what=f"run {run_id}", timeout_s=timeout_s)
 
 
 def _worker(env: dict[str, str]) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-c", "from app.cli import main; main()",
-                             "worker"], cwd=REPO, env=env | {"ACV_POLL_S": "0.1"},
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    return subprocess.Popen(
+        [sys.executable, "-c", "from app.cli import main; main()", "worker"],
+        cwd=REPO,
+        env=env | {"ACV_POLL_S": "0.1"},
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
 
 
+@pytest.mark.training
 def test_labels_and_a_run_survive_kill_9_of_the_worker(tmp_path: Path) -> None:
     """``acv worker`` is killed while it trains and participants label (SQLite: the run
     process and the server write to one database file): every label is stored, the run is
     marked ``interrupted``, and resumed by a new worker it continues from its checkpoint."""
     bench = load_benchmark()
     admin = bench.ADMIN
-    config = bench.LoadConfig(participants=PARTICIPANTS, candidates=CANDIDATES,
-                              env_id="Hopper-v5", think_ms=100.0, timeout_s=90.0)
+    config = bench.LoadConfig(
+        participants=PARTICIPANTS,
+        candidates=CANDIDATES,
+        env_id="Hopper-v5",
+        think_ms=100.0,
+        timeout_s=90.0,
+    )
     server = bench.Server(tmp_path, None)
     server.env["ACV_RUN_WORKER"] = "false"
     server.start()
     workers = [_worker(server.env)]
     try:
         study_id, people = bench.prepare(server.base, config, PARTICIPANTS)
-        run_id = httpx.post(f"{server.base}/api/runs", headers=admin, json={
-            "study_id": study_id, "teacher": "standing", "algo": "bipars-em", **ENDLESS_RUN,
-        }).raise_for_status().json()["id"]
+        body = {"study_id": study_id, "teacher": "standing", "algo": "bipars-em", **ENDLESS_RUN}
+        run_id = (
+            httpx.post(f"{server.base}/api/runs", headers=admin, json=body, timeout=HTTP_TIMEOUT_S)
+            .raise_for_status()
+            .json()["id"]
+        )
         with ThreadPoolExecutor(1) as pool:
-            load = pool.submit(asyncio.run, bench.run_load(
-                None, server.base, [tok for _, tok in people], config))
+            load = pool.submit(
+                asyncio.run, bench.run_load(None, server.base, [tok for _, tok in people], config)
+            )
             before = _wait(server.base, run_id, lambda r: r["progress"]["done"] >= 256)
             workers[0].kill()  # kill -9, mid-run and mid-load
             _wait(server.base, run_id, lambda r: r["status"] == "interrupted")
             workers.append(_worker(server.env))
-            httpx.post(f"{server.base}/api/runs/{run_id}/resume", headers=admin
-                       ).raise_for_status()
-            after = _wait(server.base, run_id, lambda r: r["status"] == "running" and
-                          r["progress"]["done"] > before["progress"]["done"])
+            httpx.post(
+                f"{server.base}/api/runs/{run_id}/resume", headers=admin, timeout=HTTP_TIMEOUT_S
+            ).raise_for_status()
+            after = _wait(
+                server.base,
+                run_id,
+                lambda r: (
+                    r["status"] == "running" and r["progress"]["done"] > before["progress"]["done"]
+                ),
+            )
             tally = load.result()
-        httpx.post(f"{server.base}/api/runs/{run_id}/cancel", headers=admin).raise_for_status()
+        httpx.post(
+            f"{server.base}/api/runs/{run_id}/cancel", headers=admin, timeout=HTTP_TIMEOUT_S
+        ).raise_for_status()
     finally:
         for worker in workers:
             worker.kill()
             worker.wait()
         server.stop()
-    stored = bench.stored_labels(f"sqlite:///{tmp_path / 'acv.sqlite3'}",
-                                 [pid for pid, _ in people])
+    stored = bench.stored_labels(
+        f"sqlite:///{tmp_path / 'acv.sqlite3'}", [pid for pid, _ in people]
+    )
     assert tally.finished == PARTICIPANTS and tally.server_errors == 0 and not tally.unexpected
     assert {m: [w] for m, w in tally.acked.items()} == stored
     assert len(stored) == PARTICIPANTS * (CANDIDATES - 1)

@@ -29,8 +29,9 @@ def test_migrated_schema_matches_the_models(backend_url) -> None:
     engine = make_engine(backend_url[1])
     try:
         with engine.connect() as conn:
-            diff = compare_metadata(MigrationContext.configure(conn, opts={
-                "compare_type": True}), Base.metadata)
+            diff = compare_metadata(
+                MigrationContext.configure(conn, opts={"compare_type": True}), Base.metadata
+            )
     finally:
         engine.dispose()
     assert diff == []

@@ -11,7 +11,6 @@ import json
 import re
 import zipfile
 from collections.abc import Callable
-from html.parser import HTMLParser
 from typing import Any
 
 import pytest
@@ -19,63 +18,22 @@ from fastapi.testclient import TestClient
 
 from engine.treefile import tree_from_json
 from tests.app.conftest import ADMIN, ADMIN_TOKEN, Player, wait_ready
-
-CSRF_RE = re.compile(r'name="csrf_token" value="([^"]+)"')
-
-
-def browser(client: TestClient) -> TestClient:
-    """A separate cookie jar on the same running app (the fixture's client holds none)."""
-    return TestClient(client.app, follow_redirects=False)
+from tests.support.web import audit, browser, csrf_token, logged_in
 
 
-def csrf_token(page: TestClient, path: str) -> str:
-    match = CSRF_RE.search(page.get(path).text)
-    assert match, f"no CSRF field on {path}"
-    return match.group(1)
-
-
-def logged_in(client: TestClient) -> TestClient:
-    page = browser(client)
-    response = page.post("/login", data={"csrf_token": csrf_token(page, "/login"),
-                                         "token": ADMIN_TOKEN, "next": "/studies"})
-    assert response.status_code == 303, response.text
-    return page
-
-
-class ScriptAudit(HTMLParser):
-    """Collects inline scripts, inline event handlers and style attributes of a page."""
-
-    def __init__(self) -> None:
-        super().__init__()
-        self.problems: list[str] = []
-        self._in_script = False
-
-    def handle_starttag(self, tag: str, attrs: list[tuple[str, str | None]]) -> None:
-        names = [name for name, _ in attrs]
-        self._in_script = tag == "script" and "src" not in names
-        self.problems += [f"<{tag} {n}=...>" for n in names if n.startswith("on") or n == "style"]
-        if any(n == "href" and (v or "").lower().startswith("javascript:") for n, v in attrs):
-            self.problems.append(f"<{tag} href=javascript:...>")
-
-    def handle_data(self, data: str) -> None:
-        if self._in_script and data.strip():
-            self.problems.append("inline <script>")
-
-    def handle_endtag(self, tag: str) -> None:
-        self._in_script = False
-
-
-def audit(html: str) -> list[str]:
-    parser = ScriptAudit()
-    parser.feed(html)
-    return parser.problems
-
-
-@pytest.mark.parametrize("path", ["/studies", "/studies/new", "/studies/{id}",
-                                  "/studies/{id}/trees.zip",
-                                  "/studies/{id}/participants/1/tree.json"])
-def test_researcher_pages_send_strangers_to_login(client: TestClient, study: dict[str, Any],
-                                                  path: str) -> None:
+@pytest.mark.parametrize(
+    "path",
+    [
+        "/studies",
+        "/studies/new",
+        "/studies/{id}",
+        "/studies/{id}/trees.zip",
+        "/studies/{id}/participants/1/tree.json",
+    ],
+)
+def test_researcher_pages_send_strangers_to_login(
+    client: TestClient, study: dict[str, Any], path: str
+) -> None:
     path = path.format(id=study["id"])
     response = browser(client).get(path)
     assert response.status_code == 303
@@ -87,8 +45,9 @@ def test_login_sets_an_httponly_cookie_that_is_not_the_token(client: TestClient)
     token = csrf_token(page, "/login")
     wrong = page.post("/login", data={"csrf_token": token, "token": "nope"})
     assert wrong.status_code == 401 and "not the admin token" in wrong.text
-    response = page.post("/login", data={"csrf_token": token, "token": ADMIN_TOKEN,
-                                         "next": "//evil.example/x"})
+    response = page.post(
+        "/login", data={"csrf_token": token, "token": ADMIN_TOKEN, "next": "//evil.example/x"}
+    )
     assert response.status_code == 303 and response.headers["location"] == "/studies"
     cookie = response.headers["set-cookie"]
     assert "HttpOnly" in cookie and "samesite=lax" in cookie.lower()
@@ -99,25 +58,35 @@ def test_login_sets_an_httponly_cookie_that_is_not_the_token(client: TestClient)
 
 @pytest.mark.parametrize("form", [{}, {"csrf_token": "forged"}])
 def test_form_posts_without_a_valid_csrf_token_are_refused(
-        client: TestClient, study: dict[str, Any], form: dict[str, str]) -> None:
+    client: TestClient, study: dict[str, Any], form: dict[str, str]
+) -> None:
     page = logged_in(client)
     before = len(client.get(f"/api/studies/{study['id']}/participants", headers=ADMIN).json())
     response = page.post(f"/studies/{study['id']}/participants", data={**form, "count": "2"})
     assert response.status_code == 403 and "text/html" in response.headers["content-type"]
     after = len(client.get(f"/api/studies/{study['id']}/participants", headers=ADMIN).json())
     assert after == before
-    assert browser(client).post("/login", data={**form, "token": ADMIN_TOKEN}) \
-        .status_code == 403
+    assert browser(client).post("/login", data={**form, "token": ADMIN_TOKEN}).status_code == 403
 
 
-@pytest.mark.parametrize(("field", "value"), [("name", ""), ("n_candidates", "129"),
-                                              ("p", "1.5"), ("seed", "-1"), ("p", "abc")])
-def test_create_study_form_shows_errors_next_to_the_field(client: TestClient, field: str,
-                                                          value: str) -> None:
+@pytest.mark.parametrize(
+    ("field", "value"),
+    [("name", ""), ("n_candidates", "129"), ("p", "1.5"), ("seed", "-1"), ("p", "abc")],
+)
+def test_create_study_form_shows_errors_next_to_the_field(
+    client: TestClient, field: str, value: str
+) -> None:
     page = logged_in(client)
-    form = {"csrf_token": csrf_token(page, "/studies/new"), "name": "Form study",
-            "env_id": "Hopper-v5", "n_candidates": "4", "p": "0.9", "seed": "1",
-            "sampling": "uniform", "instructions": "Pick one."}
+    form = {
+        "csrf_token": csrf_token(page, "/studies/new"),
+        "name": "Form study",
+        "env_id": "Hopper-v5",
+        "n_candidates": "4",
+        "p": "0.9",
+        "seed": "1",
+        "sampling": "uniform",
+        "instructions": "Pick one.",
+    }
     response = page.post("/studies", data={**form, field: value})
     assert response.status_code == 422 and "text/html" in response.headers["content-type"]
     assert f'id="{field}-error"' in response.text
@@ -126,30 +95,47 @@ def test_create_study_form_shows_errors_next_to_the_field(client: TestClient, fi
 
 def test_create_study_form_and_invite_form(client: TestClient) -> None:
     page = logged_in(client)
-    form = {"csrf_token": csrf_token(page, "/studies/new"), "name": "Form study",
-            "env_id": "Hopper-v5", "n_candidates": "4", "p": "0.9", "seed": "1",
-            "sampling": "uniform", "instructions": "Pick one."}
+    form = {
+        "csrf_token": csrf_token(page, "/studies/new"),
+        "name": "Form study",
+        "env_id": "Hopper-v5",
+        "n_candidates": "4",
+        "p": "0.9",
+        "seed": "1",
+        "sampling": "uniform",
+        "instructions": "Pick one.",
+    }
     assert "unknown env" in page.post("/studies", data={**form, "env_id": "Nope-v0"}).text
     response = page.post("/studies", data=form)
     assert response.status_code == 303
     study_id = int(response.headers["location"].rsplit("/", 1)[1])
     assert wait_ready(client, study_id)["status"] == "ready"
-    invited = page.post(f"/studies/{study_id}/participants",
-                        data={"csrf_token": form["csrf_token"], "count": "3"})
+    invited = page.post(
+        f"/studies/{study_id}/participants", data={"csrf_token": form["csrf_token"], "count": "3"}
+    )
     assert invited.headers["location"] == f"/studies/{study_id}?invited=3#participants"
     html = page.get(f"/studies/{study_id}").text
     links = re.findall(r'value="(http://testserver/p/[\w-]{43})"', html)
     assert len(links) == 3 and html.count("<figure>") == 4
 
 
-def test_pages_follow_the_security_rules(client: TestClient, study: dict[str, Any],
-                                         invite: Callable[..., Player]) -> None:
+def test_pages_follow_the_security_rules(
+    client: TestClient, study: dict[str, Any], invite: Callable[..., Player]
+) -> None:
     page = logged_in(client)
     person = invite()
     participant = browser(client)
     participant.get(f"/p/{person.token}")
-    pages = [page.get(p) for p in ("/login", "/studies", "/studies/new",
-                                   f"/studies/{study['id']}", "/studies/999999")]
+    pages = [
+        page.get(p)
+        for p in (
+            "/login",
+            "/studies",
+            "/studies/new",
+            f"/studies/{study['id']}",
+            "/studies/999999",
+        )
+    ]
     pages += [participant.get(p) for p in ("/participate", "/participate/label")]
     for response in pages:
         assert "script-src 'self'" in response.headers["content-security-policy"]
@@ -158,8 +144,9 @@ def test_pages_follow_the_security_rules(client: TestClient, study: dict[str, An
         assert audit(response.text) == [], response.url
 
 
-def test_invite_link_sets_the_cookie_and_resumes(client: TestClient,
-                                                 invite: Callable[..., Player]) -> None:
+def test_invite_link_sets_the_cookie_and_resumes(
+    client: TestClient, invite: Callable[..., Player]
+) -> None:
     person = invite()
     page = browser(client)
     assert page.get("/participate").status_code == 401  # no invitation in this browser yet
@@ -169,8 +156,7 @@ def test_invite_link_sets_the_cookie_and_resumes(client: TestClient,
     assert page.get("/participate/thanks").headers["location"] == "/participate/label"
     match = person.next_match()
     person.label(match["match_id"], match["a"]["candidate_id"])
-    assert browser(client).get(f"/p/{person.token}").headers["location"] == \
-        "/participate/label"
+    assert browser(client).get(f"/p/{person.token}").headers["location"] == "/participate/label"
     person.play()
     assert page.get("/participate/label").headers["location"] == "/participate/thanks"
     thanks = page.get("/participate/thanks")
@@ -178,9 +164,12 @@ def test_invite_link_sets_the_cookie_and_resumes(client: TestClient,
     assert browser(client).get("/p/not-a-token").status_code == 404
 
 
-def test_downloads_are_acv_tree_files(client: TestClient, study: dict[str, Any],
-                                      make_study: Callable[..., dict[str, Any]],
-                                      invite: Callable[..., Player]) -> None:
+def test_downloads_are_acv_tree_files(
+    client: TestClient,
+    study: dict[str, Any],
+    make_study: Callable[..., dict[str, Any]],
+    invite: Callable[..., Player],
+) -> None:
     page = logged_in(client)
     done, open_ = invite(), invite()
     done.play()
@@ -191,8 +180,7 @@ def test_downloads_are_acv_tree_files(client: TestClient, study: dict[str, Any],
     assert tree_from_json(response.json()).judge == f"participant:{done.id}"
     assert page.get(f"{base}/{open_.id}/tree.json").status_code == 409
     other = make_study(seed=11)
-    assert page.get(f"/studies/{other['id']}/participants/{done.id}/tree.json") \
-        .status_code == 404
+    assert page.get(f"/studies/{other['id']}/participants/{done.id}/tree.json").status_code == 404
     archive = zipfile.ZipFile(io.BytesIO(page.get(f"/studies/{study['id']}/trees.zip").content))
     names = archive.namelist()
     assert f"study-{study['id']}-participant-{done.id}.acv-tree.json" in names

@@ -2,20 +2,17 @@
 
 from __future__ import annotations
 
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 from PIL import Image
-from typer.testing import CliRunner
 
 import app.cli.render as render_cli
-from app.cli.root import cli
 from engine.pipeline import run_tournament
 from engine.render import BackendError
 from engine.render.backend import missing_backend_message
 from engine.treefile import dump_tree
+from tests.support.cli import acv, acv_process
 
 N_CANDIDATES = 4
 
@@ -23,16 +20,31 @@ N_CANDIDATES = 4
 @pytest.fixture(scope="module")
 def tree(tmp_path_factory: pytest.TempPathFactory) -> Path:
     path = tmp_path_factory.mktemp("render") / "human.json"
-    dump_tree(run_tournament(env_id="Hopper-v5", n_candidates=N_CANDIDATES, p=0.9, seed=0,
-                             teacher="standing"), path)
+    dump_tree(
+        run_tournament(
+            env_id="Hopper-v5", n_candidates=N_CANDIDATES, p=0.9, seed=0, teacher="standing"
+        ),
+        path,
+    )
     return path
 
 
+@pytest.mark.process
 def test_writes_one_image_per_candidate(tree: Path, tmp_path: Path) -> None:
     out = tmp_path / "renders"
-    done = subprocess.run([sys.executable, "-m", "app.cli", "render", "--tree", str(tree),
-                           "--out", str(out), "--view", "three-quarter", "--size", "72",
-                           "--format", "png"], capture_output=True, text=True, timeout=120)
+    done = acv_process(
+        "render",
+        "--tree",
+        tree,
+        "--out",
+        out,
+        "--view",
+        "three-quarter",
+        "--size",
+        "72",
+        "--format",
+        "png",
+    )
     assert done.returncode == 0, done.stderr
     assert sorted(p.name for p in out.iterdir()) == [f"{i}.png" for i in range(N_CANDIDATES)]
     for path in out.iterdir():
@@ -42,33 +54,38 @@ def test_writes_one_image_per_candidate(tree: Path, tmp_path: Path) -> None:
     assert f"{N_CANDIDATES}/{N_CANDIDATES}" in done.stderr  # the progress bar finished
 
 
-@pytest.mark.parametrize(("args", "words"), [
-    (["--view", "top"], "unknown view"),
-    (["--size", "15"], "16..1920"),
-    (["--size", "5000"], "16..1920"),
-    (["--format", "gif"], "jpg or png"),
-    (["--tree", "missing.json"], "cannot read tree file"),
-    (["--out", "{tree}"], "cannot write images"),
-])
-def test_bad_input_is_one_line_and_exit_2(tree: Path, tmp_path: Path, args: list[str],
-                                          words: str) -> None:
+@pytest.mark.parametrize(
+    ("args", "words"),
+    [
+        (["--view", "top"], "unknown view"),
+        (["--size", "15"], "16..1920"),
+        (["--size", "5000"], "16..1920"),
+        (["--format", "gif"], "jpg or png"),
+        (["--tree", "missing.json"], "cannot read tree file"),
+        (["--out", "{tree}"], "cannot write images"),
+    ],
+)
+def test_bad_input_is_one_line_and_exit_2(
+    tree: Path, tmp_path: Path, args: list[str], words: str
+) -> None:
     args = [a.format(tree=tree) for a in args]
     if "--tree" not in args:
         args = ["--tree", str(tree), *args]
     if "--out" not in args:
         args = [*args, "--out", str(tmp_path / "out")]
-    result = CliRunner().invoke(cli, ["render", *args])
+    result = acv("render", *args)
     assert result.exit_code == 2
     assert words in result.stderr and result.stderr.count("\n") == 1
 
 
-def test_missing_backend_is_one_clear_line(tree: Path, tmp_path: Path,
-                                           monkeypatch: pytest.MonkeyPatch) -> None:
+def test_missing_backend_is_one_clear_line(
+    tree: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     def unavailable() -> str:
         raise BackendError(missing_backend_message())
 
     monkeypatch.setattr(render_cli, "activate", unavailable)
-    result = CliRunner().invoke(cli, ["render", "--tree", str(tree), "--out", str(tmp_path)])
+    result = acv("render", "--tree", tree, "--out", tmp_path)
     assert result.exit_code == 2
     assert "libegl1 libegl-mesa0 libgl1-mesa-dri" in result.stderr
     assert "libosmesa6" in result.stderr

@@ -10,16 +10,26 @@ from __future__ import annotations
 import csv
 import io
 import re
+import traceback
 from collections.abc import Iterator
+from contextlib import contextmanager
 from typing import Any
 
 import pytest
 from fastapi.testclient import TestClient
+from sqlalchemy import delete
+from sqlalchemy.orm import Session, sessionmaker
+from typer.testing import CliRunner, Result
 
-from app.services import figures, run_report
+from app.cli import cli
+from app.db import make_engine, make_sessions
+from app.models import CheckpointArtefact
+from app.services import artefacts, figures, run_report
 from engine.conformance import compare
 from engine.pipeline import replay_with_teacher
+from engine.rl.agent_judge import JUDGES
 from engine.rl.checkpoint import list_checkpoints
+from engine.rl.report import checkpoint_report
 from engine.treefile import tree_from_json, tree_to_json
 from tests.app.conftest import ADMIN, new_study
 from tests.app.runs_support import (
@@ -32,6 +42,8 @@ from tests.app.runs_support import (
     run_app,
     wait_run,
 )
+
+pytestmark = pytest.mark.training
 
 STEPS = [256, 512, 768, 1024]
 
@@ -56,9 +68,10 @@ def participant(client: TestClient, study: dict[str, Any]) -> int:
 def runs(client: TestClient, study: dict[str, Any], participant: int) -> dict[str, dict]:
     """A ``bipars-em`` run and a ``ppo`` baseline on the same participant's advice, done."""
     advice = {"study_id": study["id"], "participant_id": participant, **TINY}
-    ids = {"em": create_run(client, algo="bipars-em", timesteps=1024, checkpoint_every=256,
-                            **advice),
-           "ppo": create_run(client, algo="ppo", timesteps=512, **advice)}
+    ids = {
+        "em": create_run(client, algo="bipars-em", timesteps=1024, checkpoint_every=256, **advice),
+        "ppo": create_run(client, algo="ppo", timesteps=512, **advice),
+    }
     return {name: wait_run(client, run_id) for name, run_id in ids.items()}
 
 
@@ -87,12 +100,14 @@ def test_checkpoints_and_metrics_rows(client: TestClient, runs: dict[str, dict])
     rows = api(client, f"/api/runs/{run_id}/metrics")
     assert [r["timesteps"] for r in rows] == list(range(128, 1025, 128))
     assert [r["timesteps"] for r in api(client, f"/api/runs/{run_id}/metrics?after=768")] == [
-        896, 1024]
+        896,
+        1024,
+    ]
 
 
-def test_agent_tree_and_conformance_equal_the_engines(client: TestClient,
-                                                      runs: dict[str, dict],
-                                                      participant: int) -> None:
+def test_agent_tree_and_conformance_equal_the_engines(
+    client: TestClient, runs: dict[str, dict], participant: int
+) -> None:
     run_id = runs["em"]["id"]
     human = api(client, f"/api/runs/{run_id}/advice-tree")
     assert human == api(client, f"/api/participants/{participant}/tree")
@@ -109,19 +124,22 @@ def test_agent_tree_and_conformance_equal_the_engines(client: TestClient,
         assert {k: v for k, v in row.items() if k != "checkpoint"} == at
 
 
-@pytest.mark.parametrize("judge", ["shaping", "value"])
-def test_other_judges_name_themselves(client: TestClient, runs: dict[str, dict],
-                                      judge: str) -> None:
+@pytest.mark.parametrize("judge", ["shaping", "value", "behaviour"])
+def test_other_judges_name_themselves(
+    client: TestClient, runs: dict[str, dict], judge: str
+) -> None:
     doc = api(client, f"/api/runs/{runs['em']['id']}/agent-tree?checkpoint=512&judge={judge}")
     assert doc["judge"] == f"agent:{judge}@512"
 
 
-def test_ppo_baseline_is_compared_with_the_same_advice(client: TestClient, study: dict,
-                                                       runs: dict[str, dict]) -> None:
+def test_ppo_baseline_is_compared_with_the_same_advice(
+    client: TestClient, study: dict, runs: dict[str, dict]
+) -> None:
     em, ppo = runs["em"], runs["ppo"]
     assert ppo["status"] == "succeeded" and ppo["config"]["checkpoint_every"] == 128
     assert api(client, f"/api/runs/{ppo['id']}/advice-tree") == api(
-        client, f"/api/runs/{em['id']}/advice-tree")
+        client, f"/api/runs/{em['id']}/advice-tree"
+    )
     conformance = api(client, f"/api/runs/{ppo['id']}/conformance")
     assert conformance["n_matches"] == 4
     listed = [r["id"] for r in api(client, f"/api/runs?study_id={study['id']}")]
@@ -136,11 +154,15 @@ def test_exports(client: TestClient, runs: dict[str, dict]) -> None:
     png = api(client, f"/api/runs/{run_id}/trees/agent.png?checkpoint=256")
     assert png.content.startswith(b"\x89PNG")
     assert f'filename="run-{run_id}-agent-tree-256.png"' in png.headers["content-disposition"]
-    rows = list(csv.DictReader(io.StringIO(api(client,
-                                               f"/api/runs/{run_id}/conformance.csv").text)))
+    rows = list(
+        csv.DictReader(io.StringIO(api(client, f"/api/runs/{run_id}/conformance.csv").text))
+    )
     assert [int(r["checkpoint"]) for r in rows] == STEPS
-    one = list(csv.DictReader(io.StringIO(
-        api(client, f"/api/runs/{run_id}/conformance.csv?checkpoint=512").text)))
+    one = list(
+        csv.DictReader(
+            io.StringIO(api(client, f"/api/runs/{run_id}/conformance.csv?checkpoint=512").text)
+        )
+    )
     assert one == [rows[1]]
     report_response = api(client, f"/api/runs/{run_id}/report.html?checkpoint=768")
     policy = report_response.headers["content-security-policy"]
@@ -150,40 +172,42 @@ def test_exports(client: TestClient, runs: dict[str, dict]) -> None:
     assert "<script" not in report and "<link" not in report
     assert not re.search(r'(src|href)="(?!data:|#)', report)  # nothing to fetch
     rejected = api(client, f"/api/runs/{run_id}/conformance?checkpoint=768")["rejected"]
-    assert "The agent kept" in report
+    assert "Overall it kept" in report and "Every judge" in report
     assert report.count('<img src="data:image/jpeg;base64,') == 2 * len(rejected)
     assert bool(rejected) != ("the agent kept every choice" in report)
     assert report.count("<svg") == 4  # two trees and two curves, inline
 
 
-def test_a_corrupt_thumbnail_is_drawn_without_its_picture(client: TestClient, settings,
-                                                         study: dict, runs: dict) -> None:
+def test_a_corrupt_thumbnail_is_drawn_without_its_picture(
+    client: TestClient, settings, study: dict, runs: dict
+) -> None:
     """A thumbnail PIL cannot read (not an image, truncated) leaves its node without a
     picture instead of failing the exports."""
     with client.app.state.runtime.sessions() as session:
-        thumbs = run_report.thumb_paths(session, data_dir=settings.data_dir,
-                                        study_id=study["id"])
+        thumbs = run_report.thumb_paths(session, data_dir=settings.data_dir, study_id=study["id"])
     original, run_id = thumbs[0].read_bytes(), runs["em"]["id"]
     try:
-        for content in (b"not an image", original[:len(original) // 2]):
+        for content in (b"not an image", original[: len(original) // 2]):
             thumbs[0].write_bytes(content)
             assert sorted(figures.load_thumbs(thumbs)) == sorted(set(thumbs) - {0})
             assert b"<svg" in api(client, f"/api/runs/{run_id}/trees/human.svg").content
-            assert api(client, f"/api/runs/{run_id}/trees/agent.png").content.startswith(
-                b"\x89PNG")
-            assert "The agent kept" in api(client, f"/api/runs/{run_id}/report.html").text
+            assert api(client, f"/api/runs/{run_id}/trees/agent.png").content.startswith(b"\x89PNG")
+            assert "Overall it kept" in api(client, f"/api/runs/{run_id}/report.html").text
     finally:
         thumbs[0].write_bytes(original)
     assert sorted(figures.load_thumbs(thumbs)) == sorted(thumbs)
 
 
-def test_cancel_a_running_teacher_run_then_resume_it(client: TestClient, study: dict,
-                                                     participant: int) -> None:
-    run_id = create_run(client, study_id=study["id"], teacher="standing", algo="bipars-em",
-                        **ENDLESS)
+def test_cancel_a_running_teacher_run_then_resume_it(
+    client: TestClient, study: dict, participant: int
+) -> None:
+    run_id = create_run(
+        client, study_id=study["id"], teacher="standing", algo="bipars-em", **ENDLESS
+    )
     human = api(client, f"/api/runs/{run_id}/advice-tree")
-    expected = replay_with_teacher(tree_from_json(api(
-        client, f"/api/participants/{participant}/tree")), "standing")
+    expected = replay_with_teacher(
+        tree_from_json(api(client, f"/api/participants/{participant}/tree")), "standing"
+    )
     assert human == tree_to_json(expected)  # the teacher's tree over the study's bracket
     wait_run(client, run_id, progressed)
     cancelled = client.post(f"/api/runs/{run_id}/cancel", headers=ADMIN)
@@ -195,15 +219,18 @@ def test_cancel_a_running_teacher_run_then_resume_it(client: TestClient, study: 
     assert client.post(f"/api/runs/{run_id}/cancel", headers=ADMIN).status_code == 409
 
     resumed = client.post(f"/api/runs/{run_id}/resume", headers=ADMIN)
-    assert resumed.status_code == 202 and resumed.json()["status"] == "queued"
-    wait_run(client, run_id, lambda r: r["status"] == "running" and
-             r["progress"]["done"] > steps[-1])
+    # The worker may claim the run before the answer is read back: either state is right.
+    assert resumed.status_code == 202 and resumed.json()["status"] in ("queued", "running")
+    wait_run(
+        client, run_id, lambda r: r["status"] == "running" and r["progress"]["done"] > steps[-1]
+    )
     assert client.post(f"/api/runs/{run_id}/cancel", headers=ADMIN).status_code == 202
     assert wait_run(client, run_id)["status"] == "cancelled"
 
 
-def test_finished_runs_cannot_be_cancelled_or_resumed(client: TestClient,
-                                                      runs: dict[str, dict]) -> None:
+def test_finished_runs_cannot_be_cancelled_or_resumed(
+    client: TestClient, runs: dict[str, dict]
+) -> None:
     run_id = runs["ppo"]["id"]
     for action in ("cancel", "resume"):
         response = client.post(f"/api/runs/{run_id}/{action}", headers=ADMIN)
@@ -214,28 +241,36 @@ def test_finished_runs_cannot_be_cancelled_or_resumed(client: TestClient,
 def test_unknown_checkpoints_and_runs(client: TestClient, runs: dict[str, dict]) -> None:
     run_id = runs["ppo"]["id"]
     response = client.get(f"/api/runs/{run_id}/agent-tree?checkpoint=100", headers=ADMIN)
-    assert response.status_code == 422 and "no checkpoint at step 100" in response.json()[
-        "detail"]
+    assert response.status_code == 422 and "no checkpoint at step 100" in response.json()["detail"]
     assert client.get("/api/runs/999999", headers=ADMIN).status_code == 404
     assert client.get(f"/api/runs/{run_id}").status_code == 401
     assert client.get(f"/api/runs/{run_id}/trees/both.svg", headers=ADMIN).status_code == 422
 
 
-@pytest.mark.parametrize(("change", "status", "words"), [
-    ({"teacher": "standing"}, 422, "not both"),
-    ({"participant_id": None, "algo": "bipars-em"}, 422, "trains with advice"),
-    ({"algo": "sac"}, 422, "algo"),
-    ({"participant_id": None, "teacher": "random"}, 422, "teacher"),
-    ({"timesteps": 0}, 422, "timesteps"),
-    ({"n_envs": 1, "num_minibatches": 999}, 422, "num_minibatches"),
-    ({"study_id": 999999}, 404, "study 999999"),
-    ({"participant_id": 999999}, 404, "participant 999999"),
-    ({"unknown": 1}, 422, "unknown"),
-])
-def test_bad_run_requests(client: TestClient, study: dict, participant: int,
-                          change: dict, status: int, words: str) -> None:
-    body = {"study_id": study["id"], "participant_id": participant, "algo": "ppo",
-            "timesteps": 1000, **change}
+@pytest.mark.parametrize(
+    ("change", "status", "words"),
+    [
+        ({"teacher": "standing"}, 422, "not both"),
+        ({"participant_id": None, "algo": "bipars-em"}, 422, "trains with advice"),
+        ({"algo": "sac"}, 422, "algo"),
+        ({"participant_id": None, "teacher": "random"}, 422, "teacher"),
+        ({"timesteps": 0}, 422, "timesteps"),
+        ({"n_envs": 1, "num_minibatches": 999}, 422, "num_minibatches"),
+        ({"study_id": 999999}, 404, "study 999999"),
+        ({"participant_id": 999999}, 404, "participant 999999"),
+        ({"unknown": 1}, 422, "unknown"),
+    ],
+)
+def test_bad_run_requests(
+    client: TestClient, study: dict, participant: int, change: dict, status: int, words: str
+) -> None:
+    body = {
+        "study_id": study["id"],
+        "participant_id": participant,
+        "algo": "ppo",
+        "timesteps": 1000,
+        **change,
+    }
     response = client.post("/api/runs", json=body, headers=ADMIN)
     assert response.status_code == status, response.text
     assert words in str(response.json()["detail"])
@@ -260,10 +295,88 @@ def test_a_run_without_advice_has_nothing_to_compare(client: TestClient, study: 
     assert wait_run(client, run_id)["status"] == "succeeded"
 
 
-def test_agent_trees_are_cached_in_the_run_directory(client: TestClient, settings,
-                                                     runs: dict[str, dict]) -> None:
-    run_dir = settings.data_dir / "runs" / str(runs["em"]["id"])
-    assert list(list_checkpoints(run_dir)) == STEPS
-    api(client, f"/api/runs/{runs['em']['id']}/conformance-curve")
-    cached = sorted(p.name.split(".")[0] for p in (run_dir / "agent_trees").glob("*.shaped.*"))
-    assert cached == sorted(f"step_{s}" for s in STEPS)
+def test_the_executor_stores_every_checkpoints_artefact(
+    client: TestClient, settings, runs: dict[str, dict]
+) -> None:
+    run_id = runs["em"]["id"]
+    out = settings.data_dir / "runs" / str(run_id)
+    assert list(list_checkpoints(out)) == STEPS
+    with _sessions(settings) as sessions, sessions() as session:
+        stored = artefacts.payloads(session, run_id=run_id)
+    assert list(stored) == STEPS and not (out / "agent_trees").exists()
+    advice = tree_from_json(api(client, f"/api/runs/{run_id}/advice-tree"))
+    fresh = checkpoint_report(out, 512, advice=advice).to_json()
+    assert set(stored[512]["judges"]) == set(fresh["judges"]) == set(JUDGES)
+    for judge, body in fresh["judges"].items():  # the same verdicts (floats: same to 1e-9)
+        kept = stored[512]["judges"][judge]["conformance"]
+        assert kept["rejected"] == body["conformance"]["rejected"]
+        assert kept["contested"] == body["conformance"]["contested"]
+    for row, again in zip(stored[512]["candidates"], fresh["candidates"], strict=True):
+        assert row == pytest.approx(again, rel=1e-9)
+
+
+def test_checkpoint_report_carries_verdict_highlights_judges_and_candidates(
+    client: TestClient, runs: dict[str, dict]
+) -> None:
+    run_id = runs["em"]["id"]
+    body = api(client, f"/api/runs/{run_id}/checkpoint-report?checkpoint=768&judge=value")
+    m = api(client, f"/api/runs/{run_id}/conformance?checkpoint=768&judge=value")
+    assert body["conformance"] == m and body["judge"] == "value"
+    assert body["highlights"]["agent"] == sorted({r["human_winner"] for r in m["rejected"]})
+    assert [j["judge"] for j in body["judges"]] == list(JUDGES)
+    contested = m["contested"]
+    lead = (
+        f"Of the {contested['n']} choices where your advice goes against the environment's "
+        f"reward, the agent kept {contested['kept']}."
+        if contested["n"]
+        else "None of your choices goes against the environment's reward"
+    )
+    assert body["verdict"].startswith(lead)
+    rows = body["candidates"]
+    assert [r["id"] for r in rows] == sorted(r["id"] for r in rows) and rows
+    assert all(
+        r["score"] == r["value"] and r["shaping"] == pytest.approx(r["z"] * r["advice"])
+        for r in rows
+    )
+
+
+def test_a_checkpoint_not_judged_yet_is_pending_until_the_backfill(
+    client: TestClient, settings, runs: dict[str, dict], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    run_id = runs["ppo"]["id"]
+    before = api(client, f"/api/runs/{run_id}/conformance?checkpoint=256")
+    with _sessions(settings) as sessions:
+        with sessions() as session:
+            session.execute(delete(CheckpointArtefact).where(CheckpointArtefact.run_id == run_id))
+            session.commit()
+        for path in (
+            "conformance?checkpoint=256",
+            "agent-tree",
+            "checkpoint-report",
+            "conformance-curve",
+        ):
+            assert api(client, f"/api/runs/{run_id}/{path}", 202)["status"] == "pending"
+        page = api(client, f"/runs/{run_id}/compare")
+        assert page.status_code == 200
+    done = _backfill_cli(settings, monkeypatch)
+    assert done.exit_code == 0, (done.output, "".join(traceback.format_exception(*done.exc_info)))
+    assert int(re.search(r"--backfill: (\d+) checkpoint artefact", done.output)[1]) >= 4
+    assert api(client, f"/api/runs/{run_id}/conformance?checkpoint=256") == before
+    with _sessions(settings) as sessions:  # nothing left to do
+        assert artefacts.backfill(sessions, runs_root=settings.data_dir / "runs") == 0
+
+
+def _backfill_cli(settings, monkeypatch: pytest.MonkeyPatch) -> Result:
+    """``acv worker --backfill`` in-process on this module's database and data dir."""
+    monkeypatch.setenv("ACV_DATA_DIR", str(settings.data_dir))
+    monkeypatch.setenv("DATABASE_URL", settings.sqlalchemy_url)
+    return CliRunner().invoke(cli, ["worker", "--backfill"])
+
+
+@contextmanager
+def _sessions(settings) -> Iterator[sessionmaker[Session]]:
+    engine = make_engine(settings.sqlalchemy_url)
+    try:
+        yield make_sessions(engine)
+    finally:
+        engine.dispose()

@@ -22,7 +22,9 @@ from tests.app.runs_support import (
     run_app,
     wait_run,
 )
-from tests.app.test_pages import audit, browser, csrf_token, logged_in
+from tests.support.web import audit, browser, csrf_token, logged_in
+
+pytestmark = pytest.mark.training
 
 
 @pytest.fixture(scope="module")
@@ -47,17 +49,24 @@ def page(client: TestClient) -> TestClient:
 
 
 def form(page: TestClient, study_id: int, **fields: str) -> dict[str, str]:
-    return {"csrf_token": csrf_token(page, f"/runs/new?study_id={study_id}"),
-            "study_id": str(study_id), "advice": "teacher:standing", "algo": "bipars-em",
-            "timesteps": "256", "seed": "0", "n_envs": "1", "num_steps": "128",
-            "checkpoint_every": "", **fields}
+    return {
+        "csrf_token": csrf_token(page, f"/runs/new?study_id={study_id}"),
+        "study_id": str(study_id),
+        "advice": "teacher:standing",
+        "algo": "bipars-em",
+        "timesteps": "256",
+        "seed": "0",
+        "n_envs": "1",
+        "num_steps": "128",
+        "checkpoint_every": "",
+        **fields,
+    }
 
 
 @pytest.fixture(scope="module")
 def launched(client: TestClient, page: TestClient, study: dict, participant: int) -> int:
     """A run launched from the form on the participant's advice, finished."""
-    response = page.post("/runs", data=form(page, study["id"],
-                                            advice=f"participant:{participant}"))
+    response = page.post("/runs", data=form(page, study["id"], advice=f"participant:{participant}"))
     assert response.status_code == 303, response.text
     run_id = int(response.headers["location"].rsplit("/", 1)[1])
     assert wait_run(client, run_id)["status"] == "succeeded"
@@ -67,21 +76,32 @@ def launched(client: TestClient, page: TestClient, study: dict, participant: int
 @pytest.fixture(scope="module")
 def baseline(client: TestClient, study: dict, participant: int, launched: int) -> int:
     """A tiny ``ppo`` run on the same participant's advice as ``launched``, finished."""
-    run_id = create_run(client, study_id=study["id"], participant_id=participant, algo="ppo",
-                        timesteps=256, **TINY)
+    run_id = create_run(
+        client, study_id=study["id"], participant_id=participant, algo="ppo", timesteps=256, **TINY
+    )
     assert wait_run(client, run_id)["status"] == "succeeded"
     return run_id
 
 
-@pytest.mark.parametrize("path", ["/runs", "/runs/new?study_id=1", "/runs/1",
-                                  "/runs/1/compare", "/runs/1/compare-runs"])
+@pytest.mark.parametrize(
+    "path",
+    [
+        "/runs",
+        "/runs/new",
+        "/runs/new?study_id=1",
+        "/runs/1",
+        "/runs/1/compare",
+        "/runs/1/compare-runs",
+    ],
+)
 def test_run_pages_send_strangers_to_login(client: TestClient, path: str) -> None:
     response = browser(client).get(path)
     assert response.status_code == 303 and response.headers["location"].startswith("/login")
 
 
-def test_the_launch_form_lists_the_advice_sources(page: TestClient, study: dict,
-                                                  participant: int) -> None:
+def test_the_launch_form_lists_the_advice_sources(
+    page: TestClient, study: dict, participant: int
+) -> None:
     html = page.get(f"/runs/new?study_id={study['id']}").text
     values = re.findall(r'<option value="([^"]+)"', html)
     assert f"participant:{participant}" in values
@@ -89,12 +109,32 @@ def test_the_launch_form_lists_the_advice_sources(page: TestClient, study: dict,
     assert audit(html) == []
 
 
-def test_a_launched_run_has_its_pages(client: TestClient, page: TestClient, launched: int,
-                                      participant: int) -> None:
+def test_new_run_without_a_study_is_the_study_picker(page: TestClient, study: dict) -> None:
+    """A bookmarked or typed ``/runs/new`` asks for the study; picking one (the form's GET)
+    gives the launch form."""
+    response = page.get("/runs/new")
+    assert response.status_code == 200 and audit(response.text) == []
+    assert '<form method="get" action="/runs/new"' in response.text
+    assert re.search(
+        rf'<select id="study_id" name="study_id" required>\s*<option value="'
+        rf'{study["id"]}"',
+        response.text,
+    )
+    picked = page.get("/runs/new", params={"study_id": study["id"]})
+    assert picked.status_code == 200 and '<form method="post" action="/runs"' in picked.text
+
+
+def test_a_launched_run_has_its_pages(
+    client: TestClient, page: TestClient, launched: int, participant: int
+) -> None:
     run = client.get(f"/api/runs/{launched}", headers=ADMIN).json()
     assert run["advice"] == f"participant #{participant}" and run["config"]["num_steps"] == 128
-    for path in (f"/runs/{launched}", f"/runs/{launched}/compare",
-                 f"/runs/{launched}/compare-runs", "/runs"):
+    for path in (
+        f"/runs/{launched}",
+        f"/runs/{launched}/compare",
+        f"/runs/{launched}/compare-runs",
+        "/runs",
+    ):
         response = page.get(path)
         assert response.status_code == 200, path
         assert "script-src 'self'" in response.headers["content-security-policy"]
@@ -105,8 +145,42 @@ def test_a_launched_run_has_its_pages(client: TestClient, page: TestClient, laun
     assert 'data-checkpoints="128,256"' in compare and 'data-selected="128"' in compare
 
 
-def test_runs_on_the_same_advice_are_compared(page: TestClient, launched: int,
-                                              baseline: int) -> None:
+def test_the_compare_page_offers_every_judge_and_its_tables(
+    page: TestClient, launched: int
+) -> None:
+    html = page.get(f"/runs/{launched}/compare?judge=behaviour").text
+    box = html.split('id="judge"')[1].split("</select>")[0]
+    judges = re.findall(r'<option value="(\w+)" ?(selected)?>([^<]*)</option>', box)
+    assert [j for j, _, _ in judges] == ["shaped", "shaping", "value", "behaviour"]
+    assert judges[3][1] == "selected" and "revealed-preference" in judges[3][2]
+    assert 'id="judges-body"' in html and 'id="candidates"' in html
+    sortable = re.findall(r'<th scope="col" data-sort="(\w+)">', html)
+    assert sortable == ["id", "reward", "advice", "z", "shaping", "score", "value", "behaviour"]
+    assert audit(html) == []
+
+
+def test_the_form_launches_a_run_whose_advice_is_the_reward(
+    client: TestClient, page: TestClient, study: dict
+) -> None:
+    html = page.get(f"/runs/new?study_id={study['id']}").text
+    assert set(
+        re.findall(
+            r'<option value="([\w-]+)"[^>]*>[^<]*</option>',
+            html.split('id="advice_mode"')[1].split("</select>")[0],
+        )
+    ) == {"nearest", "softmax", "paper-min", "reward"}
+    response = page.post("/runs", data=form(page, study["id"], advice_mode="reward"))
+    assert response.status_code == 303, response.text
+    run_id = int(response.headers["location"].rsplit("/", 1)[1])
+    run = wait_run(client, run_id)
+    assert run["status"] == "succeeded" and run["config"]["advice_mode"] == "reward"
+    conformance = client.get(f"/api/runs/{run_id}/conformance", headers=ADMIN).json()
+    assert conformance["n_matches"] == 4  # still compared with the standing teacher's tree
+
+
+def test_runs_on_the_same_advice_are_compared(
+    page: TestClient, launched: int, baseline: int
+) -> None:
     """Both runs, oldest first: a row each with its metrics, and a curve each (the script
     draws one line per id in ``data-runs``)."""
     assert "compare the 2 runs on this advice" in page.get(f"/runs/{launched}/compare").text
@@ -119,31 +193,37 @@ def test_runs_on_the_same_advice_are_compared(page: TestClient, launched: int,
         assert f'data-runs="{launched},{baseline}"' in html
 
 
-@pytest.mark.parametrize(("fields", "where", "words"), [
-    ({"timesteps": "0"}, 'id="timesteps-error"', "greater than or equal to 1"),
-    ({"n_envs": "x"}, 'id="n_envs-error"', "valid integer"),
-    ({"advice": "none"}, 'role="alert"', "trains with advice"),
-])
-def test_the_launch_form_shows_errors(page: TestClient, study: dict, fields: dict,
-                                      where: str, words: str) -> None:
+@pytest.mark.parametrize(
+    ("fields", "where", "words"),
+    [
+        ({"timesteps": "0"}, 'id="timesteps-error"', "greater than or equal to 1"),
+        ({"n_envs": "x"}, 'id="n_envs-error"', "valid integer"),
+        ({"advice": "none"}, 'role="alert"', "trains with advice"),
+        ({"advice_mode": "bogus"}, 'id="advice_mode-error"', "reward"),
+    ],
+)
+def test_the_launch_form_shows_errors(
+    page: TestClient, study: dict, fields: dict, where: str, words: str
+) -> None:
     response = page.post("/runs", data=form(page, study["id"], **fields))
     assert response.status_code == 422 and where in response.text and words in response.text
 
 
-def test_forms_need_the_csrf_token(client: TestClient, page: TestClient, study: dict,
-                                   launched: int) -> None:
+def test_forms_need_the_csrf_token(
+    client: TestClient, page: TestClient, study: dict, launched: int
+) -> None:
     fields = form(page, study["id"]) | {"csrf_token": "forged"}
     assert page.post("/runs", data=fields).status_code == 403
     assert page.post(f"/runs/{launched}/resume", data={"csrf_token": "x"}).status_code == 403
 
 
-def test_cancel_and_resume_forms(client: TestClient, page: TestClient, study: dict,
-                                 launched: int) -> None:
+def test_cancel_and_resume_forms(
+    client: TestClient, page: TestClient, study: dict, launched: int
+) -> None:
     token = csrf_token(page, f"/runs/{launched}")
     finished = page.post(f"/runs/{launched}/cancel", data={"csrf_token": token})
     assert finished.status_code == 409 and "already ended" in finished.text
-    run_id = create_run(client, study_id=study["id"], teacher="good", algo="ppo-shaped",
-                        **ENDLESS)
+    run_id = create_run(client, study_id=study["id"], teacher="good", algo="ppo-shaped", **ENDLESS)
     wait_run(client, run_id, progressed)
     assert 'id="cancel"' in page.get(f"/runs/{run_id}").text
     response = page.post(f"/runs/{run_id}/cancel", data={"csrf_token": token})
@@ -155,8 +235,9 @@ def test_cancel_and_resume_forms(client: TestClient, page: TestClient, study: di
     assert wait_run(client, run_id)["status"] == "cancelled"
 
 
-def test_a_run_without_advice_has_no_comparison_page(client: TestClient, page: TestClient,
-                                                     study: dict) -> None:
+def test_a_run_without_advice_has_no_comparison_page(
+    client: TestClient, page: TestClient, study: dict
+) -> None:
     run_id = create_run(client, study_id=study["id"], algo="ppo", timesteps=128, **TINY)
     response = page.get(f"/runs/{run_id}/compare")
     assert response.status_code == 409 and "text/html" in response.headers["content-type"]

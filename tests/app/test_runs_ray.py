@@ -11,11 +11,9 @@ from __future__ import annotations
 import os
 import shutil
 import signal
-import socket
 import subprocess
 import sys
 import tempfile
-import time
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -23,43 +21,50 @@ import pytest
 
 from tests.app.conftest import ADMIN, new_study
 from tests.app.runs_support import ENDLESS, TINY, create_run, progressed, run_app, wait_run
+from tests.support.net import free_port, listening
+from tests.support.wait import wait_for
 
+pytestmark = [pytest.mark.ray, pytest.mark.training]
 RAY = Path(sys.executable).with_name("ray")
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def _listening(port: int) -> bool:
-    with socket.socket() as s:
-        return s.connect_ex(("127.0.0.1", port)) == 0
+def _head_up(head: subprocess.Popen, port: int) -> bool:
+    assert head.poll() is None, "ray start exited"
+    return listening(port)
 
 
 @pytest.fixture(scope="module")
 def ray_address() -> Iterator[str]:
     """A one-node Ray cluster with 2 CPUs on 127.0.0.1, stopped (with all its processes)
     after the module."""
-    port, temp = _free_port(), tempfile.mkdtemp(prefix="acvray")  # sockets need a short path
+    port, temp = free_port(), tempfile.mkdtemp(prefix="acvray")  # sockets need a short path
     # One setting for the head, its workers and the app's driver (this process): a token left
     # in ~/.ray by another cluster would otherwise switch token authentication on for some.
     saved = os.environ.get("RAY_AUTH_MODE")
     os.environ["RAY_AUTH_MODE"] = "disabled"
     env = os.environ | {"RAY_USAGE_STATS_ENABLED": "0"}
     head = subprocess.Popen(
-        [str(RAY), "start", "--head", "--block", "--node-ip-address=127.0.0.1",
-         f"--port={port}", "--num-cpus=2", "--include-dashboard=false",
-         f"--dashboard-port={_free_port()}", f"--ray-client-server-port={_free_port()}",
-         "--disable-usage-stats", f"--temp-dir={temp}"],
-        env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+        [
+            str(RAY),
+            "start",
+            "--head",
+            "--block",
+            "--node-ip-address=127.0.0.1",
+            f"--port={port}",
+            "--num-cpus=2",
+            "--include-dashboard=false",
+            f"--dashboard-port={free_port()}",
+            f"--ray-client-server-port={free_port()}",
+            "--disable-usage-stats",
+            f"--temp-dir={temp}",
+        ],
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        start_new_session=True,
+    )
     try:
-        deadline = time.monotonic() + 90
-        while not _listening(port):
-            assert head.poll() is None, "ray start exited"
-            assert time.monotonic() < deadline, "Ray did not start"
-            time.sleep(0.2)
+        wait_for(lambda: _head_up(head, port), what="Ray to start", timeout_s=90, every_s=0.2)
         yield f"127.0.0.1:{port}"
     finally:
         os.killpg(head.pid, signal.SIGKILL)  # the head's session: GCS, raylet, workers
@@ -74,10 +79,16 @@ def ray_address() -> Iterator[str]:
 def test_runs_execute_as_ray_tasks(settings, ray_address: str) -> None:
     with run_app(settings, ray_address=ray_address) as client:
         study_id = new_study(client)["id"]
-        tiny = create_run(client, study_id=study_id, teacher="good", algo="bipars-em",
-                          timesteps=512, checkpoint_every=256, **TINY)
-        long = create_run(client, study_id=study_id, teacher="good", algo="ppo-shaped",
-                          **ENDLESS)
+        tiny = create_run(
+            client,
+            study_id=study_id,
+            teacher="good",
+            algo="bipars-em",
+            timesteps=512,
+            checkpoint_every=256,
+            **TINY,
+        )
+        long = create_run(client, study_id=study_id, teacher="good", algo="ppo-shaped", **ENDLESS)
         done = wait_run(client, tiny)
         assert done["status"] == "succeeded" and done["executor"] == "ray", done
         checkpoints = client.get(f"/api/runs/{tiny}/checkpoints", headers=ADMIN).json()

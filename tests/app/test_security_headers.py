@@ -12,7 +12,6 @@ import hashlib
 import re
 import time
 from http.cookies import SimpleCookie
-from typing import Any
 
 import pytest
 from fastapi.routing import iter_route_contexts
@@ -23,27 +22,9 @@ from app.middleware import MAX_BODY_BYTES
 from app.services import auth
 from app.web.ratelimit import FAILED_LOGINS_PER_MINUTE
 from tests.app.conftest import ADMIN, ADMIN_TOKEN, Player
+from tests.support.web import browser, csrf_token, logged_in
 
-CSRF_RE = re.compile(r'name="csrf_token" value="([^"]+)"')
 AJAX = dict([AJAX_HEADER])
-
-
-def browser(client: TestClient, address: str = "testclient", **kwargs: Any) -> TestClient:
-    """A separate cookie jar on the same running app, from client ``address``."""
-    return TestClient(client.app, follow_redirects=False, client=(address, 40000), **kwargs)
-
-
-def csrf_token(page: TestClient, path: str = "/login") -> str:
-    match = CSRF_RE.search(page.get(path).text)
-    assert match, f"no CSRF field on {path}"
-    return match.group(1)
-
-
-def logged_in(client: TestClient, address: str = "testclient") -> TestClient:
-    page = browser(client, address)
-    response = page.post("/login", data={"csrf_token": csrf_token(page), "token": ADMIN_TOKEN})
-    assert response.status_code == 303, response.text
-    return page
 
 
 def cookie_attributes(response, name: str) -> dict[str, str | bool]:
@@ -61,14 +42,18 @@ def cookie_attributes(response, name: str) -> dict[str, str | bool]:
 def test_every_cookie_is_httponly_and_samesite(client, invite, base_url: str) -> None:
     secure = {"secure": True} if base_url.startswith("https") else {}
     page = browser(client, base_url=base_url)
-    assert cookie_attributes(page.get("/login"), "acv_csrf") == \
-        {"httponly": True, "samesite": "strict"} | secure
+    assert (
+        cookie_attributes(page.get("/login"), "acv_csrf")
+        == {"httponly": True, "samesite": "strict"} | secure
+    )
     login = page.post("/login", data={"csrf_token": csrf_token(page), "token": ADMIN_TOKEN})
-    assert cookie_attributes(login, "acv_researcher") == \
-        {"httponly": True, "samesite": "lax"} | secure
+    assert (
+        cookie_attributes(login, "acv_researcher") == {"httponly": True, "samesite": "lax"} | secure
+    )
     link = browser(client, base_url=base_url).get(f"/p/{invite().token}")
-    assert cookie_attributes(link, "acv_participant") == \
-        {"httponly": True, "samesite": "lax"} | secure
+    assert (
+        cookie_attributes(link, "acv_participant") == {"httponly": True, "samesite": "lax"} | secure
+    )
 
 
 def test_cookie_label_needs_the_ajax_header(client, invite) -> None:
@@ -101,8 +86,13 @@ def test_cookie_researcher_writes_need_the_ajax_header(client, study) -> None:
 
 
 def _form_routes(client: TestClient) -> list[str]:
-    return sorted({route.path for route in iter_route_contexts(client.app.routes)
-                   if "POST" in (route.methods or ()) and not route.path.startswith("/api/")})
+    return sorted(
+        {
+            route.path
+            for route in iter_route_contexts(client.app.routes)
+            if "POST" in (route.methods or ()) and not route.path.startswith("/api/")
+        }
+    )
 
 
 def test_every_form_post_needs_a_csrf_token(client, study) -> None:
@@ -111,7 +101,7 @@ def test_every_form_post_needs_a_csrf_token(client, study) -> None:
     routes = _form_routes(client)
     assert {"/login", "/logout", "/studies"} <= set(routes)
     page = logged_in(client)
-    ids = {"study_id": study["id"], "run_id": 2**31 - 1}
+    ids = {"study_id": study["id"], "run_id": 2**31 - 1, "slug": "no-such-link"}
     for path in routes:
         url = re.sub(r"\{(\w+)\}", lambda m: str(ids[m.group(1)]), path)
         for fields in ({}, {"csrf_token": "forged"}):
@@ -128,8 +118,9 @@ def _has_full_page_policy(response) -> None:
     assert response.headers["x-content-type-options"] == "nosniff"
 
 
-@pytest.mark.parametrize("path", ["/login", "/studies", "/studies/new", "/studies/{id}",
-                                  "/studies/999999", "/studies/0"])
+@pytest.mark.parametrize(
+    "path", ["/login", "/studies", "/studies/new", "/studies/{id}", "/studies/999999", "/studies/0"]
+)
 def test_pages_send_a_strict_policy(client, study, path: str) -> None:
     _has_full_page_policy(logged_in(client).get(path.format(id=study["id"])))
 
@@ -141,10 +132,20 @@ def test_participant_pages_send_a_strict_policy(client, invite, path: str) -> No
     _has_full_page_policy(page.get(path))
 
 
-@pytest.mark.parametrize("path", [
-    "/api/studies", "/api/studies/{id}", "/api/studies/{id}/candidates/0/image",
-    "/static/js/api.js", "/static/css/acv.css", "/healthz", "/api/nowhere", "/openapi.json",
-    "/docs"])
+@pytest.mark.parametrize(
+    "path",
+    [
+        "/api/studies",
+        "/api/studies/{id}",
+        "/api/studies/{id}/candidates/0/image",
+        "/static/js/api.js",
+        "/static/css/acv.css",
+        "/healthz",
+        "/api/nowhere",
+        "/openapi.json",
+        "/docs",
+    ],
+)
 def test_every_other_response_forbids_sniffing_and_framing(client, study, path: str) -> None:
     response = client.get(path.format(id=study["id"]), headers=ADMIN)
     assert response.status_code in (200, 404), response.text
@@ -156,8 +157,9 @@ def test_every_other_response_forbids_sniffing_and_framing(client, study, path: 
 def test_oversized_bodies_are_refused_before_reading(client) -> None:
     big = b"{" + b" " * MAX_BODY_BYTES + b"}"
     declared = client.post("/api/studies", content=big, headers=ADMIN)
-    streamed = client.post("/api/studies", content=iter([big[:1000], big[1000:]]),
-                           headers=ADMIN)  # chunked: no Content-Length
+    streamed = client.post(
+        "/api/studies", content=iter([big[:1000], big[1000:]]), headers=ADMIN
+    )  # chunked: no Content-Length
     for response in (declared, streamed):
         assert response.status_code == 413 and "detail" in response.json()
         assert response.headers["x-content-type-options"] == "nosniff"
@@ -169,8 +171,7 @@ def test_failed_logins_are_rate_limited_per_address(client) -> None:
     page = browser(client, "203.0.113.7")
     token = csrf_token(page)
     for _ in range(FAILED_LOGINS_PER_MINUTE):
-        assert page.post("/login", data={"csrf_token": token, "token": "guess"}
-                         ).status_code == 401
+        assert page.post("/login", data={"csrf_token": token, "token": "guess"}).status_code == 401
     blocked = page.post("/login", data={"csrf_token": token, "token": ADMIN_TOKEN})
     assert blocked.status_code == 429 and 1 <= int(blocked.headers["retry-after"]) <= 60
     assert "acv_researcher" not in blocked.headers.get("set-cookie", "")
@@ -200,8 +201,10 @@ def test_failed_bearer_tokens_are_rate_limited_per_address(client, invite) -> No
         assert blocked.status_code == 429 and "detail" in blocked.json(), path
         assert 1 <= int(blocked.headers["retry-after"]) <= 60
     assert api.get(tree, headers=player.headers).status_code == 200
-    assert api.post("/login", data={"csrf_token": csrf_token(api), "token": ADMIN_TOKEN}
-                    ).status_code == 429
+    assert (
+        api.post("/login", data={"csrf_token": csrf_token(api), "token": ADMIN_TOKEN}).status_code
+        == 429
+    )
     assert browser(client, "203.0.113.21").get("/api/studies", headers=ADMIN).status_code == 200
 
 
@@ -212,11 +215,15 @@ def test_researcher_sessions_expire_on_the_server(client) -> None:
     assert max_age == 12 * 3600
     page = browser(client)
     login = page.post("/login", data={"csrf_token": csrf_token(page), "token": ADMIN_TOKEN})
-    assert [h for h in login.headers.get_list("set-cookie")
-            if h.startswith(auth.RESEARCHER_COOKIE) and f"Max-Age={max_age};" in h]
+    assert [
+        h
+        for h in login.headers.get_list("set-cookie")
+        if h.startswith(auth.RESEARCHER_COOKIE) and f"Max-Age={max_age};" in h
+    ]
     fresh = auth.researcher_cookie_value(admin_token=ADMIN_TOKEN)
-    stale = auth.researcher_cookie_value(admin_token=ADMIN_TOKEN,
-                                         issued_at=time.time() - max_age - 5)
+    stale = auth.researcher_cookie_value(
+        admin_token=ADMIN_TOKEN, issued_at=time.time() - max_age - 5
+    )
     issued, rest = stale.split(".", 1)
     moved = f"{int(issued) + 600}.{rest}"
     for cookie, valid in ((fresh, True), (stale, False), (moved, False)):
@@ -233,8 +240,9 @@ def test_api_docs_run_only_this_origins_code(client) -> None:
     nothing else inline or from elsewhere; ReDoc is not served."""
     response = client.get("/docs")
     assert response.status_code == 200
-    directives = dict(d.strip().split(" ", 1) for d in
-                      response.headers["content-security-policy"].split(";"))
+    directives = dict(
+        d.strip().split(" ", 1) for d in response.headers["content-security-policy"].split(";")
+    )
     inline = re.findall(r"<script>(.*?)</script>", response.text, re.DOTALL)
     assert len(inline) == 1
     digest = base64.b64encode(hashlib.sha256(inline[0].encode()).digest()).decode()
@@ -242,8 +250,7 @@ def test_api_docs_run_only_this_origins_code(client) -> None:
     assert directives["default-src"] == "'none'" and directives["frame-ancestors"] == "'none'"
     assert "unsafe" not in response.headers["content-security-policy"]
     assets = re.findall(r'(?:src|href)="([^"]+)"', response.text)
-    assert {"/static/vendor/swagger-ui-bundle.js", "/static/vendor/swagger-ui.css"} <= \
-        set(assets)
+    assert {"/static/vendor/swagger-ui-bundle.js", "/static/vendor/swagger-ui.css"} <= set(assets)
     for asset in assets:
         assert asset.startswith("/static/") and client.get(asset).status_code == 200, asset
     assert "Apache License" in client.get("/static/vendor/swagger-ui.LICENSE").text

@@ -38,11 +38,14 @@ def test_default_database_is_sqlite_in_the_data_dir(monkeypatch, tmp_path) -> No
     assert Settings(data_dir=tmp_path).sqlalchemy_url == f"sqlite:///{tmp_path}/acv.sqlite3"
 
 
-@pytest.mark.parametrize(("url", "expected"), [
-    ("postgres://a@b/c", "postgresql+psycopg://a@b/c"),
-    ("postgresql+psycopg://a@b/c", "postgresql+psycopg://a@b/c"),
-    ("sqlite:///x.db", "sqlite:///x.db"),
-])
+@pytest.mark.parametrize(
+    ("url", "expected"),
+    [
+        ("postgres://a@b/c", "postgresql+psycopg://a@b/c"),
+        ("postgresql+psycopg://a@b/c", "postgresql+psycopg://a@b/c"),
+        ("sqlite:///x.db", "sqlite:///x.db"),
+    ],
+)
 def test_normalise_url(url: str, expected: str) -> None:
     assert normalise_url(url) == expected
 
@@ -62,8 +65,9 @@ def test_explicit_admin_token_wins(tmp_path) -> None:
     assert not (tmp_path / ADMIN_TOKEN_FILE).exists()
 
 
-@pytest.mark.parametrize("short", ["a", "x" * (MIN_ADMIN_TOKEN_CHARS - 1),
-                                   " " + "y" * (MIN_ADMIN_TOKEN_CHARS - 1) + " "])
+@pytest.mark.parametrize(
+    "short", ["a", "x" * (MIN_ADMIN_TOKEN_CHARS - 1), " " + "y" * (MIN_ADMIN_TOKEN_CHARS - 1) + " "]
+)
 def test_short_admin_tokens_are_refused(tmp_path, short: str) -> None:
     with pytest.raises(InputError, match=f"at least {MIN_ADMIN_TOKEN_CHARS}"):
         ensure_admin_token(Settings(data_dir=tmp_path, admin_token=short))
@@ -73,10 +77,17 @@ def test_short_admin_tokens_are_refused(tmp_path, short: str) -> None:
     assert ensure_admin_token(Settings(data_dir=tmp_path, admin_token="z" * 32)) == "z" * 32
 
 
-@pytest.mark.parametrize(("header", "token"), [
-    ("Bearer abc", "abc"), ("bearer abc", "abc"), ("Basic abc", None), ("Bearer ", None),
-    ("", None), (None, None),
-])
+@pytest.mark.parametrize(
+    ("header", "token"),
+    [
+        ("Bearer abc", "abc"),
+        ("bearer abc", "abc"),
+        ("Basic abc", None),
+        ("Bearer ", None),
+        ("", None),
+        (None, None),
+    ],
+)
 def test_bearer_token(header: str | None, token: str | None) -> None:
     assert bearer_token(header) == token
 
@@ -97,24 +108,34 @@ def test_researcher_cookies_expire_on_the_server() -> None:
     now = time.time()
     cookie = researcher_cookie_value(admin_token=ADM, issued_at=now - 3600)
     for age_limit, accepted in ((3601, True), (3599, False)):
-        assert valid_researcher_cookie(cookie=cookie, admin_token=ADM, max_age_s=age_limit,
-                                       now=now) is accepted
+        assert (
+            valid_researcher_cookie(cookie=cookie, admin_token=ADM, max_age_s=age_limit, now=now)
+            is accepted
+        )
     future = researcher_cookie_value(admin_token=ADM, issued_at=now + 3600)
     assert not valid_researcher_cookie(cookie=future, admin_token=ADM, max_age_s=10**9, now=now)
 
 
 def test_tampered_researcher_cookies_are_refused() -> None:
     now = time.time()
-    issued, nonce, signature = researcher_cookie_value(admin_token=ADM,
-                                                       issued_at=now - 100).split(".")
+    issued, nonce, signature = researcher_cookie_value(admin_token=ADM, issued_at=now - 100).split(
+        "."
+    )
     flipped = signature[:-1] + ("1" if signature[-1] == "0" else "0")
 
     def accepted(value: str) -> bool:
         return valid_researcher_cookie(cookie=value, admin_token=ADM, max_age_s=3600, now=now)
 
     assert accepted(f"{issued}.{nonce}.{signature}")
-    for forged in (f"{int(now)}.{nonce}.{signature}",  # a renewed login time
-                   f"{issued}.{nonce}x.{signature}", f"{issued}.{nonce}.{flipped}",
-                   f"{issued}.{nonce}", f"{issued}.{nonce}.{signature}.x", f"-5.{nonce}.x",
-                   f"\u0661\u0662.{nonce}.{signature}", "", "x" * 300):
+    for forged in (
+        f"{int(now)}.{nonce}.{signature}",  # a renewed login time
+        f"{issued}.{nonce}x.{signature}",
+        f"{issued}.{nonce}.{flipped}",
+        f"{issued}.{nonce}",
+        f"{issued}.{nonce}.{signature}.x",
+        f"-5.{nonce}.x",
+        f"\u0661\u0662.{nonce}.{signature}",
+        "",
+        "x" * 300,
+    ):
         assert not accepted(forged), forged

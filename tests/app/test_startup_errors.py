@@ -12,7 +12,6 @@ from __future__ import annotations
 import os
 import shlex
 import shutil
-import socket
 import subprocess
 import sys
 import time
@@ -31,36 +30,37 @@ from app.runtime import Runtime
 from app.services.studies import create_study
 from app.settings import Settings
 from tests.app.conftest import ADMIN_TOKEN
+from tests.support.net import free_port, listening
+from tests.support.postgres import BACKENDS
+from tests.support.server import clean_env
 
 REPO = Path(__file__).resolve().parents[2]
-SERVE = [sys.executable, "-c", "from app.cli import main; main()", "serve", "--host",
-         "127.0.0.1", "--no-access-log"]
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+SERVE = [
+    sys.executable,
+    "-c",
+    "from app.cli import main; main()",
+    "serve",
+    "--host",
+    "127.0.0.1",
+    "--no-access-log",
+]
 
 
 def serve(env: dict[str, str], *, setup: str | None = None) -> subprocess.CompletedProcess:
     """Run ``acv serve`` (after shell ``setup`` in a private mount namespace, if given) and
     wait for it to exit; a server that starts serving instead fails the test."""
-    port = _free_port()
+    port = free_port()
     command = [*SERVE, "--port", str(port)]
     if setup is not None:
         assert shutil.which("unshare"), "these tests need util-linux's unshare"
-        command = ["unshare", "-m", "--", "sh", "-ec",
-                   f"{setup}\nexec {shlex.join(command)}"]
-    base = {k: v for k, v in os.environ.items()
-            if not k.startswith("ACV_") and k != "DATABASE_URL"}
+        command = ["unshare", "-m", "--", "sh", "-ec", f"{setup}\nexec {shlex.join(command)}"]
     try:
-        done = subprocess.run(command, cwd=REPO, env=base | env, capture_output=True,
-                              text=True, timeout=60)
+        done = subprocess.run(
+            command, cwd=REPO, env=clean_env(**env), capture_output=True, text=True, timeout=60
+        )
     except subprocess.TimeoutExpired:
         pytest.fail("acv serve started instead of refusing the data dir")
-    with socket.socket() as s:
-        assert s.connect_ex(("127.0.0.1", port)) != 0, "something listens on the port"
+    assert not listening(port), "something listens on the port"
     return done
 
 
@@ -81,6 +81,7 @@ def refused(done: subprocess.CompletedProcess, *needles: str) -> None:
 def serve_here(monkeypatch) -> Callable[..., None]:
     """``acv serve`` in this process with ``env``, asserting it is refused (uvicorn would
     fail the test); cheaper than a subprocess where no mount namespace is needed."""
+
     def served(*_: object, **__: object) -> None:
         pytest.fail("acv serve started serving")
 
@@ -91,7 +92,7 @@ def serve_here(monkeypatch) -> Callable[..., None]:
             monkeypatch.delenv(name)
         for name, value in env.items():
             monkeypatch.setenv(name, value)
-        result = CliRunner().invoke(cli, ["serve", "--port", str(_free_port())])
+        result = CliRunner().invoke(cli, ["serve", "--port", str(free_port())])
         assert_refused(result.exit_code, result.stderr, result.stdout, *needles)
 
     return check
@@ -102,29 +103,36 @@ def test_data_dir_under_a_file(serve_here, tmp_path: Path) -> None:
     serve_here({"ACV_DATA_DIR": str(tmp_path / "file" / "data")}, "data dir", "Not a directory")
 
 
-@pytest.mark.parametrize("backend", ["sqlite", "postgresql"])
+@pytest.mark.process
+@pytest.mark.parametrize("backend", BACKENDS)
 def test_read_only_data_dir(request, tmp_path: Path, backend: str) -> None:
     """Also with PostgreSQL, where nothing else would notice before the first study's images
     (a half-started server)."""
     data = tmp_path / "data"
     env = {"ACV_DATA_DIR": str(data)}
     if backend == "postgresql":
-        env |= {"DATABASE_URL": request.getfixturevalue("postgres").create_database(),
-                "ACV_ADMIN_TOKEN": ADMIN_TOKEN}
+        env |= {
+            "DATABASE_URL": request.getfixturevalue("postgres").create_database(),
+            "ACV_ADMIN_TOKEN": ADMIN_TOKEN,
+        }
     data.mkdir()
     setup = f"mount --bind {data} {data}; mount -o remount,bind,ro {data}"
     refused(serve(env, setup=setup), str(data), "Read-only file system")
 
 
-@pytest.mark.parametrize(("min_free_mb", "needle"), [
-    ("64", "MiB free"), ("0", "No space left on device")])
+@pytest.mark.process
+@pytest.mark.parametrize(
+    ("min_free_mb", "needle"), [("64", "MiB free"), ("0", "No space left on device")]
+)
 def test_full_data_dir(tmp_path: Path, min_free_mb: str, needle: str) -> None:
     """A 1 MiB tmpfs filled up: refused by the free-space check, and (with the check off)
     by the write probe."""
     data = tmp_path / "data"
     data.mkdir()
-    setup = (f"mount -t tmpfs -o size=1m tmpfs {data}\n"
-             f"head -c 2000000 /dev/zero > {data}/fill 2>/dev/null || true")
+    setup = (
+        f"mount -t tmpfs -o size=1m tmpfs {data}\n"
+        f"head -c 2000000 /dev/zero > {data}/fill 2>/dev/null || true"
+    )
     done = serve({"ACV_DATA_DIR": str(data), "ACV_MIN_FREE_MB": min_free_mb}, setup=setup)
     refused(done, str(data), needle)
 
@@ -135,15 +143,21 @@ def test_corrupt_sqlite_database(serve_here, tmp_path: Path) -> None:
 
 
 def test_unreachable_postgresql(serve_here, tmp_path: Path) -> None:
-    url = f"postgresql://acv@127.0.0.1:{_free_port()}/acv"
+    url = f"postgresql://acv@127.0.0.1:{free_port()}/acv"
     serve_here({"ACV_DATA_DIR": str(tmp_path), "DATABASE_URL": url}, "database")
 
 
-@pytest.mark.parametrize(("env", "needle"), [
-    ({"ACV_ADMIN_TOKEN": "  "}, "admin token"), ({"ACV_THREADS": "many"}, "threads"),
-    ({"ACV_ADMIN_TOKEN": "a"}, "ACV_ADMIN_TOKEN has 1 characters; use at least 32"),
-    ({"ACV_ADMIN_TOKEN": "x" * 31}, "at least 32"), ({"ACV_SESSION_HOURS": "0"}, "session_hours"),
-    ({"DATABASE_URL": "nosuchdb://x"}, "DATABASE_URL")])
+@pytest.mark.parametrize(
+    ("env", "needle"),
+    [
+        ({"ACV_ADMIN_TOKEN": "  "}, "admin token"),
+        ({"ACV_THREADS": "many"}, "threads"),
+        ({"ACV_ADMIN_TOKEN": "a"}, "ACV_ADMIN_TOKEN has 1 characters; use at least 32"),
+        ({"ACV_ADMIN_TOKEN": "x" * 31}, "at least 32"),
+        ({"ACV_SESSION_HOURS": "0"}, "session_hours"),
+        ({"DATABASE_URL": "nosuchdb://x"}, "DATABASE_URL"),
+    ],
+)
 def test_bad_settings(serve_here, tmp_path: Path, env: dict[str, str], needle: str) -> None:
     serve_here({"ACV_DATA_DIR": str(tmp_path)} | env, needle)
 
@@ -158,9 +172,16 @@ def _at_once(code: str, *args: str, n: int = 4) -> list[subprocess.CompletedProc
     (``START`` is a wall-clock time a few seconds ahead, after their imports)."""
     start = str(time.time() + 4.0)
     prelude = "import sys, time\nSTART = float(sys.argv[1])\n"
-    procs = [subprocess.Popen([sys.executable, "-c", prelude + code, start, *args], cwd=REPO,
-                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-             for _ in range(n)]
+    procs = [
+        subprocess.Popen(
+            [sys.executable, "-c", prelude + code, start, *args],
+            cwd=REPO,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        for _ in range(n)
+    ]
     results = []
     for proc in procs:
         out, err = proc.communicate(timeout=120)
@@ -168,24 +189,32 @@ def _at_once(code: str, *args: str, n: int = 4) -> list[subprocess.CompletedProc
     return results
 
 
-@pytest.mark.parametrize("backend", ["sqlite", "postgresql"])
-def test_concurrent_migrations_of_a_fresh_database(request, tmp_path: Path,
-                                                   backend: str) -> None:
-    url = (f"sqlite:///{tmp_path / 'acv.sqlite3'}" if backend == "sqlite"
-           else request.getfixturevalue("postgres").create_database())
-    code = ("from app.db import upgrade\n"
-            "time.sleep(max(0.0, START - time.time()))\nupgrade(sys.argv[2])\n")
+@pytest.mark.process
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_concurrent_migrations_of_a_fresh_database(request, tmp_path: Path, backend: str) -> None:
+    url = (
+        f"sqlite:///{tmp_path / 'acv.sqlite3'}"
+        if backend == "sqlite"
+        else request.getfixturevalue("postgres").create_database()
+    )
+    code = (
+        "from app.db import upgrade\n"
+        "time.sleep(max(0.0, START - time.time()))\nupgrade(sys.argv[2])\n"
+    )
     for done in _at_once(code, url):
         assert done.returncode == 0, done.stderr[-2000:]
     upgrade(url)  # already at head: nothing to do
 
 
+@pytest.mark.process
 def test_concurrent_processes_agree_on_one_admin_token(tmp_path: Path) -> None:
-    code = ("from app.services.auth import ensure_admin_token\n"
-            "from app.settings import Settings\n"
-            "settings = Settings(data_dir=sys.argv[2])\n"
-            "time.sleep(max(0.0, START - time.time()))\n"
-            "print(ensure_admin_token(settings))\n")
+    code = (
+        "from app.services.auth import ensure_admin_token\n"
+        "from app.settings import Settings\n"
+        "settings = Settings(data_dir=sys.argv[2])\n"
+        "time.sleep(max(0.0, START - time.time()))\n"
+        "print(ensure_admin_token(settings))\n"
+    )
     results = _at_once(code, str(tmp_path), n=6)
     tokens = {done.stdout.strip() for done in results}
     assert all(done.returncode == 0 for done in results), [d.stderr for d in results]
@@ -193,6 +222,7 @@ def test_concurrent_processes_agree_on_one_admin_token(tmp_path: Path) -> None:
     assert sorted(p.name for p in tmp_path.iterdir()) == ["admin_token"]  # no leftovers
 
 
+@pytest.mark.postgres
 def test_two_workers_resume_the_same_half_prepared_study(postgres, tmp_path: Path) -> None:
     """Every web worker resumes half-prepared studies at start-up; the study ends ``ready``
     with its candidates stored once, not ``failed`` by the slower worker."""
@@ -201,8 +231,16 @@ def test_two_workers_resume_the_same_half_prepared_study(postgres, tmp_path: Pat
     settings = Settings(data_dir=tmp_path, database_url=url, admin_token=ADMIN_TOKEN)
     engine = make_engine(url)
     with make_sessions(engine)() as session:
-        study = create_study(session, name="resumed", env_id="Hopper-v5", n_candidates=4,
-                             p=0.9, seed=1, sampling="uniform", instructions="")
+        study = create_study(
+            session,
+            name="resumed",
+            env_id="Hopper-v5",
+            n_candidates=4,
+            p=0.9,
+            seed=1,
+            sampling="uniform",
+            instructions="",
+        )
     workers = [Runtime(settings), Runtime(settings)]
     try:
         for runtime in workers:

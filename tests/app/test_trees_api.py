@@ -31,8 +31,9 @@ def test_tree_equals_the_engines_for_the_same_decisions(client, admin, study, in
     response = client.get(f"/api/participants/{player.id}/tree", headers=admin)
     assert response.status_code == 200
     doc = tree_from_json(response.json())  # a valid acv.tree/1 document
-    expected = run_tournament(env_id="Hopper-v5", n_candidates=5, p=0.9, seed=study["seed"],
-                              teacher="standing")
+    expected = run_tournament(
+        env_id="Hopper-v5", n_candidates=5, p=0.9, seed=study["seed"], teacher="standing"
+    )
     got, want = tree_to_json(doc), tree_to_json(expected)
     assert got["judge"] == f"participant:{player.id}"
     for key in ("schema", "env_id", "seed", "p", "first_round", "matches", "tree"):
@@ -48,8 +49,7 @@ def test_participant_sees_own_tree_only_when_finished(client, invite) -> None:
     own = client.get(f"/api/participants/{player.id}/tree", headers=player.headers)
     assert own.status_code == 200 and own.json()["schema"] == "acv.tree/1"
     assert client.get(f"/api/participants/{player.id}/tree").status_code == 401
-    assert client.get("/api/participants/99999999/tree",
-                      headers=player.headers).status_code == 403
+    assert client.get("/api/participants/99999999/tree", headers=player.headers).status_code == 403
 
 
 def test_researcher_gets_unknown_participant_as_404(client, admin) -> None:
@@ -74,11 +74,18 @@ def test_labels_csv(client, admin, study, invite) -> None:
     response = client.get(f"/api/studies/{study['id']}/labels.csv", headers=admin)
     assert response.headers["content-type"].startswith("text/csv")
     assert "attachment" in response.headers["content-disposition"]
-    rows = [r for r in csv.DictReader(io.StringIO(response.text))
-            if r["participant_id"] == str(player.id)]
+    rows = [
+        r
+        for r in csv.DictReader(io.StringIO(response.text))
+        if r["participant_id"] == str(player.id)
+    ]
     assert len(rows) == 4
     first = rows[0]
-    assert (first["match_id"], first["winner"], first["response_ms"], first["round"]) == \
-        (str(match["match_id"]), str(match["b"]["candidate_id"]), "321", "1")
+    assert (first["match_id"], first["winner"], first["response_ms"], first["round"]) == (
+        str(match["match_id"]),
+        str(match["b"]["candidate_id"]),
+        "321",
+        "1",
+    )
     assert all(int(r["response_ms"]) >= 0 for r in rows)  # estimated when not sent
     assert all(r["labelled_at"].endswith("+00:00") for r in rows)

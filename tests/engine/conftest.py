@@ -12,8 +12,9 @@ def make_candidates(n: int, rng: np.random.Generator | None = None) -> list[Cand
     """``n`` candidates with distinct random rewards and 3-dim states."""
     rng = rng or np.random.default_rng(0)
     rewards = rng.permutation(n).astype(float)
-    return [Candidate(i, rng.normal(size=5), rng.normal(size=4), float(rewards[i]))
-            for i in range(n)]
+    return [
+        Candidate(i, rng.normal(size=5), rng.normal(size=4), float(rewards[i])) for i in range(n)
+    ]
 
 
 @pytest.fixture

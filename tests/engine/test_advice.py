@@ -19,8 +19,9 @@ def hopper_doc():
 @pytest.mark.parametrize("depth_factor", ["none", "paper"])
 def test_batch_equals_one_at_a_time(hopper_doc, mode: str, depth_factor: str) -> None:
     advice = AdviceReward.from_tree(hopper_doc, mode=mode, depth_factor=depth_factor)
-    qpos = np.stack([c.qpos for c in hopper_doc.candidates]) + \
-        np.random.default_rng(0).normal(scale=0.05, size=(12, 6))
+    qpos = np.stack([c.qpos for c in hopper_doc.candidates]) + np.random.default_rng(0).normal(
+        scale=0.05, size=(12, 6)
+    )
     batch = advice(qpos)
     assert batch.shape == (12,)
     assert np.allclose(batch, [advice(q[None])[0] for q in qpos])

@@ -10,9 +10,14 @@ from engine.bracket import Bracket, bm_outcomes, bm_ranking, make_first_round, s
 from engine.errors import InputError
 
 
-@pytest.mark.parametrize(("size", "expected"), [
-    (2, [1, 2]), (4, [1, 4, 2, 3]), (8, [1, 8, 4, 5, 2, 7, 3, 6]),
-])
+@pytest.mark.parametrize(
+    ("size", "expected"),
+    [
+        (2, [1, 2]),
+        (4, [1, 4, 2, 3]),
+        (8, [1, 8, 4, 5, 2, 7, 3, 6]),
+    ],
+)
 def test_seed_positions_are_standard(size: int, expected: list[int]) -> None:
     assert seed_positions(size) == expected
 
@@ -95,8 +100,9 @@ def test_open_matches_wait_for_both_players() -> None:
     assert bracket.is_complete({(1, 1): 2, (2, 0): 0})
 
 
-@pytest.mark.parametrize("bad", [[], [(0, 1), (2, 3), (4, 5)], [(0, 1), (1, 2)],
-                                 [(None, 1), (2, 3)]])
+@pytest.mark.parametrize(
+    "bad", [[], [(0, 1), (2, 3), (4, 5)], [(0, 1), (1, 2)], [(None, 1), (2, 3)]]
+)
 def test_malformed_first_round_is_rejected(bad) -> None:
     with pytest.raises(InputError):
         Bracket(bad)

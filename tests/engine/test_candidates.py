@@ -21,8 +21,10 @@ def test_sampling_is_seeded_and_complete(env_id: str, mode: str) -> None:
     assert [c.id for c in first] == list(range(8))
     model = env_model(env_id)
     assert all(c.qpos.shape == (model.nq,) and c.qvel.shape == (model.nv,) for c in first)
-    assert all(np.array_equal(a.qpos, b.qpos) and a.env_reward == b.env_reward
-               for a, b in zip(first, again, strict=True))
+    assert all(
+        np.array_equal(a.qpos, b.qpos) and a.env_reward == b.env_reward
+        for a, b in zip(first, again, strict=True)
+    )
     assert len({c.qpos.tobytes() for c in first}) == 8
 
 
@@ -71,8 +73,9 @@ def test_standing_prefers_the_initial_pose_over_a_fallen_one() -> None:
     assert scores[0] == pytest.approx(1.0) and scores[1] < 0.01
 
 
-@pytest.mark.parametrize(("env_id", "n"), [("Foo-v9", 4), ("CartPole-v1", 4),
-                                           ("Hopper-v5", 1), ("Hopper-v5", 129)])
+@pytest.mark.parametrize(
+    ("env_id", "n"), [("Foo-v9", 4), ("CartPole-v1", 4), ("Hopper-v5", 1), ("Hopper-v5", 129)]
+)
 def test_bad_sampling_arguments(env_id: str, n: int) -> None:
     with pytest.raises(InputError):
         sample_candidates(env_id, n, rng=np.random.default_rng(0))

@@ -22,14 +22,26 @@ def _doc(n: int = 16, seed: int = 0) -> TreeDocument:
     scores = {c.id: c.env_reward for c in cands}
     first = make_first_round(list(range(n)), np.array(list(scores.values())), 0.9, rng)
     results = play(Bracket(first), {c.id: c for c in cands}, ScoreJudge(scores))
-    return make_document(env_id="Hopper-v5", seed=seed, p=0.9, judge="good", candidates=cands,
-                         first_round=first, results=results, scores=scores)
+    return make_document(
+        env_id="Hopper-v5",
+        seed=seed,
+        p=0.9,
+        judge="good",
+        candidates=cands,
+        first_round=first,
+        results=results,
+        scores=scores,
+    )
 
 
 def test_reversed_judge_rejects_every_first_round_match() -> None:
     human = _doc()
-    agent = replay(human, ScoreJudge({c.id: -c.env_reward for c in human.candidates}), "bad",
-                   scores={c.id: -c.env_reward for c in human.candidates})
+    agent = replay(
+        human,
+        ScoreJudge({c.id: -c.env_reward for c in human.candidates}),
+        "bad",
+        scores={c.id: -c.env_reward for c in human.candidates},
+    )
     result = compare(human, agent)
     assert result.match_agreement == 0.0
     assert len(result.rejected) == 15
@@ -47,8 +59,11 @@ def test_one_flipped_first_round_match_is_listed() -> None:
     scores = {c.id: c.env_reward for c in human.candidates}
     scores[loser] = scores[winner] + 0.5  # loser now beats its first opponent only
     result = compare(human, replay(human, ScoreJudge(scores), "agent", scores=scores))
-    assert [(r.round, r.human_winner, r.agent_winner) for r in result.rejected][0] == \
-        (1, winner, loser)
+    assert [(r.round, r.human_winner, r.agent_winner) for r in result.rejected][0] == (
+        1,
+        winner,
+        loser,
+    )
     assert result.n_agree == result.n_matches - len(result.rejected)
 
 

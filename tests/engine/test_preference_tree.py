@@ -35,8 +35,7 @@ def test_paper_figure2_shape_six_players_with_byes() -> None:
     heights = {s: n.height for s, n in tree.nodes.items()}
     assert heights == {6: 3, 4: 2, 3: 1, 2: 0, 5: 0, 1: 0}
     assert tree.nodes[6].children == (4, 1, 5)  # latest round first, then by id
-    assert {s: n.weight for s, n in tree.nodes.items()} == {6: None, 4: 1, 3: 1, 2: 1, 5: 3,
-                                                            1: 3}
+    assert {s: n.weight for s, n in tree.nodes.items()} == {6: None, 4: 1, 3: 1, 2: 1, 5: 3, 1: 3}
     assert {s: n.depth for s, n in tree.nodes.items()} == {6: 1, 4: 2, 3: 3, 2: 4, 5: 2, 1: 2}
     # Eq. 1 by hand: T(2)=T(5)=T(1)=-1; T(3)=-1+2*1=1; T(4)=1+2=3; T(6)=mean(3+2, -1+6, -1+6)=5
     assert tree.nodes[6].reward == pytest.approx(5.0)
@@ -54,8 +53,14 @@ def test_judge_returning_a_stranger_is_rejected() -> None:
         play(Bracket([(0, 1)]), cands, lambda a, b: 7)
 
 
-brackets = st.tuples(st.integers(2, 64), st.integers(0, 2**32 - 1), st.floats(0.0, 1.0),
-                     st.booleans(), st.floats(0.1, 5.0), st.floats(0.1, 5.0))
+brackets = st.tuples(
+    st.integers(2, 64),
+    st.integers(0, 2**32 - 1),
+    st.floats(0.0, 1.0),
+    st.booleans(),
+    st.floats(0.1, 5.0),
+    st.floats(0.1, 5.0),
+)
 
 
 @settings(max_examples=60, deadline=None)
@@ -68,8 +73,17 @@ def test_preference_tree_properties(params) -> None:
     first = make_first_round([c.id for c in cands], abilities, p, rng)
     judge = CoinJudge(rng) if coin else ScoreJudge({c.id: rng.normal() for c in cands})
     results = play(Bracket(first), {c.id: c for c in cands}, judge)
-    doc = make_document(env_id="Hopper-v5", seed=seed, p=p, judge="x", candidates=cands,
-                        first_round=first, results=results, r_b=r_b, r_e=r_e)
+    doc = make_document(
+        env_id="Hopper-v5",
+        seed=seed,
+        p=p,
+        judge="x",
+        candidates=cands,
+        first_round=first,
+        results=results,
+        r_b=r_b,
+        r_e=r_e,
+    )
     tree = doc.tree
     assert sorted(tree.nodes) == list(range(n))
     final = max(results)
@@ -95,8 +109,15 @@ def test_replay_with_same_judge_agrees_fully(n: int, seed: int) -> None:
     scores = {c.id: float(rng.normal()) for c in cands}
     first = make_first_round(list(range(n)), np.array([c.env_reward for c in cands]), 0.9, rng)
     results = play(Bracket(first), {c.id: c for c in cands}, ScoreJudge(scores))
-    doc = make_document(env_id="Hopper-v5", seed=seed, p=0.9, judge="a", candidates=cands,
-                        first_round=first, results=results)
+    doc = make_document(
+        env_id="Hopper-v5",
+        seed=seed,
+        p=0.9,
+        judge="a",
+        candidates=cands,
+        first_round=first,
+        results=results,
+    )
     again = compare(doc, replay(doc, ScoreJudge(scores), "b"))
     assert again.match_agreement == 1.0
     assert again.tree_edit_distance == 0.0

@@ -68,12 +68,18 @@ def service() -> Iterator[RenderService]:
         yield s
 
 
-@pytest.mark.parametrize(("size", "fmt", "pil_format"), [
-    (64, "jpg", "JPEG"), (100, "png", "PNG"), (480, "jpeg", "JPEG"), (960, "png", "PNG"),
-])
-def test_image_decodes_at_requested_size_and_format(service: RenderService, states: list[State],
-                                                    size: int, fmt: str,
-                                                    pil_format: str) -> None:
+@pytest.mark.parametrize(
+    ("size", "fmt", "pil_format"),
+    [
+        (64, "jpg", "JPEG"),
+        (100, "png", "PNG"),
+        (480, "jpeg", "JPEG"),
+        (960, "png", "PNG"),
+    ],
+)
+def test_image_decodes_at_requested_size_and_format(
+    service: RenderService, states: list[State], size: int, fmt: str, pil_format: str
+) -> None:
     image = decode(service.render(ENV, *states[0], size=size, fmt=fmt))
     assert image.format == pil_format
     assert image.size == (size, size)
@@ -81,8 +87,9 @@ def test_image_decodes_at_requested_size_and_format(service: RenderService, stat
 
 
 @pytest.mark.parametrize("view", list(VIEWS))
-def test_robot_is_visible_centred_and_whole(service: RenderService, states: list[State],
-                                            view: str) -> None:
+def test_robot_is_visible_centred_and_whole(
+    service: RenderService, states: list[State], view: str
+) -> None:
     image = decode(service.render(ENV, *states[1], view=view, size=THUMBNAIL_SIZE, fmt="png"))
     mask = robot_mask(image)
     assert mask.mean() > 0.005, "no humanoid pixels: the image is blank or background only"
@@ -109,8 +116,7 @@ def test_same_state_same_bytes_and_different_states_differ(states: list[State]) 
     assert diff.mean() > 1.0
 
 
-def test_render_many_matches_single_renders(service: RenderService,
-                                            states: list[State]) -> None:
+def test_render_many_matches_single_renders(service: RenderService, states: list[State]) -> None:
     batch = service.render_many(ENV, states, size=64, fmt="png")
     assert batch == [service.render(ENV, *s, size=64, fmt="png") for s in states]
 
@@ -134,14 +140,17 @@ def test_cache_is_hit_on_second_call(tmp_path: Path, states: list[State]) -> Non
         assert len(list(tmp_path.rglob("*.jpg"))) == 2
 
 
-def test_an_unwritable_cache_only_costs_speed(tmp_path: Path, states: list[State],
-                                              caplog: pytest.LogCaptureFixture) -> None:
+def test_an_unwritable_cache_only_costs_speed(
+    tmp_path: Path, states: list[State], caplog: pytest.LogCaptureFixture
+) -> None:
     (tmp_path / "file").write_text("in the way")  # fails for root too, unlike a chmod
     cache = RenderCache(tmp_path / "file" / "renders")
     with RenderService() as bare:
         expected = [bare.render(ENV, *s, size=48) for s in states[:2]]
-    with caplog.at_level("WARNING", logger="engine.render.service"), \
-            RenderService(cache) as service:
+    with (
+        caplog.at_level("WARNING", logger="engine.render.service"),
+        RenderService(cache) as service,
+    ):
         got = [service.render(ENV, *s, size=48) for s in states[:2]]
         assert service.render_many(ENV, states[:2], size=48) == expected
     assert got == expected
@@ -163,17 +172,23 @@ def test_other_mujoco_env(service: RenderService) -> None:
     assert robot_mask(image).mean() > 0.002
 
 
-@pytest.mark.parametrize("options", [
-    {"view": "top"}, {"size": 15}, {"size": 100_000}, {"size": True}, {"size": 64.0},
-    {"fmt": "gif"},
-])
+@pytest.mark.parametrize(
+    "options",
+    [
+        {"view": "top"},
+        {"size": 15},
+        {"size": 100_000},
+        {"size": True},
+        {"size": 64.0},
+        {"fmt": "gif"},
+    ],
+)
 def test_bad_options_raise_input_error(options: dict) -> None:
     with pytest.raises(InputError):
         RenderSpec(**options)
 
 
-def test_bad_state_or_env_raise_input_error(service: RenderService,
-                                            states: list[State]) -> None:
+def test_bad_state_or_env_raise_input_error(service: RenderService, states: list[State]) -> None:
     qpos, qvel = states[0]
     with pytest.raises(InputError, match="qpos"):
         service.render(ENV, qpos[:-1], qvel)
@@ -191,8 +206,9 @@ def test_closed_service_refuses_work(states: list[State]) -> None:
         service.render(ENV, *states[0], size=32)
 
 
-def test_shared_service_is_one_instance_until_shutdown(tmp_path: Path,
-                                                       monkeypatch: pytest.MonkeyPatch) -> None:
+def test_shared_service_is_one_instance_until_shutdown(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     monkeypatch.setenv("ACV_RENDER_CACHE", str(tmp_path))
     shutdown_render_service()
     with ThreadPoolExecutor(max_workers=4) as pool:
@@ -206,7 +222,7 @@ def test_shared_service_is_one_instance_until_shutdown(tmp_path: Path,
 
 
 EXIT_WHILE_RENDERING = """
-import atexit, sys, threading, time
+import atexit, sys, threading
 import numpy as np
 import engine.render.renderer as renderer
 from engine.render import RenderService
@@ -214,8 +230,11 @@ from engine.render import RenderService
 failures = []
 atexit.register(lambda: failures and print(*failures, file=sys.stderr))  # runs last
 frame = renderer.FrameRenderer.frame
+batch_started = threading.Event()
 
 def recording_frame(self, **kwargs):  # errors on the render thread, even if nobody reads them
+    if kwargs["spec"].size == 400:
+        batch_started.set()
     try:
         return frame(self, **kwargs)
     except Exception as exc:
@@ -234,12 +253,14 @@ def batch():
         assert "closed" in str(exc), exc
 
 threading.Thread(target=batch, daemon=True).start()
-time.sleep(0.3)
+batch_started.wait(60)  # exit while the batch renders, not before it began
 print("bye")
 """
 
 
+@pytest.mark.process
 def test_exit_while_rendering_is_quiet() -> None:
-    done = subprocess.run([sys.executable, "-c", EXIT_WHILE_RENDERING], capture_output=True,
-                          text=True, timeout=120)
+    done = subprocess.run(
+        [sys.executable, "-c", EXIT_WHILE_RENDERING], capture_output=True, text=True, timeout=120
+    )
     assert (done.returncode, done.stdout, done.stderr) == (0, "bye\n", "")

@@ -20,20 +20,23 @@ def no_mujoco_gl(monkeypatch: pytest.MonkeyPatch) -> pytest.MonkeyPatch:
     return monkeypatch
 
 
-@pytest.mark.parametrize(("working", "expected", "tried"), [
-    ({"egl", "osmesa"}, "egl", ["egl"]),
-    ({"osmesa"}, "osmesa", ["egl", "osmesa"]),
-])
-def test_egl_first_then_osmesa(no_mujoco_gl: pytest.MonkeyPatch, working: set[str],
-                               expected: str, tried: list[str]) -> None:
+@pytest.mark.parametrize(
+    ("working", "expected", "tried"),
+    [
+        ({"egl", "osmesa"}, "egl", ["egl"]),
+        ({"osmesa"}, "osmesa", ["egl", "osmesa"]),
+    ],
+)
+def test_egl_first_then_osmesa(
+    no_mujoco_gl: pytest.MonkeyPatch, working: set[str], expected: str, tried: list[str]
+) -> None:
     calls: list[str] = []
     no_mujoco_gl.setattr(backend, "probe", lambda b: calls.append(b) or b in working)
     assert select_backend() == expected
     assert calls == tried
 
 
-def test_missing_backend_error_names_the_debian_packages(
-        no_mujoco_gl: pytest.MonkeyPatch) -> None:
+def test_missing_backend_error_names_the_debian_packages(no_mujoco_gl: pytest.MonkeyPatch) -> None:
     no_mujoco_gl.setattr(backend, "probe", lambda b: False)
     with pytest.raises(BackendError) as info:
         select_backend()
@@ -58,7 +61,8 @@ def test_probe_tells_working_from_broken_backends() -> None:
 
 
 def test_missing_backend_reaches_callers_from_the_render_thread(
-        monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
     def unavailable() -> str:
         raise BackendError(backend.missing_backend_message())
 
@@ -75,8 +79,9 @@ def test_values_mujoco_accepts_pass_the_check(value: str) -> None:
 
 
 @pytest.mark.parametrize("value", ["foo", "e gl", "osmesa6"])
-def test_unknown_mujoco_gl_is_one_clear_input_error(value: str,
-                                                    monkeypatch: pytest.MonkeyPatch) -> None:
+def test_unknown_mujoco_gl_is_one_clear_input_error(
+    value: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
     with pytest.raises(InputError, match=f"invalid MUJOCO_GL={value!r}"):
         check_mujoco_gl({"MUJOCO_GL": value})
     monkeypatch.setenv("MUJOCO_GL", value)
@@ -93,9 +98,15 @@ def _accepted(value: str) -> bool:
     return True
 
 
+@pytest.mark.process
 @pytest.mark.parametrize(("value", "accepted"), [("foo", False), ("OSMesa", True)])
 def test_the_check_agrees_with_mujoco_at_import(value: str, accepted: bool) -> None:
-    done = subprocess.run([sys.executable, "-c", "import mujoco"], capture_output=True,
-                          text=True, env={**os.environ, "MUJOCO_GL": value}, timeout=120)
+    done = subprocess.run(
+        [sys.executable, "-c", "import mujoco"],
+        capture_output=True,
+        text=True,
+        env={**os.environ, "MUJOCO_GL": value},
+        timeout=120,
+    )
     assert (done.returncode == 0) == accepted, done.stderr
     assert _accepted(value) == accepted

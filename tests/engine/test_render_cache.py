@@ -23,16 +23,19 @@ def nudge(a: np.ndarray) -> np.ndarray:
     return b
 
 
-@pytest.mark.parametrize("changed", [
-    ("Hopper-v5", QPOS, QVEL, RenderSpec()),
-    ("Humanoid-v5", nudge(QPOS), QVEL, RenderSpec()),
-    ("Humanoid-v5", QPOS, nudge(QVEL), RenderSpec()),
-    ("Humanoid-v5", QPOS, QVEL, RenderSpec(view="front")),
-    ("Humanoid-v5", QPOS, QVEL, RenderSpec(size=481)),
-    ("Humanoid-v5", QPOS, QVEL, RenderSpec(fmt="png")),
-    ("Humanoid-v5", QPOS, QVEL, RenderSpec(quality=True)),
-    ("Humanoid-v5", np.append(QPOS, QVEL[0]), QVEL[1:], RenderSpec()),  # same bytes, new split
-])
+@pytest.mark.parametrize(
+    "changed",
+    [
+        ("Hopper-v5", QPOS, QVEL, RenderSpec()),
+        ("Humanoid-v5", nudge(QPOS), QVEL, RenderSpec()),
+        ("Humanoid-v5", QPOS, nudge(QVEL), RenderSpec()),
+        ("Humanoid-v5", QPOS, QVEL, RenderSpec(view="front")),
+        ("Humanoid-v5", QPOS, QVEL, RenderSpec(size=481)),
+        ("Humanoid-v5", QPOS, QVEL, RenderSpec(fmt="png")),
+        ("Humanoid-v5", QPOS, QVEL, RenderSpec(quality=True)),
+        ("Humanoid-v5", np.append(QPOS, QVEL[0]), QVEL[1:], RenderSpec()),  # same bytes, new split
+    ],
+)
 def test_key_changes_with_anything_the_image_depends_on(changed: tuple) -> None:
     assert cache_key(*changed) != cache_key(*BASE)
 
@@ -80,10 +83,13 @@ for _ in range(40):
 """
 
 
+@pytest.mark.process
 def test_two_processes_writing_the_same_entry(tmp_path: Path) -> None:
     key = cache_key(*BASE)
-    writers = [subprocess.Popen([sys.executable, "-c", WRITER, str(tmp_path), key, tag])
-               for tag in ("a", "b")]
+    writers = [
+        subprocess.Popen([sys.executable, "-c", WRITER, str(tmp_path), key, tag])
+        for tag in ("a", "b")
+    ]
     cache, whole = RenderCache(tmp_path), (b"a" * 500_000, b"b" * 500_000)
     while any(w.poll() is None for w in writers):
         data = cache.get(key, "jpg")

@@ -34,8 +34,7 @@ def test_full_noise_always_flips(model) -> None:
 @pytest.mark.parametrize("noise", [0.1, 0.3])
 def test_noise_flips_at_its_rate(model, noise: float) -> None:
     a, b = make_candidates(2)
-    judge, _ = make_teacher("standing", [a, b], model, noise=noise,
-                            rng=np.random.default_rng(1))
+    judge, _ = make_teacher("standing", [a, b], model, noise=noise, rng=np.random.default_rng(1))
     clean, _ = make_teacher("standing", [a, b], model, rng=np.random.default_rng(1))
     flips = np.mean([judge(a, b) != clean(a, b) for _ in range(4000)])
     assert flips == pytest.approx(noise, abs=0.03)

@@ -31,12 +31,28 @@ def test_same_seed_same_bytes(doc) -> None:
 def test_document_has_the_documented_keys(doc) -> None:
     obj = tree_to_json(doc)
     assert obj["schema"] == "acv.tree/1"
-    assert set(obj) == {"schema", "env_id", "seed", "p", "judge", "tree_reward", "candidates",
-                        "first_round", "matches", "tree"}
+    assert set(obj) == {
+        "schema",
+        "env_id",
+        "seed",
+        "p",
+        "judge",
+        "tree_reward",
+        "candidates",
+        "first_round",
+        "matches",
+        "tree",
+    }
     assert len(obj["matches"]) == 5 and len(obj["tree"]["nodes"]) == 6
     assert {"id", "qpos", "qvel", "env_reward"} <= set(obj["candidates"][0])
-    assert set(obj["tree"]["nodes"][0]) == {"state", "parent", "height", "depth", "weight",
-                                            "reward"}
+    assert set(obj["tree"]["nodes"][0]) == {
+        "state",
+        "parent",
+        "height",
+        "depth",
+        "weight",
+        "reward",
+    }
 
 
 def _tamper_winner(obj):
@@ -48,18 +64,31 @@ def _tamper_height(obj):
     obj["tree"]["nodes"][1]["height"] += 1
 
 
-@pytest.mark.parametrize("tamper", [
-    lambda o: o.update(schema="acv.tree/0"),
-    lambda o: o.pop("matches"),
-    lambda o: o["matches"].pop(),
-    lambda o: o["matches"].append(dict(o["matches"][0])),
-    lambda o: o["candidates"][0].update(qpos="x"),
-    lambda o: o["candidates"][0].update(id=9),
-    lambda o: o["first_round"].pop(),
-    _tamper_winner,
-    _tamper_height,
-], ids=["schema", "no-matches", "missing-match", "duplicate-match", "bad-qpos", "bad-id",
-        "short-first-round", "winner", "height"])
+@pytest.mark.parametrize(
+    "tamper",
+    [
+        lambda o: o.update(schema="acv.tree/0"),
+        lambda o: o.pop("matches"),
+        lambda o: o["matches"].pop(),
+        lambda o: o["matches"].append(dict(o["matches"][0])),
+        lambda o: o["candidates"][0].update(qpos="x"),
+        lambda o: o["candidates"][0].update(id=9),
+        lambda o: o["first_round"].pop(),
+        _tamper_winner,
+        _tamper_height,
+    ],
+    ids=[
+        "schema",
+        "no-matches",
+        "missing-match",
+        "duplicate-match",
+        "bad-qpos",
+        "bad-id",
+        "short-first-round",
+        "winner",
+        "height",
+    ],
+)
 def test_invalid_documents_are_rejected(doc, tamper) -> None:
     obj = copy.deepcopy(tree_to_json(doc))
     tamper(obj)
@@ -84,18 +113,31 @@ def _node(obj, **changes):
     obj["tree"]["nodes"][0].update(changes)
 
 
-@pytest.mark.parametrize(("tamper", "words"), [
-    (lambda o: o.pop("tree"), "missing key 'tree'"),
-    (lambda o: o["tree"].pop("nodes"), "'nodes' list"),
-    (lambda o: _node(o, state=[0]), "does not match"),
-    (lambda o: _node(o, reward="a lot"), "does not match"),
-    (lambda o: _node(o, reward=None), "does not match"),
-    (lambda o: o.update(seed=-1), "seed must be in 0"),
-    (lambda o: o.update(seed=float("inf")), "OverflowError"),
-    (lambda o: o.update(p=1.5), "'p' must be in [0, 1]"),
-    (lambda o: o["tree_reward"].update(r_b=[1]), "TypeError"),
-], ids=["no-tree", "no-nodes", "list-state", "text-reward", "null-reward", "negative-seed",
-        "infinite-seed", "p", "list-r_b"])
+@pytest.mark.parametrize(
+    ("tamper", "words"),
+    [
+        (lambda o: o.pop("tree"), "missing key 'tree'"),
+        (lambda o: o["tree"].pop("nodes"), "'nodes' list"),
+        (lambda o: _node(o, state=[0]), "does not match"),
+        (lambda o: _node(o, reward="a lot"), "does not match"),
+        (lambda o: _node(o, reward=None), "does not match"),
+        (lambda o: o.update(seed=-1), "seed must be in 0"),
+        (lambda o: o.update(seed=float("inf")), "OverflowError"),
+        (lambda o: o.update(p=1.5), "'p' must be in [0, 1]"),
+        (lambda o: o["tree_reward"].update(r_b=[1]), "TypeError"),
+    ],
+    ids=[
+        "no-tree",
+        "no-nodes",
+        "list-state",
+        "text-reward",
+        "null-reward",
+        "negative-seed",
+        "infinite-seed",
+        "p",
+        "list-r_b",
+    ],
+)
 def test_malformed_documents_are_one_clear_input_error(doc, tamper, words: str) -> None:
     obj = copy.deepcopy(tree_to_json(doc))
     tamper(obj)
@@ -105,8 +147,15 @@ def test_malformed_documents_are_one_clear_input_error(doc, tamper, words: str) 
 
 
 def test_a_one_candidate_tree_is_rejected(doc) -> None:
-    lone = make_document(env_id=doc.env_id, seed=doc.seed, p=doc.p, judge=doc.judge,
-                         candidates=doc.candidates[:1], first_round=[(0, None)], results={})
+    lone = make_document(
+        env_id=doc.env_id,
+        seed=doc.seed,
+        p=doc.p,
+        judge=doc.judge,
+        candidates=doc.candidates[:1],
+        first_round=[(0, None)],
+        results={},
+    )
     assert len(lone.tree) == 1  # the engine can build it, but there is nothing to compare
     obj = tree_to_json(lone)
     with pytest.raises(InputError, match="at least 2 candidates"):

@@ -10,13 +10,23 @@ import torch
 
 from engine.advice import AdviceReward
 from engine.conformance import compare
+from engine.envs import make_env, restore
 from engine.errors import InputError
 from engine.pipeline import run_tournament
-from engine.rl.agent_judge import JUDGES, agent_scores, agent_tree, candidate_z, load_agent
+from engine.rl.agent_judge import (
+    JUDGES,
+    agent_scores,
+    agent_tree,
+    candidate_terms,
+    candidate_z,
+    load_agent,
+)
 from engine.rl.checkpoint import find_checkpoint
 from engine.rl.config import TrainConfig
 from engine.rl.runner import train
 from engine.treefile import TreeDocument, load_tree, tree_from_json, tree_to_json
+
+pytestmark = pytest.mark.training
 
 
 @pytest.fixture(scope="module")
@@ -27,15 +37,24 @@ def good_tree() -> TreeDocument:
 @pytest.fixture(scope="module")
 def run(tmp_path_factory, good_tree: TreeDocument) -> Path:
     out = tmp_path_factory.mktemp("judge") / "good"
-    cfg = TrainConfig(algo="bipars-em", env_id="Hopper-v5", total_timesteps=512, n_envs=2,
-                      num_steps=64, num_minibatches=4, update_epochs=2, checkpoint_every=256)
+    cfg = TrainConfig(
+        algo="bipars-em",
+        env_id="Hopper-v5",
+        total_timesteps=512,
+        n_envs=2,
+        num_steps=64,
+        num_minibatches=4,
+        update_epochs=2,
+        checkpoint_every=256,
+    )
     train(cfg, good_tree, out)
     return out
 
 
 @pytest.mark.parametrize("judge", JUDGES)
-def test_agent_tree_is_a_valid_tree_over_the_same_bracket(run: Path, good_tree: TreeDocument,
-                                                          judge: str) -> None:
+def test_agent_tree_is_a_valid_tree_over_the_same_bracket(
+    run: Path, good_tree: TreeDocument, judge: str
+) -> None:
     doc = agent_tree(run, judge=judge)
     assert doc.judge == f"agent:{judge}@512"
     assert doc.first_round == good_tree.first_round
@@ -49,17 +68,32 @@ def test_advice_tree_is_saved_with_the_run(run: Path, good_tree: TreeDocument) -
     assert tree_to_json(load_tree(run / "advice.json")) == tree_to_json(good_tree)
 
 
-def test_shaped_judge_is_reward_plus_weighted_shaping(run: Path,
-                                                     good_tree: TreeDocument) -> None:
+def test_shaped_judge_is_reward_plus_weighted_shaping(run: Path, good_tree: TreeDocument) -> None:
     trained = load_agent(find_checkpoint(run, 256))
     shaped = agent_scores(trained, good_tree, "shaped")
     shaping = agent_scores(trained, good_tree, "shaping")
-    for c in good_tree.candidates:
-        assert shaped[c.id] == pytest.approx(c.env_reward + shaping[c.id])
+    reward = candidate_terms(trained, good_tree).reward
+    for i, c in enumerate(good_tree.candidates):
+        assert shaped[c.id] == pytest.approx(reward[i] + shaping[c.id])
 
 
-def test_a_good_advice_agent_reproduces_the_human_tree(run: Path,
-                                                       good_tree: TreeDocument) -> None:
+def test_the_judges_r_is_the_reward_the_agent_gets(run: Path, good_tree: TreeDocument) -> None:
+    # the stored env_reward has no action; the agent pays the control cost of its own mean
+    # action, ctrl_cost_weight * |a|^2 (Hopper: 1e-3), so the judge subtracts it
+    trained = load_agent(find_checkpoint(run, 256))
+    env = make_env("Hopper-v5")
+    obs = np.stack([restore(env, c.qpos, c.qvel) for c in good_tree.candidates])
+    x = torch.from_numpy(trained.obs_norm(obs))
+    with torch.no_grad():
+        mean = trained.agent.actor(x, trained.agent.z(x)).double().numpy().clip(-1, 1)
+    cost = 1e-3 * (mean**2).sum(1)
+    reward = candidate_terms(trained, good_tree).reward
+    stored = np.array([c.env_reward for c in good_tree.candidates])
+    assert (cost > 0).all()
+    np.testing.assert_allclose(reward, stored - cost, rtol=1e-9)
+
+
+def test_a_good_advice_agent_reproduces_the_human_tree(run: Path, good_tree: TreeDocument) -> None:
     # Case 1 of the paper: the good teacher's winners have the higher R and, having won more
     # rounds, the higher T_r = F at the candidates; with z ~ 1, g = R + z F agrees everywhere
     result = compare(good_tree, agent_tree(run))
@@ -67,8 +101,9 @@ def test_a_good_advice_agent_reproduces_the_human_tree(run: Path,
 
 
 def test_bad_inputs(run: Path, tmp_path: Path) -> None:
-    other = run_tournament(env_id="InvertedPendulum-v5", n_candidates=4, p=0.9, seed=0,
-                           teacher="good")
+    other = run_tournament(
+        env_id="InvertedPendulum-v5", n_candidates=4, p=0.9, seed=0, teacher="good"
+    )
     with pytest.raises(InputError, match="trained on Hopper-v5"):
         agent_tree(run, advice=other)
     with pytest.raises(InputError, match="no checkpoint at step 7"):
@@ -81,11 +116,9 @@ def test_bad_inputs(run: Path, tmp_path: Path) -> None:
         load_agent(foreign)
 
 
-def test_the_judge_uses_the_advice_the_agent_trained_on(run: Path,
-                                                         good_tree: TreeDocument) -> None:
+def test_the_judge_uses_the_advice_the_agent_trained_on(run: Path, good_tree: TreeDocument) -> None:
     # another bracket over other candidates: it supplies the players, not the agent's F
-    other = run_tournament(env_id="Hopper-v5", n_candidates=8, p=0.9, seed=7,
-                           teacher="standing")
+    other = run_tournament(env_id="Hopper-v5", n_candidates=8, p=0.9, seed=7, teacher="standing")
     doc = agent_tree(run, judge="shaping", advice=other)
     qpos = np.stack([c.qpos for c in other.candidates])
     z = candidate_z(load_agent(find_checkpoint(run)), other)

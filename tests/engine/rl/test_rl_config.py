@@ -8,25 +8,31 @@ from engine.errors import InputError
 from engine.rl.config import ALGOS, TrainConfig
 
 
-@pytest.mark.parametrize("kwargs, message", [
-    ({"algo": "dqn"}, "unknown algo"),
-    ({"total_timesteps": -5}, "timesteps must be positive"),
-    ({"total_timesteps": 0}, "timesteps must be positive"),
-    ({"advice_scale": 0.0}, "advice-scale"),
-    ({"checkpoint_every": 0}, "checkpoint-every"),
-    ({"z_init": 3.0}, "z_init"),
-    ({"num_minibatches": 10**9}, "num_minibatches"),
-    ({"num_minibatches": 0}, "num_minibatches must be >= 1"),
-    # 32 transitions in 32 minibatches: the std of one advantage is NaN
-    ({"n_envs": 1, "num_steps": 32}, r"leaves 1 per minibatch .* raise --n-envs or "
-                                     r"--num-steps so that n-envs x num-steps >= 64"),
-    ({"seed": -1}, "seed must be in 0"),
-    ({"seed": 2**64}, "seed must be in 0"),
-    ({"advice_mode": "maximum"}, "unknown advice mode 'maximum'"),
-    ({"advice_depth_factor": "depth"}, "unknown advice depth factor 'depth'"),
-    ({"advice_kappa": 0.0}, "kappa must be a positive number"),
-    ({"advice_kappa": float("nan")}, "kappa must be a positive number"),
-])
+@pytest.mark.parametrize(
+    "kwargs, message",
+    [
+        ({"algo": "dqn"}, "unknown algo"),
+        ({"total_timesteps": -5}, "timesteps must be positive"),
+        ({"total_timesteps": 0}, "timesteps must be positive"),
+        ({"advice_scale": 0.0}, "advice-scale"),
+        ({"checkpoint_every": 0}, "checkpoint-every"),
+        ({"z_init": 3.0}, "z_init"),
+        ({"num_minibatches": 10**9}, "num_minibatches"),
+        ({"num_minibatches": 0}, "num_minibatches must be >= 1"),
+        # 32 transitions in 32 minibatches: the std of one advantage is NaN
+        (
+            {"n_envs": 1, "num_steps": 32},
+            r"leaves 1 per minibatch .* raise --n-envs or "
+            r"--num-steps so that n-envs x num-steps >= 64",
+        ),
+        ({"seed": -1}, "seed must be in 0"),
+        ({"seed": 2**64}, "seed must be in 0"),
+        ({"advice_mode": "maximum"}, "unknown advice mode 'maximum'"),
+        ({"advice_depth_factor": "depth"}, "unknown advice depth factor 'depth'"),
+        ({"advice_kappa": 0.0}, "kappa must be a positive number"),
+        ({"advice_kappa": float("nan")}, "kappa must be a positive number"),
+    ],
+)
 def test_bad_values_raise_input_error(kwargs: dict, message: str) -> None:
     with pytest.raises(InputError, match=message):
         TrainConfig(**kwargs)

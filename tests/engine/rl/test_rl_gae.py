@@ -15,9 +15,9 @@ def test_gae_matches_hand_computation() -> None:
     dones = torch.tensor([[0.0], [1.0], [0.0]])
     last = torch.tensor([2.0])
     g, lam = 0.9, 0.8
-    d2 = 3.0 + g * 2.0 - 1.5             # 4.3
-    d1 = 2.0 - 1.0                       # 1.0 (terminal)
-    d0 = 1.0 + g * 1.0 - 0.5             # 1.4
+    d2 = 3.0 + g * 2.0 - 1.5  # 4.3
+    d1 = 2.0 - 1.0  # 1.0 (terminal)
+    d0 = 1.0 + g * 1.0 - 0.5  # 1.4
     expected = torch.tensor([[d0 + g * lam * d1], [d1], [d2]])
     assert torch.allclose(gae(rewards, values, dones, last, g, lam), expected)
 

@@ -43,9 +43,18 @@ def test_cli_takes_several_runs_after_one_flag(tmp_path: Path, monkeypatch) -> N
     for name in ("ppo", "case1", "case2"):
         fake_run(tmp_path / name, [1.0, 2.0, 3.0])
     out = tmp_path / "curves.png"
-    monkeypatch.setattr(sys, "argv", ["acv", "plot", "--runs", *(str(tmp_path / n) for n in
-                                                                 ("ppo", "case1", "case2")),
-                                      "--out", str(out)])
+    monkeypatch.setattr(
+        sys,
+        "argv",
+        [
+            "acv",
+            "plot",
+            "--runs",
+            *(str(tmp_path / n) for n in ("ppo", "case1", "case2")),
+            "--out",
+            str(out),
+        ],
+    )
     with pytest.raises(SystemExit) as exc:
         main()
     assert exc.value.code in (0, None) and out.is_file()

@@ -29,8 +29,9 @@ def fixed_batch(agent: Agent, n: int, obs_dim: int, act_dim: int) -> Batch:
 @pytest.mark.parametrize("algo", ["ppo", "bipars-em"])
 def test_one_update_lowers_the_loss_on_a_fixed_batch(algo: str) -> None:
     torch.manual_seed(0)
-    cfg = TrainConfig(algo=algo, n_envs=1, num_steps=256, num_minibatches=1, update_epochs=1,
-                      learning_rate=1e-2)
+    cfg = TrainConfig(
+        algo=algo, n_envs=1, num_steps=256, num_minibatches=1, update_epochs=1, learning_rate=1e-2
+    )
     agent = Agent(4, 2, 16, algo, cfg.z_max, cfg.z_init)
     batch = fixed_batch(agent, 256, 4, 2)
     before = ppo_loss(agent, batch, cfg)[0].item()
@@ -38,15 +39,23 @@ def test_one_update_lowers_the_loss_on_a_fixed_batch(algo: str) -> None:
     out = ppo_update(agent, optimizer, batch, cfg, np.random.default_rng(0))
     after = ppo_loss(agent, batch, cfg)[0].item()
     assert after < before
-    assert {"policy_loss", "value_loss", "entropy", "approx_kl", "clipfrac",
-            "explained_variance"} <= set(out)
+    assert {
+        "policy_loss",
+        "value_loss",
+        "entropy",
+        "approx_kl",
+        "clipfrac",
+        "explained_variance",
+    } <= set(out)
     assert ("true_value_loss" in out) == (algo == "bipars-em")
 
 
 def test_clipped_surrogate_ignores_ratio_gains_beyond_the_clip() -> None:
     adv = torch.tensor([1.0, -1.0])
     assert float(clipped_surrogate(torch.tensor([1.5, 1.0]), adv, 0.2)) == pytest.approx(
-        -(1.2 - 1.0) / 2)
+        -(1.2 - 1.0) / 2
+    )
     # a pessimistic bound: a negative advantage with a large ratio is not clipped
     assert float(clipped_surrogate(torch.tensor([1.0, 3.0]), adv, 0.2)) == pytest.approx(
-        -(1.0 - 3.0) / 2)
+        -(1.0 - 3.0) / 2
+    )

@@ -15,8 +15,20 @@ from engine.rl.config import TrainConfig
 from engine.rl.logger import read_metrics
 from engine.rl.runner import train
 
-ROW_KEYS = {"timesteps", "episodic_return", "shaped_return", "z_mean", "z_std", "sps",
-            "policy_loss", "value_loss", "f_mean", "f_std"}
+pytestmark = pytest.mark.training
+
+ROW_KEYS = {
+    "timesteps",
+    "episodic_return",
+    "shaped_return",
+    "z_mean",
+    "z_std",
+    "sps",
+    "policy_loss",
+    "value_loss",
+    "f_mean",
+    "f_std",
+}
 
 
 def advice(qpos: np.ndarray) -> np.ndarray:
@@ -25,8 +37,17 @@ def advice(qpos: np.ndarray) -> np.ndarray:
 
 
 def tiny(algo: str = "bipars-em", **kwargs) -> TrainConfig:
-    base = dict(algo=algo, env_id="InvertedPendulum-v5", total_timesteps=1024, n_envs=2,
-                num_steps=64, num_minibatches=4, update_epochs=2, checkpoint_every=512, seed=3)
+    base = dict(
+        algo=algo,
+        env_id="InvertedPendulum-v5",
+        total_timesteps=1024,
+        n_envs=2,
+        num_steps=64,
+        num_minibatches=4,
+        update_epochs=2,
+        checkpoint_every=512,
+        seed=3,
+    )
     return TrainConfig(**{**base, **kwargs})
 
 
@@ -54,7 +75,8 @@ def test_a_run_writes_all_artefacts(run: Path) -> None:
     assert list(list_checkpoints(run)) == [512, 1024]
     state = load_checkpoint(run / "checkpoints" / "step_1024.pt")
     assert {"agent", "obs_norm", "reward_scaler", "optimizer", "z_optimizer", "config"} <= set(
-        state)
+        state
+    )
     assert not list((run / "checkpoints").glob(".tmp-*"))
 
 
@@ -62,6 +84,7 @@ def test_a_run_writes_all_artefacts(run: Path) -> None:
 def test_logged_f_and_z_are_the_runs_own(tmp_path: Path, algo: str, z: float) -> None:
     """A constant F = -0.25 with advice-scale 2 is logged as f_mean -0.5, f_std 0; z is the
     algorithm's fixed weight (0 for ppo, which only logs F; 1 for ppo-shaped)."""
+
     def constant(qpos: np.ndarray) -> np.ndarray:
         return np.full(len(qpos), -0.25)
 
@@ -85,8 +108,9 @@ def test_resume_after_a_stop_matches_an_uninterrupted_run(tmp_path: Path, algo: 
     assert stripped(read_metrics(tmp_path / "cut")) == stripped(read_metrics(tmp_path / "whole"))
 
 
-def test_resume_drops_metrics_rows_written_after_the_last_checkpoint(run: Path,
-                                                                     tmp_path: Path) -> None:
+def test_resume_drops_metrics_rows_written_after_the_last_checkpoint(
+    run: Path, tmp_path: Path
+) -> None:
     out = tmp_path / "killed"
     shutil.copytree(run, out)
     (out / "checkpoints" / "step_1024.pt").unlink()  # as if killed between 512 and 1024
@@ -117,8 +141,9 @@ def test_resume_drops_a_metrics_line_torn_by_a_kill(run: Path, tmp_path: Path) -
     assert stripped(read_metrics(out)) == stripped(read_metrics(run))
 
 
-def test_a_damaged_metrics_line_before_the_last_is_an_input_error(run: Path,
-                                                                  tmp_path: Path) -> None:
+def test_a_damaged_metrics_line_before_the_last_is_an_input_error(
+    run: Path, tmp_path: Path
+) -> None:
     out = tmp_path / "damaged"
     shutil.copytree(run, out)
     lines = (out / "metrics.jsonl").read_text().splitlines()
@@ -143,8 +168,7 @@ def test_a_failed_start_leaves_nothing_that_blocks_a_retry(tmp_path: Path) -> No
     assert (made / "config.json").is_file()
 
 
-def test_a_start_failing_after_writing_removes_what_it_wrote(tmp_path: Path,
-                                                            monkeypatch) -> None:
+def test_a_start_failing_after_writing_removes_what_it_wrote(tmp_path: Path, monkeypatch) -> None:
     import engine.rl.runner as runner
 
     def broken_logger(*args, **kwargs):

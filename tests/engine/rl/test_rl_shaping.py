@@ -11,8 +11,10 @@ from engine.rl.vecenv import make_vec_env, restore_vec, snapshot_vec
 
 
 def test_reached_qpos_of_a_finished_env_comes_from_final_info() -> None:
-    info = {"qpos": np.array([[0.0, 0.0], [1.0, 1.0]]),
-            "final_info": {"qpos": np.array([[0.0, 0.0], [9.0, 9.0]])}}
+    info = {
+        "qpos": np.array([[0.0, 0.0], [1.0, 1.0]]),
+        "final_info": {"qpos": np.array([[0.0, 0.0], [9.0, 9.0]])},
+    }
     out = reached_qpos(info, np.array([False, True]))
     np.testing.assert_array_equal(out, [[0.0, 0.0], [9.0, 9.0]])
     assert info["qpos"][1, 0] == 1.0  # the caller's info is not modified
@@ -21,8 +23,7 @@ def test_reached_qpos_of_a_finished_env_comes_from_final_info() -> None:
 def test_advice_term_is_scaled_f_of_the_reached_state() -> None:
     """Against single envs stepped alongside: F of the state each step reached, read before
     any reset (so a finished episode's term is its last state, not the next one's first)."""
-    envs = make_vec_env("InvertedPendulum-v5", 3, advice=lambda q: q[:, 1] * 10.0,
-                        advice_scale=0.5)
+    envs = make_vec_env("InvertedPendulum-v5", 3, advice=lambda q: q[:, 1] * 10.0, advice_scale=0.5)
     envs.reset(seed=0)
     refs = [make_env("InvertedPendulum-v5") for _ in range(3)]
     for i, ref in enumerate(refs):

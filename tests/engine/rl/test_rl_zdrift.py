@@ -19,6 +19,8 @@ from engine.rl.config import TrainConfig
 from engine.rl.logger import read_metrics
 from engine.rl.runner import train
 
+pytestmark = pytest.mark.training
+
 
 def pole_up(qpos: np.ndarray) -> np.ndarray:
     """InvertedPendulum-v5's reward as a function of the state: 1 while the pole is up."""
@@ -29,9 +31,17 @@ STEPS = {"bipars-em": 10_240, "bipars-mgl": 15_360}
 
 
 def final_z(algo: str, sign: float, seed: int, out: Path) -> float:
-    cfg = TrainConfig(algo=algo, env_id="InvertedPendulum-v5", total_timesteps=STEPS[algo],
-                      n_envs=4, num_steps=128, num_minibatches=8, update_epochs=4, seed=seed,
-                      checkpoint_every=10**9)
+    cfg = TrainConfig(
+        algo=algo,
+        env_id="InvertedPendulum-v5",
+        total_timesteps=STEPS[algo],
+        n_envs=4,
+        num_steps=128,
+        num_minibatches=8,
+        update_epochs=4,
+        seed=seed,
+        checkpoint_every=10**9,
+    )
     train(cfg, lambda q: sign * pole_up(q), out)
     rows = read_metrics(out)
     assert all(-cfg.z_max < r["z_mean"] < cfg.z_max for r in rows)

@@ -1,0 +1,143 @@
+"""A study's open link ``/s/<slug>`` (issue 14): consent, a participant per new visitor,
+"this study is full", and the consistency check after the bracket.
+
+Joining is rate-limited per client address (:mod:`app.web.ratelimit`, the same moving
+window as failed logins, with its own counts); only visits that create a participant count.
+"""
+
+from __future__ import annotations
+
+from fastapi import APIRouter, Request, Response
+from sqlalchemy.orm import Session
+
+from app.api.deps import SessionDep
+from app.models import CrowdSettings
+from app.services import auth, crowd, crowd_check, participants, studies
+from app.services.errors import TooManyAttemptsError
+from app.web.csrf import CsrfChecked, FormFields
+from app.web.guards import PageParticipant
+from app.web.participant_pages import THANKS, where_next
+from app.web.ratelimit import client_address
+from app.web.rendering import PageRoute, RedirectTo, is_https, redirect, render
+
+router = APIRouter(route_class=PageRoute, include_in_schema=False)
+CHECK = "/participate/check"
+
+
+def _study(session: Session, link: CrowdSettings) -> object:
+    return studies.get_ready_study(session, study_id=link.study_id)
+
+
+def _enter(
+    request: Request, session: Session, link: CrowdSettings, ids: dict[str, str]
+) -> Response:
+    """Resume a returning visitor, or make a participant of a new one (rate-limited)."""
+    token = request.cookies.get(auth.PARTICIPANT_COOKIE)
+    person = crowd.returning(session, link=link, ids=ids, token=token)
+    if person is None:
+        limiter, address = request.app.state.join_limiter, client_address(request)
+        if limiter.blocked(address):
+            raise TooManyAttemptsError(
+                "Too many new participants from this address; try again in a minute.",
+                retry_after_s=limiter.retry_after_s(address),
+            )
+        person = crowd.join(session, link=link, ids=ids)
+        limiter.failed(address)  # counts a join
+    response = redirect(where_next(participants.progress(session, participant=person)))
+    auth.set_participant_cookie(response, token=person.token, secure=is_https(request))
+    return response
+
+
+def _message(
+    request: Request,
+    session: Session,
+    link: CrowdSettings,
+    title: str,
+    text: str,
+    status_code: int = 200,
+) -> Response:
+    return render(
+        request,
+        "crowd_message.html",
+        {"study": _study(session, link), "title": title, "text": text},
+        status_code=status_code,
+    )
+
+
+@router.get("/s/{slug}")
+def open_link(slug: str, request: Request, session: SessionDep) -> Response:
+    """The consent page, or straight on to the instructions; "full" past the maximum."""
+    link = crowd.open_link(session, slug=slug)
+    ids = crowd.external_ids(link, dict(request.query_params))
+    returning = crowd.returning(
+        session, link=link, ids=ids, token=request.cookies.get(auth.PARTICIPANT_COOKIE)
+    )
+    if returning is None and crowd.is_full(link):
+        return _full(request, session, link)
+    if returning is None and link.consent_text:
+        return render(
+            request,
+            "crowd_consent.html",
+            {"study": _study(session, link), "link": link, "ids": ids},
+        )
+    return _join_or_full(request, session, link, ids)
+
+
+def _full(request: Request, session: Session, link: CrowdSettings) -> Response:
+    return _message(
+        request,
+        session,
+        link,
+        "This study is full",
+        "This study has all the participants it needs. Thank you for your interest.",
+    )
+
+
+def _join_or_full(
+    request: Request, session: Session, link: CrowdSettings, ids: dict[str, str]
+) -> Response:
+    try:
+        return _enter(request, session, link, ids)
+    except crowd.StudyFullError:
+        return _full(request, session, link)
+
+
+@router.post("/s/{slug}", dependencies=[CsrfChecked])
+def consent(slug: str, request: Request, session: SessionDep, fields: FormFields) -> Response:
+    """Agree (a participant is made) or decline (only the count of declines grows)."""
+    link = crowd.open_link(session, slug=slug)
+    ids = crowd.external_ids(link, fields)
+    if fields.get("decision") != "agree":
+        crowd.decline(session, link=link)
+        return _message(
+            request,
+            session,
+            link,
+            "You declined",
+            "You declined to take part; nothing about you was stored. You can close this page.",
+        )
+    return _join_or_full(request, session, link, ids)
+
+
+@router.get(CHECK)
+def check_page(request: Request, session: SessionDep, person: PageParticipant) -> Response:
+    """One first-round pair again, sides swapped (only when the study asks for it)."""
+    pair = crowd_check.pending_pair(session, participant=person)
+    if pair is None:
+        raise RedirectTo(THANKS)
+    return render(
+        request,
+        "crowd_check.html",
+        {"study": studies.get_ready_study(session, study_id=person.study_id), "pair": pair},
+    )
+
+
+@router.post(CHECK, dependencies=[CsrfChecked])
+def check_answer(session: SessionDep, person: PageParticipant, fields: FormFields) -> Response:
+    """Store the check's answer (a plain form: two buttons), then the thank-you page."""
+    try:
+        winner = int(fields.get("winner", ""))
+    except ValueError:
+        winner = -1
+    crowd_check.answer(session, participant=person, winner=winner)
+    return redirect(THANKS)

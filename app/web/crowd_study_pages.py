@@ -1,0 +1,109 @@
+"""The crowd part of a study's page (issue 14): the open-link form, quality flags and the
+agreement heat map (:func:`crowd_context`, rendered by ``templates/study_crowd.html``)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from fastapi import APIRouter, Request, Response
+from pydantic import ValidationError
+from sqlalchemy.orm import Session
+
+from app.api.crowd_schemas import CrowdIn
+from app.api.deps import DbId, SessionDep
+from app.services import crowd, crowd_stats
+from app.web.csrf import CsrfChecked, FormFields
+from app.web.guards import ResearcherPage
+from app.web.rendering import PageRoute, redirect
+from engine.errors import InputError
+
+router = APIRouter(route_class=PageRoute, include_in_schema=False, dependencies=[ResearcherPage])
+
+
+def _heat(value: float | None) -> str:
+    """A heat-map cell's class: ``heat-0`` .. ``heat-10`` by agreement, ``heat-none``."""
+    return "heat-none" if value is None else f"heat-{round(value * 10)}"
+
+
+def heat_map(agreement: crowd_stats.StudyAgreement) -> list[dict[str, Any]]:
+    """Rows of the participants x participants table: each cell's text, class and title."""
+    by_pair = {(p.a, p.b): p for p in agreement.pairs}
+    rows = []
+    for i in agreement.participants:
+        cells = []
+        for j in agreement.participants:
+            pair = by_pair.get((min(i, j), max(i, j)))
+            if i == j or pair is None:
+                cells.append({"text": "—", "cls": "heat-self", "title": "the same participant"})
+                continue
+            text = "no shared pair" if pair.agreement is None else f"{pair.agreement:.0%}"
+            cells.append(
+                {
+                    "text": text,
+                    "cls": _heat(pair.agreement),
+                    "title": f"#{i} and #{j}: {pair.shared} shared pairs",
+                }
+            )
+        rows.append({"id": i, "cells": cells})
+    return rows
+
+
+def crowd_context(request: Request, session: Session, study_id: int) -> dict[str, Any]:
+    """What ``study_crowd.html`` shows: settings and link, quality, agreement."""
+    row = crowd.crowd_settings(session, study_id=study_id)
+    agreement = crowd_stats.study_agreement(session, study_id=study_id)
+    teachers: dict[int, dict[str, float | None]] = {}
+    for t in agreement.teachers:
+        teachers.setdefault(t.participant_id, {})[t.teacher] = t.agreement
+    return {
+        "crowd": row,
+        "crowd_defaults": crowd.CrowdOptions(),
+        "open_url": None
+        if row is None
+        else str(request.base_url).rstrip("/") + crowd.open_path(row.slug),
+        "quality": crowd_stats.quality(session, study_id=study_id),
+        "agreement": agreement,
+        "heat_rows": heat_map(agreement),
+        "teacher_names": crowd_stats.COMPARED_TEACHERS,
+        "teacher_agreement": teachers,
+    }
+
+
+def _options(fields: dict[str, str]) -> crowd.CrowdOptions:
+    """The form's fields, validated like ``PUT /api/studies/{id}/crowd``."""
+    text = {
+        k: fields.get(k, "").strip() or None
+        for k in ("consent_text", "completion_code", "redirect_url")
+    }
+    params = [p.strip() for p in fields.get("external_params", "").split(",") if p.strip()]
+    try:
+        body = CrowdIn.model_validate(
+            {
+                "enabled": fields.get("enabled") == "on",
+                "consistency_check": fields.get("consistency_check") == "on",
+                "max_participants": _whole(fields, "max_participants"),
+                "speed_threshold_ms": _whole(fields, "speed_threshold_ms"),
+                "external_params": params or list(crowd.DEFAULT_EXTERNAL_PARAMS),
+                **text,
+            }
+        )
+    except ValidationError as exc:
+        first = exc.errors()[0]
+        raise InputError(f"{'.'.join(map(str, first['loc']))}: {first['msg']}") from None
+    return crowd.CrowdOptions(
+        **{**body.model_dump(), "external_params": tuple(body.external_params)}
+    )
+
+
+def _whole(fields: dict[str, str], name: str) -> int:
+    try:
+        return int(fields.get(name, "").strip())
+    except ValueError:
+        raise InputError(f"{name} must be a whole number") from None
+
+
+@router.post("/studies/{study_id}/crowd", dependencies=[CsrfChecked])
+def set_crowd(study_id: DbId, session: SessionDep, fields: FormFields) -> Response:
+    """Save the open-link form, then show the study page's crowd section."""
+    crowd.configure(session, study_id=study_id, options=_options(fields))
+    return redirect(f"/studies/{study_id}#crowd")

@@ -1,0 +1,363 @@
+"""Labelling at crowd scale: hundreds of participants playing whole brackets at once.
+
+Starts ``acv serve`` itself on 127.0.0.1 (a fresh data dir; SQLite, or PostgreSQL on a
+throwaway cluster), prepares a study and invites ``--participants`` people, then:
+
+1. ceiling: closed loops hammer ``/healthz`` (a trivial JSON endpoint, one ``SELECT 1``,
+   served by the same stack) for a few seconds; its requests/s is the practical ceiling;
+2. crowd: every participant plays their whole bracket with an asyncio client (aiohttp,
+   keep-alive), thinking ``[0.5, 1.5] x --think-ms`` per match and starting within the first
+   ``--think-ms``. A label's answer carries the next match when the server sends one
+   (``next``); otherwise (an older server) the client asks ``next-match``.
+
+Then every acknowledged (2xx) label must be stored with its winner, once. The last line is
+JSON: participants, think_ms, workers, database, labels_sent, labels_stored, lost,
+duplicates, errors_5xx, labels_per_s, p50_ms and p99_ms (of every labelling request: labels
+and next-match), ceiling_rps and ratio_vs_ceiling (labelling requests/s over the ceiling).
+
+Usage:
+    python benchmarks/crowd_load.py [--database sqlite|postgresql] [--participants 300]
+        [--think-ms 2000] [--workers 1] [--candidates 16] [--timeout-s 300]
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import contextlib
+import csv
+import importlib.util
+import io
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from collections import Counter
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import aiohttp
+import httpx
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+ADMIN_TOKEN = "crowd-benchmark-admin-token-0123456789"  # >= 32 characters
+ADMIN = {"Authorization": f"Bearer {ADMIN_TOKEN}"}
+CEILING_S, CEILING_LOOPS = 4.0, 64
+
+
+def _conftest():  # the throwaway PostgreSQL cluster of the app tests
+    spec = importlib.util.spec_from_file_location("acv_conftest", REPO / "tests/app/conftest.py")
+    module = sys.modules.setdefault("acv_conftest", importlib.util.module_from_spec(spec))
+    if not hasattr(module, "PostgresCluster"):
+        spec.loader.exec_module(module)
+    return module
+
+
+@contextlib.contextmanager
+def database(kind: str) -> Iterator[str | None]:
+    """``None`` for SQLite (in the data dir), else a fresh PostgreSQL database's URL."""
+    if kind == "sqlite":
+        yield None
+        return
+    cluster = _conftest().PostgresCluster()
+    cluster.start()
+    try:
+        yield cluster.create_database()
+    finally:
+        cluster.stop()
+
+
+@contextlib.contextmanager
+def server(database_url: str | None, workers: int) -> Iterator[str]:
+    """``acv serve`` in a subprocess on a fresh data dir; yields its base URL."""
+    port = _conftest()._free_port()
+    with tempfile.TemporaryDirectory(prefix="acv-crowd-") as data_dir:
+        env = {k: v for k, v in os.environ.items() if k != "DATABASE_URL"}
+        env |= {"ACV_DATA_DIR": data_dir, "ACV_ADMIN_TOKEN": ADMIN_TOKEN, "PYTHONPATH": str(REPO)}
+        if database_url:
+            env["DATABASE_URL"] = database_url
+        extra = ["--workers", str(workers)] if workers != 1 else []
+        log = Path(data_dir) / "server.log"
+        with log.open("w") as log_file:
+            proc = subprocess.Popen(
+                [
+                    sys.executable,
+                    "-m",
+                    "app.cli",
+                    "serve",
+                    "--host",
+                    "127.0.0.1",
+                    "--port",
+                    str(port),
+                    "--no-access-log",
+                    *extra,
+                ],
+                cwd=REPO,
+                env=env,
+                stdout=log_file,
+                stderr=subprocess.STDOUT,
+            )
+        base = f"http://127.0.0.1:{port}"
+        try:
+            _wait_healthy(base, proc)
+            yield base
+        except BaseException:
+            print(f"server log:\n{log.read_text()[-4000:]}", file=sys.stderr)
+            raise
+        finally:
+            proc.terminate()
+            proc.wait(timeout=60)
+
+
+def _wait_healthy(base: str, proc: subprocess.Popen, timeout_s: float = 120.0) -> None:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if proc.poll() is not None:
+            raise SystemExit("the server exited")
+        with contextlib.suppress(httpx.TransportError):
+            if httpx.get(f"{base}/healthz").status_code == 200:
+                return
+        time.sleep(0.1)
+    raise SystemExit("the server did not become healthy")
+
+
+def prepare(base: str, n_candidates: int, count: int) -> tuple[int, list[str]]:
+    """A ready study and ``count`` invite tokens."""
+    body = {
+        "name": "crowd",
+        "env_id": "Humanoid-v5",
+        "n_candidates": n_candidates,
+        "p": 0.9,
+        "seed": 0,
+        "sampling": "uniform",
+        "instructions": "",
+    }
+    study_id = (
+        httpx.post(f"{base}/api/studies", json=body, headers=ADMIN, timeout=60)
+        .raise_for_status()
+        .json()["id"]
+    )
+    while (
+        status := httpx.get(f"{base}/api/studies/{study_id}", headers=ADMIN).json()["status"]
+    ) == "preparing":
+        time.sleep(0.1)
+    if status != "ready":
+        raise SystemExit(f"study preparation failed: {status}")
+    tokens: list[str] = []
+    while len(tokens) < count:  # at most 500 per batch
+        people = httpx.post(
+            f"{base}/api/studies/{study_id}/participants/batch",
+            headers=ADMIN,
+            json={"count": min(500, count - len(tokens))},
+            timeout=60,
+        )
+        tokens += [p["token"] for p in people.raise_for_status().json()]
+    return study_id, tokens
+
+
+@dataclass
+class Tally:
+    """What the participants saw; ``acked`` maps a match id to its acknowledged winner."""
+
+    sent: int = 0
+    requests: int = 0
+    errors_5xx: int = 0
+    transport_errors: int = 0
+    unexpected: list[str] = field(default_factory=list)
+    acked: dict[int, int] = field(default_factory=dict)
+    ms: dict[str, list[float]] = field(default_factory=lambda: {"label": [], "next": []})
+
+
+async def _call(
+    client: aiohttp.ClientSession,
+    tally: Tally,
+    kind: str,
+    method: str,
+    url: str,
+    headers: dict[str, str],
+    body: dict | None = None,
+) -> tuple[int, dict | None]:
+    """One timed request: (status, JSON body or ``None``); status 0 when the connection
+    failed."""
+    tally.requests += 1
+    t0 = time.perf_counter()
+    try:
+        async with client.request(method, url, headers=headers, json=body) as response:
+            data = await response.json() if response.status in (200, 201) else None
+            status = response.status
+    except aiohttp.ClientError:
+        tally.transport_errors += 1
+        return 0, None
+    tally.ms[kind].append((time.perf_counter() - t0) * 1000)
+    tally.errors_5xx += status >= 500
+    return status, data
+
+
+async def _next(
+    client: aiohttp.ClientSession, tally: Tally, headers: dict[str, str]
+) -> dict | None:
+    status, data = await _call(
+        client, tally, "next", "GET", "/api/participants/me/next-match", headers
+    )
+    if status not in (200, 204):
+        tally.unexpected.append(f"next-match answered {status}")
+    return data
+
+
+async def participant(
+    client: aiohttp.ClientSession,
+    token: str,
+    seed: int,
+    think_ms: float,
+    n_matches: int,
+    tally: Tally,
+    deadline: float,
+) -> None:
+    """Play the whole bracket (at most ``2 x n_matches`` decisions, or until ``deadline``)."""
+    rng = np.random.default_rng(seed)
+    headers = {"Authorization": f"Bearer {token}"}
+    await asyncio.sleep(think_ms * rng.uniform(0, 1) / 1000)  # people do not start in step
+    match = await _next(client, tally, headers)
+    for _ in range(2 * n_matches):
+        if match is None or time.monotonic() > deadline:
+            return
+        winner = match["a" if rng.random() < 0.5 else "b"]["candidate_id"]
+        if think_ms > 0:
+            await asyncio.sleep(think_ms * rng.uniform(0.5, 1.5) / 1000)
+        tally.sent += 1
+        status, data = await _call(
+            client,
+            tally,
+            "label",
+            "POST",
+            f"/api/matches/{match['match_id']}/label",
+            headers,
+            {"winner": winner},
+        )
+        if status in (200, 201):
+            tally.acked[match["match_id"]] = winner
+        elif status != 0:
+            tally.unexpected.append(f"label answered {status}")
+        match = (
+            data["next"]
+            if data is not None and "next" in data
+            else await _next(client, tally, headers)
+        )
+
+
+async def _ceiling(base: str, seconds: float, loops: int) -> float:
+    """Requests/s of ``/healthz`` from ``loops`` closed loops."""
+    count = 0
+    connector = aiohttp.TCPConnector(limit=loops)
+    async with aiohttp.ClientSession(base, connector=connector) as client:
+        stop = time.perf_counter() + seconds
+
+        async def loop() -> None:
+            nonlocal count
+            while time.perf_counter() < stop:
+                async with client.get("/healthz") as response:
+                    await response.read()
+                    count += response.status == 200
+
+        t0 = time.perf_counter()
+        await asyncio.gather(*(loop() for _ in range(loops)))
+        return count / (time.perf_counter() - t0)
+
+
+async def crowd(
+    base: str, tokens: list[str], think_ms: float, n_matches: int, timeout_s: float
+) -> tuple[Tally, float]:
+    """Everyone plays at once; returns the tally and the seconds it took."""
+    tally = Tally()
+    connector = aiohttp.TCPConnector(limit=len(tokens), keepalive_timeout=3.0)
+    timeout = aiohttp.ClientTimeout(total=60)
+    async with aiohttp.ClientSession(base, connector=connector, timeout=timeout) as client:
+        t0 = time.perf_counter()
+        deadline = time.monotonic() + timeout_s
+        await asyncio.gather(
+            *(
+                participant(client, tok, k, think_ms, n_matches, tally, deadline)
+                for k, tok in enumerate(tokens)
+            )
+        )
+        return tally, time.perf_counter() - t0
+
+
+def stored_labels(base: str, study_id: int) -> list[tuple[int, int]]:
+    """``(match id, winner)`` of every stored label of the study."""
+    text = (
+        httpx.get(f"{base}/api/studies/{study_id}/labels.csv", headers=ADMIN, timeout=60)
+        .raise_for_status()
+        .text
+    )
+    return [(int(r["match_id"]), int(r["winner"])) for r in csv.DictReader(io.StringIO(text))]
+
+
+def summary(
+    args: argparse.Namespace,
+    tally: Tally,
+    seconds: float,
+    ceiling_rps: float,
+    stored: list[tuple[int, int]],
+) -> dict:
+    """The JSON line."""
+    per_match = Counter(mid for mid, _ in stored)
+    winners = dict(stored)
+    lost = sum(winners.get(mid) != w for mid, w in tally.acked.items())
+    every = tally.ms["label"] + tally.ms["next"]
+    pct = (lambda q: round(float(np.percentile(every, q)), 1)) if every else (lambda q: None)
+    rps = len(every) / seconds
+    return {
+        "participants": args.participants,
+        "think_ms": args.think_ms,
+        "workers": args.workers,
+        "database": args.database,
+        "labels_sent": tally.sent,
+        "labels_stored": len(stored),
+        "lost": lost,
+        "duplicates": sum(n - 1 for n in per_match.values()),
+        "errors_5xx": tally.errors_5xx,
+        "labels_per_s": round(len(tally.acked) / seconds, 1),
+        "p50_ms": pct(50),
+        "p99_ms": pct(99),
+        "ceiling_rps": round(ceiling_rps, 1),
+        "ratio_vs_ceiling": round(rps / ceiling_rps, 3),
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--database", choices=("sqlite", "postgresql"), default="sqlite")
+    parser.add_argument("--participants", type=int, default=300)
+    parser.add_argument("--think-ms", type=float, default=2000.0)
+    parser.add_argument("--workers", type=int, default=1)
+    parser.add_argument("--candidates", type=int, default=16)
+    parser.add_argument("--timeout-s", type=float, default=300.0)
+    args = parser.parse_args()
+    with database(args.database) as url, server(url, args.workers) as base:
+        study_id, tokens = prepare(base, args.candidates, args.participants)
+        ceiling_rps = asyncio.run(_ceiling(base, CEILING_S, min(CEILING_LOOPS, args.participants)))
+        tally, seconds = asyncio.run(
+            crowd(base, tokens, args.think_ms, args.candidates - 1, args.timeout_s)
+        )
+        stored = stored_labels(base, study_id)
+    for kind, ms in tally.ms.items():
+        if ms:
+            print(
+                f"{kind}: {len(ms)} requests, p50 {np.percentile(ms, 50):.1f} ms, "
+                f"p99 {np.percentile(ms, 99):.1f} ms, max {max(ms):.1f} ms"
+            )
+    print(
+        f"{seconds:.1f} s; {tally.requests} requests; transport errors "
+        f"{tally.transport_errors}; unexpected answers {len(tally.unexpected)} "
+        f"{tally.unexpected[:3]}"
+    )
+    print(json.dumps(summary(args, tally, seconds, ceiling_rps, stored)))
+
+
+if __name__ == "__main__":
+    main()

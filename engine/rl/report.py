@@ -1,0 +1,184 @@
+"""Everything ACV shows about one checkpoint, computed once where the run lives.
+
+:func:`checkpoint_report` loads a checkpoint once and gives, for every judge of
+:data:`engine.rl.agent_judge.JUDGES`, the Agent Preference Tree over the advice bracket and its
+conformance to the advice tree, plus the per-candidate table that explains them (R, F, z, z F,
+V and the behaviour score). The executor stores :meth:`CheckpointReport.to_json` for the web
+tier, which then only reads.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+from engine.conformance import Conformance, compare
+from engine.errors import InputError
+from engine.rl.agent_judge import (
+    JUDGES,
+    CandidateTerms,
+    TrainedAgent,
+    agent_scores,
+    candidate_terms,
+    load_agent,
+    replay_as,
+    run_advice_fn,
+)
+from engine.rl.behaviour import RolloutOptions
+from engine.rl.checkpoint import find_checkpoint
+from engine.rl.runner import load_run_advice
+from engine.treefile import TreeDocument, tree_from_json, tree_to_json
+
+SCHEMA = "acv.checkpoint/1"
+
+
+@dataclass(frozen=True)
+class CandidateRow:
+    """One candidate as the agent sees it at a checkpoint.
+
+    Attributes:
+        id: the candidate's id in the bracket.
+        reward: R(s) as the shaped judge uses it: the stored ``env_reward`` minus the control
+            cost of the policy's mean action in s.
+        advice: F(s) after ``advice_scale`` (F = R for advice mode ``reward``; 0 for ``ppo``).
+        z: the shaping weight z_phi(s) (0 for ``ppo``, 1 for ``ppo-shaped``).
+        shaping: ``z * advice``, the ``shaping`` judge's score.
+        shaped: ``reward + shaping``, the ``shaped`` judge's score.
+        value: V(s) of the shaped critic, the ``value`` judge's score.
+        behaviour: the agent's mean occupancy near s, the ``behaviour`` judge's score.
+    """
+
+    id: int
+    reward: float
+    advice: float
+    z: float
+    shaping: float
+    shaped: float
+    value: float
+    behaviour: float
+
+
+@dataclass(frozen=True)
+class JudgeResult:
+    """One judge's Agent Preference Tree and its conformance to the advice tree."""
+
+    judge: str
+    tree: TreeDocument
+    conformance: Conformance
+
+
+@dataclass(frozen=True)
+class CheckpointReport:
+    """The agent at one checkpoint: every judge's tree and conformance, and the table.
+
+    Attributes:
+        step: the checkpoint's timesteps.
+        judges: one :class:`JudgeResult` per judge of :data:`JUDGES`, by name.
+        candidates: one :class:`CandidateRow` per candidate, by id.
+    """
+
+    step: int
+    judges: dict[str, JudgeResult]
+    candidates: list[CandidateRow]
+
+    def to_json(self) -> dict[str, Any]:
+        """``{"schema", "step", "judges": {name: {"tree", "conformance"}}, "candidates"}``."""
+        return {
+            "schema": SCHEMA,
+            "step": self.step,
+            "judges": {
+                name: {"tree": tree_to_json(r.tree), "conformance": r.conformance.to_json()}
+                for name, r in self.judges.items()
+            },
+            "candidates": [asdict(row) for row in self.candidates],
+        }
+
+    @classmethod
+    def from_json(cls, obj: dict[str, Any]) -> CheckpointReport:
+        """Inverse of :meth:`to_json`.
+
+        Raises:
+            InputError: not an ``acv.checkpoint/1`` document.
+        """
+        if not isinstance(obj, dict) or obj.get("schema") != SCHEMA:
+            raise InputError(f"not an {SCHEMA} document")
+        judges = {
+            name: JudgeResult(
+                name, tree_from_json(r["tree"]), Conformance.from_json(r["conformance"])
+            )
+            for name, r in obj["judges"].items()
+        }
+        return cls(int(obj["step"]), judges, [CandidateRow(**row) for row in obj["candidates"]])
+
+
+def checkpoint_report(
+    run_dir: Path,
+    step: int | None = None,
+    advice: TreeDocument | None = None,
+    *,
+    rollouts: RolloutOptions = RolloutOptions(),
+) -> CheckpointReport:
+    """Every judge's tree and conformance, and the per-candidate table, at one checkpoint.
+
+    Args:
+        run_dir: the training run directory.
+        step: checkpoint timesteps; the latest when None.
+        advice: the tree to replay and compare with; by default the run's ``advice.json``
+            (a ``ppo`` run has none: pass the bracket it is to be judged on).
+        rollouts: the behaviour judge's rollouts.
+
+    Raises:
+        InputError: no advice tree, no such checkpoint, a damaged checkpoint, another env.
+    """
+    own = load_run_advice(run_dir)
+    doc = advice if advice is not None else own
+    if doc is None:
+        raise InputError(f"{run_dir} was trained without advice: pass the tree to compare with")
+    trained = load_agent(find_checkpoint(run_dir, step))
+    return trained_report(trained, doc, own, run_dir=run_dir, rollouts=rollouts)
+
+
+def trained_report(
+    trained: TrainedAgent,
+    doc: TreeDocument,
+    own: TreeDocument | None,
+    *,
+    run_dir: Path | None = None,
+    rollouts: RolloutOptions = RolloutOptions(),
+) -> CheckpointReport:
+    """:func:`checkpoint_report` for a checkpoint already loaded (F from ``own``, the run's
+    advice tree, when it has one)."""
+    f = run_advice_fn(trained, own, run_dir)
+    terms = candidate_terms(trained, doc, f)
+    behaviour = agent_scores(trained, doc, "behaviour", f, run_dir=run_dir, rollouts=rollouts)
+    scores = {judge: _scores(terms, judge, doc) for judge in JUDGES if judge != "behaviour"}
+    scores["behaviour"] = behaviour
+    judges = {}
+    for judge in JUDGES:
+        tree = replay_as(trained, doc, judge, scores[judge])
+        judges[judge] = JudgeResult(judge, tree, compare(doc, tree))
+    return CheckpointReport(trained.timesteps, judges, _rows(terms, doc, behaviour))
+
+
+def _scores(terms: CandidateTerms, judge: str, doc: TreeDocument) -> dict[int, float]:
+    values = {"shaped": terms.shaped, "shaping": terms.shaping, "value": terms.value}[judge]
+    return {c.id: float(v) for c, v in zip(doc.candidates, values, strict=True)}
+
+
+def _rows(
+    terms: CandidateTerms, doc: TreeDocument, behaviour: dict[int, float]
+) -> list[CandidateRow]:
+    return [
+        CandidateRow(
+            c.id,
+            float(terms.reward[i]),
+            float(terms.advice[i]),
+            float(terms.z[i]),
+            float(terms.shaping[i]),
+            float(terms.shaped[i]),
+            float(terms.value[i]),
+            behaviour[c.id],
+        )
+        for i, c in enumerate(doc.candidates)
+    ]

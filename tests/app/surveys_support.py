@@ -1,0 +1,120 @@
+"""Helpers of the survey tests: finished participants, a run checkpoint with stored agent
+trees, survey bodies and respondents driving the API with their invite tokens."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+from fastapi.testclient import TestClient
+
+from app.models import CheckpointArtefact, Run
+from tests.app.conftest import ADMIN, Player
+
+
+def finished(client: TestClient, study_id: int, side: str = "a") -> int:
+    """A participant who labelled the whole bracket, always choosing ``side``."""
+    body = client.post(f"/api/studies/{study_id}/participants", headers=ADMIN).json()
+    player = Player(client, body["id"], body["token"], body["invite_url"])
+    player.play(lambda m: m[side]["candidate_id"])
+    return body["id"]
+
+
+def tree_json(client: TestClient, participant_id: int) -> dict[str, Any]:
+    response = client.get(f"/api/participants/{participant_id}/tree", headers=ADMIN)
+    assert response.status_code == 200, response.text
+    return response.json()
+
+
+def run_with_artefact(
+    client: TestClient,
+    study_id: int,
+    tree: dict[str, Any],
+    *,
+    step: int = 256,
+    judge: str = "shaped",
+) -> int:
+    """A finished run row whose checkpoint ``step`` holds ``tree`` as the judge's agent tree
+    (what the run executor stores; no training here)."""
+    with client.app.state.runtime.sessions() as session:
+        run = Run(
+            study_id=study_id,
+            teacher="standing",
+            algo="bipars-em",
+            timesteps=step,
+            seed=0,
+            n_envs=1,
+            config={},
+            status="succeeded",
+            progress=step,
+        )
+        session.add(run)
+        session.flush()
+        session.add(
+            CheckpointArtefact(
+                run_id=run.id,
+                step=step,
+                payload={
+                    "schema": "acv.checkpoint/1",
+                    "step": step,
+                    "judges": {judge: {"tree": tree | {"judge": f"agent:{judge}"}}},
+                },
+            )
+        )
+        session.commit()
+        return run.id
+
+
+def paper_body(tree1: dict[str, Any], tree2: dict[str, Any], **extra: Any) -> dict[str, Any]:
+    """The paper's survey on one stimulus, with an attention check."""
+    return {
+        "name": "Paper study",
+        "intro": "Two trees per screen.",
+        "template": "paper",
+        "stimuli": [{"label": "Case 2", "tree1": tree1, "tree2": tree2}],
+        "attention_check": {"question": "q1", "expected": "same"},
+    } | extra
+
+
+@dataclass
+class Respondent:
+    """A respondent driving the API with their invite token."""
+
+    client: TestClient
+    id: int
+    token: str
+    invite_url: str
+
+    @property
+    def headers(self) -> dict[str, str]:
+        return {"Authorization": f"Bearer {self.token}"}
+
+    def screen(self) -> dict[str, Any] | None:
+        response = self.client.get("/api/surveys/me/screen", headers=self.headers)
+        assert response.status_code in (200, 204), response.text
+        return response.json() if response.status_code == 200 else None
+
+    def answer(self, position: int, answers: dict[str, Any], screen_ms: int = 1000):
+        return self.client.post(
+            f"/api/surveys/me/screens/{position}/answers",
+            headers=self.headers,
+            json={"answers": answers, "screen_ms": screen_ms},
+        )
+
+
+def invite(client: TestClient, survey_id: int, count: int = 1) -> list[Respondent]:
+    response = client.post(
+        f"/api/surveys/{survey_id}/respondents", json={"count": count}, headers=ADMIN
+    )
+    assert response.status_code == 201, response.text
+    return [Respondent(client, r["id"], r["token"], r["invite_url"]) for r in response.json()]
+
+
+def paper_answers(
+    screen: dict[str, Any], q1: str = "different", q2: str = "yes", confidence: int = 4
+) -> dict[str, Any]:
+    """Answers to a paper screen (an attention check asks only q1)."""
+    picks = {"q1": q1, "q2": q2}
+    return {
+        q["key"]: {"value": picks[q["key"]], "confidence": confidence} for q in screen["questions"]
+    }

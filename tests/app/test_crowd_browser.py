@@ -1,0 +1,226 @@
+"""A real browser through a crowd study (issue 14): the researcher opens the study's link
+with the study page's form; a visitor arrives with Prolific's query parameters, consents,
+plays the bracket (sides as the server placed them), answers the consistency check, sees
+the completion code and is sent to the completion URL (a local page this test serves).
+Another visitor declines; a third finds the study full. The study page then shows the
+quality flags and the agreement heat map (screenshot: /work/wt/crowd-shots/study.png).
+axe-core checks every page added or changed.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import threading
+import time
+from collections.abc import Iterator
+from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
+from pathlib import Path
+
+import httpx
+import pytest
+from playwright.sync_api import Browser, Page, expect
+
+from tests.app.test_browser import (  # noqa: F401 (fixtures)
+    ADMIN_TOKEN,
+    browser,
+    new_page,
+    screens,
+    server,
+    shown,
+    wait_for_match,
+)
+from tests.app.test_surveys_browser import assert_accessible
+
+ADMIN = {"Authorization": f"Bearer {ADMIN_TOKEN}"}
+DESKTOP = {"width": 1280, "height": 900}
+SHOTS = Path("/work/wt/crowd-shots")
+
+
+class _Done(BaseHTTPRequestHandler):
+    """The crowd platform's completion page, as far as this test needs it."""
+
+    def do_GET(self) -> None:  # noqa: N802 (http.server's name)
+        body = b"<!doctype html><title>Completed</title><h1>Submission complete</h1>"
+        self.send_response(200)
+        self.send_header("Content-Type", "text/html")
+        self.send_header("Content-Length", str(len(body)))
+        self.end_headers()
+        self.wfile.write(body)
+
+    def log_message(self, *_args) -> None:
+        pass
+
+
+@pytest.fixture(scope="module")
+def platform() -> Iterator[str]:
+    """A local HTTP server standing in for the platform's completion URL."""
+    httpd = ThreadingHTTPServer(("127.0.0.1", 0), _Done)
+    thread = threading.Thread(target=httpd.serve_forever, daemon=True)
+    thread.start()
+    yield f"http://127.0.0.1:{httpd.server_address[1]}"
+    httpd.shutdown()
+
+
+def ready_study(api: httpx.Client) -> int:
+    study = api.post(
+        "/api/studies",
+        json={"name": "Crowd study", "env_id": "Hopper-v5", "n_candidates": 4, "seed": 8},
+    ).json()
+    while api.get(f"/api/studies/{study['id']}").json()["status"] == "preparing":
+        time.sleep(0.1)
+    return study["id"]
+
+
+def open_the_link(page: Page, base: str, study_id: int, platform: str) -> str:
+    """Fill the study page's crowd form; returns the open link it then shows."""
+    page.goto(f"{base}/login#token={ADMIN_TOKEN}")
+    page.wait_for_url(f"{base}/studies")
+    page.goto(f"{base}/studies/{study_id}")
+    page.check("#crowd-enabled")
+    page.fill("#max_participants", "2")
+    page.fill("#consent_text", "We store your choices and your Prolific id, nothing else.")
+    page.fill("#completion_code", "C0MPL3TE")
+    page.fill("#redirect_url", f"{platform}/submissions/complete?cc=C0MPL3TE")
+    page.check("#consistency_check")
+    page.click("text=Save open link")
+    page.wait_for_url(f"{base}/studies/{study_id}#crowd")
+    return page.inner_text("#open-link")
+
+
+def play_in_browser(p: Page) -> None:
+    """Decide the 3 matches: left, right, left (by click and keys)."""
+    match = wait_for_match(p)
+    for how in ("#pick-a", "ArrowRight", "ArrowLeft"):
+        if how.startswith("Arrow"):
+            p.keyboard.press(how)
+        else:
+            p.click(how)
+        if how != "ArrowLeft":
+            match = wait_for_match(p, match)
+
+
+def test_open_link_consent_bracket_check_and_completion(
+    server, browser: Browser, screens, platform: str
+) -> None:
+    base, _ = server
+    errors: list[str] = []
+    with httpx.Client(base_url=base, headers=ADMIN, timeout=60) as api:
+        study_id = ready_study(api)
+    _, page = new_page(browser, errors, viewport=DESKTOP)
+    link = open_the_link(page, base, study_id, platform)
+    assert link.startswith(f"{base}/s/")
+    assert_accessible(page, "study page with the crowd form")
+
+    _, p = new_page(browser, errors, viewport=DESKTOP)
+    p.goto(f"{link}?PROLIFIC_PID=pw-1&STUDY_ID=st&SESSION_ID=se")
+    expect(p.locator("#consent-text")).to_contain_text("Prolific id")
+    assert_accessible(p, "consent page")
+    p.click("#agree")
+    p.wait_for_url(f"{base}/participate")
+    p.click("#start")
+    wait_for_match(p)
+    assert_accessible(p, "labelling page")
+    placed = (shown(p, "a"), shown(p, "b"))
+    play_in_browser(p)
+    p.wait_for_url(f"{base}/participate/check")
+    assert_accessible(p, "consistency check page")
+    check = (
+        int(p.get_attribute("#check-left", "value")),
+        int(p.get_attribute("#check-right", "value")),
+    )
+    p.click("#check-left")
+    p.wait_for_url(f"{base}/participate/thanks")
+    expect(p.locator("#completion-code")).to_have_text("C0MPL3TE")
+    assert_accessible(p, "thank-you page with the completion code")
+    p.wait_for_url(f"{platform}/submissions/complete?cc=C0MPL3TE")
+    expect(p.locator("h1")).to_have_text("Submission complete")
+
+    _, d = new_page(browser, errors, viewport=DESKTOP)
+    d.goto(f"{link}?PROLIFIC_PID=pw-2")
+    d.click("#decline")
+    expect(d.locator("h1")).to_have_text("You declined")
+    assert_accessible(d, "declined page")
+
+    with httpx.Client(base_url=base, headers=ADMIN, timeout=60) as api:  # now one place
+        assert (
+            api.put(
+                f"/api/studies/{study_id}/crowd", json={"enabled": True, "max_participants": 1}
+            ).status_code
+            == 200
+        )
+    _, f = new_page(browser, errors, viewport=DESKTOP)
+    f.goto(f"{link}?PROLIFIC_PID=pw-4")
+    expect(f.locator("h1")).to_have_text("This study is full")
+    assert_accessible(f, "study full page")
+
+    with httpx.Client(base_url=base, headers=ADMIN, timeout=60) as api:
+        rows = api.get(f"/api/studies/{study_id}/export/labels.jsonl").text.splitlines()
+        quality = api.get(f"/api/studies/{study_id}/quality").json()
+        crowd = api.get(f"/api/studies/{study_id}/crowd").json()
+    assert len(rows) == 3 and '"external_id": "pw-1"' in rows[0]
+    assert '"side": "left"' in rows[0] and f'"left": {placed[0]}' in rows[0]
+    person = quality["participants"][0]
+    assert person["external_id"] == "pw-1" and person["consistency_agrees"] is not None
+    assert (crowd["joined"], crowd["declines"]) == (1, 1)
+    first_round = [json.loads(r) for r in rows if '"round": 1' in r]
+    assert check in [(r["right"], r["left"]) for r in first_round]  # sides swapped
+    assert errors == []
+
+
+def _play_api(base: str, link: str, pid: str, pick) -> None:
+    with httpx.Client(base_url=base, timeout=60, follow_redirects=False) as visitor:
+        token = visitor.get(f"{link}?PROLIFIC_PID={pid}").cookies["acv_participant"]
+        me = {"Authorization": f"Bearer {token}"}
+        while (
+            match := visitor.get("/api/participants/me/next-match", headers=me)
+        ).status_code == 200:
+            body = match.json()
+            visitor.post(
+                f"/api/matches/{body['match_id']}/label",
+                headers=me,
+                json={"winner": pick(body), "response_ms": 300 * len(pid)},
+            )
+
+
+def test_study_page_shows_agreement_and_quality_flags(
+    server, browser: Browser, screens: Path
+) -> None:
+    base, _ = server
+    errors: list[str] = []
+    with httpx.Client(base_url=base, headers=ADMIN, timeout=60) as api:
+        study_id = api.post(
+            "/api/studies",
+            json={"name": "Crowd agreement", "env_id": "Hopper-v5", "n_candidates": 8, "seed": 2},
+        ).json()["id"]
+        while api.get(f"/api/studies/{study_id}").json()["status"] == "preparing":
+            time.sleep(0.1)
+        link = api.put(
+            f"/api/studies/{study_id}/crowd", json={"enabled": True, "max_participants": 10}
+        ).json()["url"]
+    low = lambda m: min(m["a"]["candidate_id"], m["b"]["candidate_id"])  # noqa: E731
+    high = lambda m: max(m["a"]["candidate_id"], m["b"]["candidate_id"])  # noqa: E731
+    for pid, pick in (("p", lambda m: m["left"]), ("low1", low), ("low22", low), ("hi333", high)):
+        _play_api(base, link, pid, pick)
+    _, page = new_page(browser, errors, viewport={"width": 1280, "height": 1000})
+    page.goto(f"{base}/login#token={ADMIN_TOKEN}")
+    page.wait_for_url(f"{base}/studies")
+    page.goto(f"{base}/studies/{study_id}#quality")
+    expect(page.locator("#heat-map tbody tr")).to_have_count(4)
+    expect(page.locator("#quality-table tbody tr").first.locator(".flag")).to_have_text(
+        ["position bias", "fast"]
+    )
+    expect(page.locator("#agreement-summary")).to_contain_text("Krippendorff")
+    assert_accessible(page, "study page with agreement and flags")
+    page.screenshot(path=screens / "study-full.png", full_page=True)
+    top = page.locator("#quality").bounding_box()["y"] + page.evaluate("window.scrollY")
+    bottom = page.locator("#trees").bounding_box()["y"] + page.evaluate("window.scrollY")
+    shot = screens / "study.png"
+    page.screenshot(
+        path=shot,
+        full_page=True,
+        clip={"x": 0, "y": top - 8, "width": 1280, "height": bottom - top},
+    )
+    SHOTS.mkdir(parents=True, exist_ok=True)
+    shutil.copy(shot, SHOTS / "study.png")
+    assert errors == []

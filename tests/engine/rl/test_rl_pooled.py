@@ -1,0 +1,90 @@
+"""Pooled advice: several people's trees over one bracket, F the mean of their F."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from engine.advice import AdviceReward
+from engine.errors import InputError
+from engine.pipeline import replay_with_teacher, run_tournament
+from engine.pooling import pooled_advice, pooled_tree
+from engine.rl.agent_judge import agent_scores, agent_tree, load_agent
+from engine.rl.checkpoint import find_checkpoint
+from engine.rl.config import TrainConfig
+from engine.rl.runner import load_run_advice, load_run_pool, train
+from engine.treefile import TreeDocument, tree_to_json
+
+
+@pytest.fixture(scope="module")
+def people() -> list[TreeDocument]:
+    standing = run_tournament(env_id="Hopper-v5", n_candidates=8, p=0.9, seed=4, teacher="standing")
+    return [
+        standing,
+        replay_with_teacher(standing, "good"),
+        replay_with_teacher(standing, "standing", noise=0.3),
+    ]
+
+
+def test_pooled_f_is_the_mean_of_the_members(people: list[TreeDocument]) -> None:
+    qpos = np.stack([c.qpos for c in people[0].candidates]) + 0.01
+    expected = np.mean([AdviceReward.from_tree(d)(qpos) for d in people], axis=0)
+    np.testing.assert_allclose(pooled_advice(people)(qpos), expected)
+    one = pooled_advice(people[:2])(qpos)
+    assert not np.allclose(one, expected)
+
+
+def test_the_pooled_verdict_ranks_by_mean_rounds_won(people: list[TreeDocument]) -> None:
+    verdict = pooled_tree(people)
+    assert verdict.judge == "pooled:standing,good,standing+noise0.3"
+    assert verdict.first_round == people[0].first_round
+    mean_height = {
+        c.id: np.mean([d.tree.nodes[c.id].height for d in people]) for c in people[0].candidates
+    }
+    # at a candidate each tree's F is its tree reward r_e * height - r_b (similarity 1)
+    for cid, score in verdict.scores.items():
+        assert score == pytest.approx(mean_height[cid] - 1.0)
+    assert pooled_tree([people[0], people[0]]).tree.root == people[0].tree.root
+
+
+def test_a_pool_needs_two_trees_over_one_bracket(people: list[TreeDocument]) -> None:
+    with pytest.raises(InputError, match="at least two"):
+        pooled_advice(people[:1])
+    other = run_tournament(env_id="Hopper-v5", n_candidates=8, p=0.9, seed=5, teacher="standing")
+    with pytest.raises(InputError, match="different brackets"):
+        pooled_tree([people[0], other])
+
+
+@pytest.mark.training
+def test_training_on_pooled_advice_saves_and_resumes_it(
+    tmp_path: Path, people: list[TreeDocument]
+) -> None:
+    out = tmp_path / "pooled"
+    cfg = TrainConfig(
+        algo="bipars-em",
+        env_id="Hopper-v5",
+        total_timesteps=256,
+        n_envs=2,
+        num_steps=64,
+        num_minibatches=4,
+        update_epochs=1,
+        checkpoint_every=128,
+    )
+    train(cfg, people, out)
+    assert [tree_to_json(d) for d in load_run_pool(out)] == [tree_to_json(d) for d in people]
+    assert load_run_advice(out).judge.startswith("pooled:")
+    rows = [json.loads(line) for line in (out / "metrics.jsonl").read_text().splitlines()]
+    (out / "checkpoints" / "step_256.pt").unlink()
+    train(cfg, None, out, resume=True)  # the pool comes back from the run directory
+    again = [json.loads(line) for line in (out / "metrics.jsonl").read_text().splitlines()]
+    drop = ("sps", "time")
+    assert [{k: v for k, v in r.items() if k not in drop} for r in again] == [
+        {k: v for k, v in r.items() if k not in drop} for r in rows
+    ]
+    trained = load_agent(find_checkpoint(out))
+    shaping = agent_scores(trained, people[0], "shaping", pooled_advice(people))
+    doc = agent_tree(out, judge="shaping", advice=people[0])
+    assert doc.scores == pytest.approx(shaping)
