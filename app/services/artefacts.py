@@ -5,7 +5,9 @@ MuJoCo and the run folder are) computes that checkpoint's report: every judge's 
 Preference Tree, its conformance to the run's advice tree, and the per-candidate table
 (:func:`engine.rl.report.checkpoint_report`). It stores the report as one immutable
 :class:`app.models.CheckpointArtefact` row. Web processes only read these rows; a checkpoint
-without a row is *pending* (HTTP 202). Runs that ended before artefacts existed get theirs
+without a row is *pending* (HTTP 202). A checkpoint that cannot be judged (a corrupt file) gets
+a row holding the reason, so that readers answer with that reason (HTTP 422) instead of
+waiting for ever. Runs that ended before artefacts existed get theirs
 from :func:`backfill` (``acv worker --backfill``), never from a request.
 
 Checkpoint steps are listed from file names (:func:`checkpoint_steps`), so that listing them
@@ -33,6 +35,8 @@ log = logging.getLogger(__name__)
 _CHECKPOINT = re.compile(r"^step_(\d+)\.pt$")
 #: Statuses of runs whose executor has gone: their missing artefacts are the backfill's.
 ENDED = (RunStatus.SUCCEEDED, RunStatus.FAILED, RunStatus.CANCELLED, RunStatus.INTERRUPTED)
+#: The key of an artefact that records why its checkpoint could not be judged.
+FAILURE = "error"
 
 
 def checkpoint_steps(out: Path) -> list[int]:
@@ -48,6 +52,7 @@ def payload(session: Session, *, run_id: int, step: int) -> dict[str, Any]:
 
     Raises:
         PendingError: not computed yet (the executor or the backfill will).
+        InputError: the checkpoint could not be judged (the stored reason).
     """
     row = session.get(CheckpointArtefact, (run_id, step))
     if row is None:
@@ -55,7 +60,14 @@ def payload(session: Session, *, run_id: int, step: int) -> dict[str, Any]:
             f"the agent trees of run {run_id} at checkpoint {step} are being "
             "computed; try again shortly"
         )
+    if FAILURE in row.payload:
+        raise InputError(row.payload[FAILURE])
     return row.payload
+
+
+def judged(body: dict[str, Any]) -> bool:
+    """Whether a stored artefact is a report, not the reason a checkpoint could not be judged."""
+    return FAILURE not in body
 
 
 def payloads(session: Session, *, run_id: int) -> dict[int, dict[str, Any]]:
@@ -99,11 +111,16 @@ def store(session: Session, *, run_id: int, step: int, body: dict[str, Any]) -> 
 def record(
     sessions: sessionmaker[Session], *, run_id: int, advice: dict[str, Any], out: Path, step: int
 ) -> bool:
-    """Compute and store the report of one checkpoint, unless stored already."""
+    """Compute and store the report of one checkpoint, unless stored already; a checkpoint
+    that cannot be judged (:class:`InputError`, e.g. a corrupt file) stores the reason."""
     with sessions() as session:
         if session.get(CheckpointArtefact, (run_id, step)) is not None:
             return False
-    body = compute(out, step, tree_from_json(advice))
+    try:
+        body = compute(out, step, tree_from_json(advice))
+    except InputError as exc:
+        log.warning("run %d, checkpoint %d cannot be judged: %s", run_id, step, exc)
+        body = {FAILURE: str(exc)}
     with sessions() as session:
         return store(session, run_id=run_id, step=step, body=body)
 
@@ -122,7 +139,7 @@ def missing(session: Session, *, runs_root: Path) -> list[tuple[int, int]]:
 
 def backfill(sessions: sessionmaker[Session], *, runs_root: Path, limit: int | None = None) -> int:
     """Compute the missing reports of ended runs (at most ``limit``); returns how many were
-    stored. A checkpoint that cannot be judged is logged and skipped."""
+    stored. A checkpoint that cannot be judged stores the reason (see :func:`record`)."""
     with sessions() as session:
         todo = missing(session, runs_root=runs_root)[:limit]
         advice = {
@@ -134,14 +151,7 @@ def backfill(sessions: sessionmaker[Session], *, runs_root: Path, limit: int | N
     for run_id, step in todo:
         if run_id not in advice:  # a JSON null, which `IS NOT NULL` lets through: no advice
             continue
-        try:
-            done += record(
-                sessions,
-                run_id=run_id,
-                advice=advice[run_id],
-                out=runs_root / str(run_id),
-                step=step,
-            )
-        except InputError as exc:
-            log.warning("run %d, checkpoint %d: no artefact: %s", run_id, step, exc)
+        done += record(
+            sessions, run_id=run_id, advice=advice[run_id], out=runs_root / str(run_id), step=step
+        )
     return done

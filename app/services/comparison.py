@@ -133,7 +133,7 @@ def checkpoint_view(session: Session, *, run_id: int, step: int) -> CheckpointVi
 def conformance_curve(
     session: Session, *, run_id: int, out: Path, judge: str
 ) -> list[tuple[int, Conformance]]:
-    """(step, conformance) at every checkpoint whose artefact is stored, increasing steps.
+    """(step, conformance) at every judged checkpoint, increasing steps.
 
     Raises:
         PendingError: the run has checkpoints, but none is judged yet.
@@ -141,7 +141,11 @@ def conformance_curve(
     stored = artefacts.payloads(session, run_id=run_id)
     if not stored and checkpoints(out):
         raise PendingError(f"the conformance curve of run {run_id} is being computed")
-    return [(step, view_of(step, body).of(judge)) for step, body in stored.items()]
+    return [
+        (step, view_of(step, body).of(judge))
+        for step, body in stored.items()
+        if artefacts.judged(body)  # a corrupt checkpoint has no point on the curve
+    ]
 
 
 def pending_steps(session: Session, *, run_id: int, out: Path) -> list[int]:

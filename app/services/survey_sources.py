@@ -15,6 +15,7 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from app.models import CheckpointArtefact, Participant, Run, Study
+from app.services.artefacts import FAILURE, judged
 from app.services.errors import ConflictError, NotFoundError
 from app.services.trees import participant_tree
 from engine.conformance import compare
@@ -86,7 +87,9 @@ def _run(session: Session, run_id: int | None, step: int | None, judge: str | No
             "computed yet (or the run has no such checkpoint); try again "
             "when the run page lists the checkpoint as computed"
         )
-    judges = (artefact.payload or {}).get("judges") or {}
+    if not judged(artefact.payload):
+        raise InputError(artefact.payload[FAILURE])
+    judges = artefact.payload.get("judges") or {}
     if judge not in judges:
         raise InputError(
             f"run {run_id} at checkpoint {step} has no tree for judge {judge!r}; "
@@ -166,6 +169,7 @@ def source_menus(session: Session) -> dict[str, list[dict[str, Any]]]:
                 "judges": sorted((payload or {}).get("judges") or {}),
             }
             for rid, step, payload, algo in rows
+            if judged(payload)
         ],
         "studies": [
             {"study_id": sid, "name": name}

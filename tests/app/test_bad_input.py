@@ -23,6 +23,7 @@ from app.jobs.settings import JobSettings
 from app.main import create_app
 from app.middleware import MAX_BODY_BYTES
 from app.models import Candidate, Run
+from app.services import artefacts
 from engine.rl.checkpoint import checkpoint_path
 from tests.app.conftest import ADMIN, ADMIN_TOKEN
 
@@ -347,6 +348,7 @@ def no_worker(settings) -> Iterator[TestClient]:
 def test_corrupt_checkpoints_are_refused_with_a_clear_message(
     no_worker, settings, study, content: bytes
 ) -> None:
+    """The backfill job stores why a checkpoint cannot be judged; readers answer with it."""
     run_id = no_worker.post(
         "/api/runs",
         headers=ADMIN,
@@ -355,6 +357,9 @@ def test_corrupt_checkpoints_are_refused_with_a_clear_message(
     path = checkpoint_path(settings.data_dir / "runs" / str(run_id), 256)
     path.parent.mkdir(parents=True)
     path.write_bytes(content)
+    assert no_worker.post(f"/api/runs/{run_id}/cancel", headers=ADMIN).status_code == 202
+    sessions = make_sessions(make_engine(settings.sqlalchemy_url))
+    assert artefacts.backfill(sessions, runs_root=settings.data_dir / "runs") == 1
     for url in (
         f"/api/runs/{run_id}/agent-tree",
         f"/api/runs/{run_id}/conformance",
@@ -363,6 +368,8 @@ def test_corrupt_checkpoints_are_refused_with_a_clear_message(
         response = no_worker.get(url, headers=ADMIN)
         assert response.status_code == 422, (url, response.text)
         assert "step_256.pt is not" in response.json()["detail"]
+    curve = no_worker.get(f"/api/runs/{run_id}/conformance-curve", headers=ADMIN)
+    assert curve.status_code == 200 and curve.json() == []
 
 
 @pytest.mark.parametrize("advice", [{"format": "acv.tree/9"}, {"not": "a tree"}, []])
