@@ -13,7 +13,7 @@ from app.cli.root import cli
 from app.cli.serve import migrated_settings, service_errors
 from app.db import make_engine, make_sessions
 from app.jobs.settings import JobSettings
-from app.jobs.worker import Worker, make_executor
+from app.jobs.worker import Worker, make_backfiller, make_executor
 from app.services import artefacts
 
 
@@ -43,11 +43,13 @@ def worker(
         return
     with service_errors():
         engine = make_engine(settings.sqlalchemy_url)
+        sessions = make_sessions(engine)
         runner = Worker(
-            make_sessions(engine),
+            sessions,
             make_executor(settings, jobs),
             slots=slots or jobs.worker_slots,
             poll_s=jobs.poll_s,
+            backfill=make_backfiller(sessions, settings, jobs),
         )
     stop = threading.Event()
     for signum in (signal.SIGINT, signal.SIGTERM):

@@ -6,6 +6,10 @@
 - ``ACV_RUNS_DIR`` (default ``ACV_DATA_DIR/runs``): run directories (``<runs dir>/<id>``);
   with Ray it must be storage that every node and the web server can reach (NFS, ...).
 - ``ACV_WORKER_SLOTS`` (default 1): runs one worker trains at the same time.
+- ``ACV_BACKFILL_S`` (default 60): while idle, a worker looks this often for ended runs whose
+  checkpoints have no artefact yet (the one a stop writes, failed judgings, runs older than
+  artefacts) and judges them in a process of its own; 0 turns that off (``acv worker
+  --backfill`` then does it on demand).
 - ``ACV_RUN_WORKER`` (default true): start a worker inside the web server; set it to false
   when ``acv worker`` processes run elsewhere.
 """
@@ -31,6 +35,8 @@ class JobSettings(BaseSettings):
     run_worker: bool = True
     poll_s: float = Field(default=1.0, gt=0, le=60)
     """seconds between two looks at the queue"""
+    backfill_s: float = Field(default=60.0, ge=0, le=86400)
+    """seconds between two looks for unjudged checkpoints of ended runs (0: never)"""
 
     @property
     def executor(self) -> str:

@@ -21,6 +21,7 @@ from fastapi import FastAPI
 from sqlalchemy.orm import Session, sessionmaker
 
 from app.jobs import queue
+from app.jobs.backfill import Backfiller
 from app.jobs.local import Finished, LocalExecutor
 from app.jobs.settings import JobSettings
 from app.settings import Settings
@@ -63,6 +64,20 @@ def make_executor(settings: Settings, jobs: JobSettings) -> Executor:
     return LocalExecutor(database_url=settings.sqlalchemy_url, runs_dir=runs_dir)
 
 
+def make_backfiller(
+    sessions: sessionmaker[Session], settings: Settings, jobs: JobSettings
+) -> Backfiller | None:
+    """The idle-time backfill, unless ``ACV_BACKFILL_S`` is 0."""
+    if not jobs.backfill_s:
+        return None
+    return Backfiller(
+        sessions,
+        database_url=settings.sqlalchemy_url,
+        runs_dir=jobs.runs_root(settings),
+        every_s=jobs.backfill_s,
+    )
+
+
 class Worker:
     """Claims runs for one executor, at most ``slots`` at a time.
 
@@ -71,6 +86,7 @@ class Worker:
         executor: where the runs execute.
         slots: runs at the same time.
         poll_s: seconds between two looks at the queue.
+        backfill: judges the unjudged checkpoints of ended runs while the worker is idle.
     """
 
     def __init__(
@@ -80,9 +96,10 @@ class Worker:
         *,
         slots: int = 1,
         poll_s: float = 1.0,
+        backfill: Backfiller | None = None,
     ) -> None:
         self.sessions, self.executor = sessions, executor
-        self.slots, self.poll_s = slots, poll_s
+        self.slots, self.poll_s, self.backfill = slots, poll_s, backfill
         self.id = queue.new_worker_id()
         self._beat_at = self._recover_at = 0.0
 
@@ -96,8 +113,11 @@ class Worker:
         try:
             while not stop.is_set():
                 claimed = self.tick()
-                if until_idle and not claimed and self.executor.active == 0:
+                idle = not claimed and self.executor.active == 0
+                if until_idle and idle:
                     break
+                if self.backfill is not None:
+                    self.backfill.tick(idle=idle)
                 stop.wait(0 if claimed else self.poll_s)
         finally:
             self.shutdown()
@@ -146,6 +166,8 @@ class Worker:
 
     def shutdown(self, grace_s: float = STOP_GRACE_S) -> None:
         """Stop the runs of this worker; each checkpoints and becomes ``interrupted``."""
+        if self.backfill is not None:
+            self.backfill.stop()
         self.executor.request_stop()
         with self.sessions() as session:
             if not self.executor.signals_runs:
@@ -191,6 +213,7 @@ def start_app_worker(app: FastAPI) -> WorkerThread | None:
         make_executor(runtime.settings, jobs),
         slots=jobs.worker_slots,
         poll_s=jobs.poll_s,
+        backfill=make_backfiller(runtime.sessions, runtime.settings, jobs),
     )
     app.state.run_worker = worker
     return WorkerThread(worker).start()

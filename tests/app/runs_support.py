@@ -25,10 +25,11 @@ FINAL = ("succeeded", "failed", "cancelled", "interrupted")
 def run_app(
     settings: Settings, *, worker: bool = True, slots: int = 2, **job_settings: Any
 ) -> Iterator[TestClient]:
-    """The app with its lifespan running; its run worker polls every 0.1 s."""
+    """The app with its lifespan running; its run worker polls every 0.1 s and, unless
+    ``backfill_s`` is given, never backfills (tests that delete artefacts expect them gone)."""
     app = create_app(settings)
     app.state.job_settings = JobSettings(
-        run_worker=worker, worker_slots=slots, poll_s=0.1, **job_settings
+        run_worker=worker, worker_slots=slots, poll_s=0.1, **{"backfill_s": 0, **job_settings}
     )
     with TestClient(app) as client:
         yield client
