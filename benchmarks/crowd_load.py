@@ -26,7 +26,6 @@ import argparse
 import asyncio
 import contextlib
 import csv
-import importlib.util
 import io
 import json
 import os
@@ -49,12 +48,9 @@ ADMIN = {"Authorization": f"Bearer {ADMIN_TOKEN}"}
 CEILING_S, CEILING_LOOPS = 4.0, 64
 
 
-def _conftest():  # the throwaway PostgreSQL cluster of the app tests
-    spec = importlib.util.spec_from_file_location("acv_conftest", REPO / "tests/app/conftest.py")
-    module = sys.modules.setdefault("acv_conftest", importlib.util.module_from_spec(spec))
-    if not hasattr(module, "PostgresCluster"):
-        spec.loader.exec_module(module)
-    return module
+sys.path.insert(0, str(REPO))  # the test-support helpers: free ports, a PostgreSQL cluster
+from tests.support.net import free_port  # noqa: E402
+from tests.support.postgres import PostgresCluster  # noqa: E402
 
 
 @contextlib.contextmanager
@@ -63,7 +59,7 @@ def database(kind: str) -> Iterator[str | None]:
     if kind == "sqlite":
         yield None
         return
-    cluster = _conftest().PostgresCluster()
+    cluster = PostgresCluster()
     cluster.start()
     try:
         yield cluster.create_database()
@@ -74,7 +70,7 @@ def database(kind: str) -> Iterator[str | None]:
 @contextlib.contextmanager
 def server(database_url: str | None, workers: int) -> Iterator[str]:
     """``acv serve`` in a subprocess on a fresh data dir; yields its base URL."""
-    port = _conftest()._free_port()
+    port = free_port()
     with tempfile.TemporaryDirectory(prefix="acv-crowd-") as data_dir:
         env = {k: v for k, v in os.environ.items() if k != "DATABASE_URL"}
         env |= {"ACV_DATA_DIR": data_dir, "ACV_ADMIN_TOKEN": ADMIN_TOKEN, "PYTHONPATH": str(REPO)}
