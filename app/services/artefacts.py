@@ -7,8 +7,9 @@ Preference Tree, its conformance to the run's advice tree, and the per-candidate
 :class:`app.models.CheckpointArtefact` row. Web processes only read these rows; a checkpoint
 without a row is *pending* (HTTP 202). A checkpoint that cannot be judged (a corrupt file) gets
 a row holding the reason, so that readers answer with that reason (HTTP 422) instead of
-waiting for ever. Runs that ended before artefacts existed get theirs
-from :func:`backfill` (``acv worker --backfill``), never from a request.
+waiting for ever. Checkpoints of ended runs without a row (the one a stop writes, runs from
+before artefacts) get theirs from :func:`backfill`, which an idle worker starts by itself
+(:mod:`app.jobs.backfill`) and ``acv worker --backfill`` runs on demand; never from a request.
 
 Checkpoint steps are listed from file names (:func:`checkpoint_steps`), so that listing them
 imports neither torch nor MuJoCo.
