@@ -6,6 +6,7 @@ checkpoint report). Runs on SQLite and PostgreSQL.
 
 from __future__ import annotations
 
+import re
 from collections.abc import Iterator
 from typing import Any
 
@@ -21,6 +22,7 @@ from engine.rl.runner import load_run_pool
 from engine.treefile import tree_from_json, tree_to_json
 from tests.app.conftest import ADMIN, Player, new_study
 from tests.app.runs_support import TINY, create_run, finished_participant, run_app, wait_run
+from tests.support.web import audit, csrf_token, logged_in
 
 pytestmark = pytest.mark.training
 
@@ -213,3 +215,30 @@ def _invited(client: TestClient, study_id: int) -> int:
 
 def _other_studys_participant(client: TestClient) -> int:
     return finished_participant(client, new_study(client, seed=4)["id"])
+
+
+def test_the_launch_form_pools_all_or_the_ticked_participants(
+    client: TestClient, study: dict, people: list[int]
+) -> None:
+    page = logged_in(client)
+    html = page.get(f"/runs/new?study_id={study['id']}").text
+    assert 'value="pool:all"' in html and 'value="pool:chosen"' in html
+    assert all(f'name="pool_{pid}"' in html for pid in people) and audit(html) == []
+    fields = {
+        "csrf_token": csrf_token(page, f"/runs/new?study_id={study['id']}"),
+        "study_id": str(study["id"]),
+        "algo": "ppo",
+        "timesteps": "128",
+        "seed": "0",
+        "n_envs": "1",
+        "num_steps": "128",
+    }
+    one = page.post("/runs", data=fields | {"advice": "pool:chosen", f"pool_{people[0]}": "on"})
+    assert one.status_code == 422 and "at least two participants, got 1" in one.text
+    assert re.search(rf'name="pool_{people[0]}" value="on"\s+checked', one.text)
+    chosen = {f"pool_{pid}": "on" for pid in people[:2]}
+    for advice, extra, ids in (("pool:all", {}, people), ("pool:chosen", chosen, people[:2])):
+        response = page.post("/runs", data=fields | {"advice": advice, **extra})
+        assert response.status_code == 303, response.text
+        run = wait_run(client, int(response.headers["location"].rsplit("/", 1)[1]))
+        assert run["participant_ids"] == sorted(ids) and run["status"] == "succeeded"
