@@ -6,6 +6,8 @@ checks both pages (no serious or critical violation).
 
 from __future__ import annotations
 
+import re
+
 import httpx
 import pytest
 from playwright.sync_api import Browser, expect
@@ -46,8 +48,8 @@ def test_a_run_on_pooled_advice_from_the_form_to_the_comparison(
     page.fill("#timesteps", "256")
     page.fill("#n_envs", "1")
     page.fill("#num_steps", "128")
-    page.click("button[type=submit]")
-    page.wait_for_url(f"{base}/runs/*")
+    page.click("text=Start training")
+    page.wait_for_url(re.compile(rf"{base}/runs/\d+$"))
     run_id = int(page.url.rstrip("/").rsplit("/", 1)[1])
     with httpx.Client(base_url=base, headers=ADMIN, timeout=60) as api:
         run = wait_for(
