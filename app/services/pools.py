@@ -9,6 +9,7 @@ Human Preference Tree.
 
 from __future__ import annotations
 
+from collections import Counter
 from collections.abc import Sequence
 from typing import Any
 
@@ -20,7 +21,7 @@ from app.services.participants import get_participant, list_participants
 from app.services.trees import participant_tree
 from engine.errors import InputError
 from engine.pooling import check_pool, pooled_tree
-from engine.treefile import TreeDocument, tree_from_json, tree_to_json
+from engine.treefile import TreeDocument, tree_to_json
 
 Pool = list[dict[str, Any]]
 """``runs.advice_pool``: ``[{"participant_id": int, "tree": acv.tree/1}, ...]``."""
@@ -45,7 +46,7 @@ def pool_ids(
         return _finished_ids(session, study_id=study_id)
     if participant_ids is None:
         return None
-    twice = sorted({i for i in participant_ids if list(participant_ids).count(i) > 1})
+    twice = sorted(i for i, n in Counter(participant_ids).items() if n > 1)
     if twice:
         raise InputError(f"participant_ids names participant {twice[0]} more than once")
     if len(participant_ids) < 2:
@@ -92,11 +93,6 @@ def pool_of(session: Session, *, study_id: int, ids: Sequence[int]) -> tuple[Poo
 def members(run: Run) -> list[int] | None:
     """The participant ids of a pooled run, increasing; None for any other run."""
     return [int(m["participant_id"]) for m in run.advice_pool] if run.advice_pool else None
-
-
-def pool_trees(pool: Pool) -> list[TreeDocument]:
-    """The trees of a stored pool, in its order."""
-    return [tree_from_json(m["tree"]) for m in pool]
 
 
 def pool_label(ids: Sequence[int]) -> str:
