@@ -277,7 +277,10 @@ class Run(Base):
     """A training run of a study, and its place in the job queue (see :mod:`app.jobs`).
 
     ``advice`` is the ``acv.tree/1`` document the run trains with (a finished participant's
-    tree or a simulated teacher's, frozen when the run is created) or NULL; ``config`` is the
+    tree or a simulated teacher's, frozen when the run is created) or NULL. A run on pooled
+    advice lists its participants' trees in ``advice_pool`` (``{"participant_id", "tree"}``,
+    by participant id), has no ``participant_id`` nor ``teacher``, and its ``advice`` is the
+    pooled verdict (:func:`engine.pooling.pooled_tree`). ``config`` is the
     whole :class:`engine.rl.config.TrainConfig`. ``worker`` names the worker that claimed the
     run (``host:pid:nonce``) and ``heartbeat_at`` when it last showed signs of life.
     """
@@ -301,6 +304,7 @@ class Run(Base):
     n_envs: Mapped[int] = mapped_column(Integer)
     config: Mapped[dict] = mapped_column(JSON)
     advice: Mapped[dict | None] = mapped_column(JSON, default=None)
+    advice_pool: Mapped[list | None] = mapped_column(JSON, default=None)
     status: Mapped[str] = mapped_column(String(16), default="queued", index=True)
     resume: Mapped[bool] = mapped_column(Boolean, default=False)
     cancel_requested: Mapped[bool] = mapped_column(Boolean, default=False)

@@ -4,13 +4,24 @@ from __future__ import annotations
 
 from fastapi import APIRouter
 
-from app.api import crowd, errors, health, matches, participants, runs, studies, surveys
+from app.api import (
+    crowd,
+    errors,
+    health,
+    matches,
+    participants,
+    run_advisors,
+    runs,
+    studies,
+    surveys,
+)
 
 api_router = APIRouter(prefix="/api", responses=errors.RESPONSES)
 api_router.include_router(studies.router)
 api_router.include_router(participants.router)
 api_router.include_router(matches.router)
 api_router.include_router(runs.router)
+api_router.include_router(run_advisors.router)
 api_router.include_router(surveys.router)
 api_router.include_router(crowd.router)
 

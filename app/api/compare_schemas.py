@@ -109,6 +109,39 @@ class HighlightsOut(BaseModel):
     agent: list[int]
 
 
+class AdvisorOut(BaseModel):
+    """Pooled advice: one pooled participant's tree judged by the agent's tree."""
+
+    participant_id: int
+    conformance: ConformanceOut
+
+
+class AdvisorsOut(BaseModel):
+    """Pooled advice at one checkpoint and judge: the agent against each participant's tree,
+    and against the pooled verdict (the run's advice tree)."""
+
+    checkpoint: int
+    judge: str
+    advisors: list[AdvisorOut]
+    pooled: ConformanceOut
+
+    @classmethod
+    def of(cls, view: CheckpointView, judge: str) -> AdvisorsOut:
+        return cls(
+            checkpoint=view.step,
+            judge=judge,
+            advisors=_advisors(view, judge),
+            pooled=ConformanceOut.of(view.of(judge)),
+        )
+
+
+def _advisors(view: CheckpointView, judge: str) -> list[AdvisorOut]:
+    return [
+        AdvisorOut(participant_id=pid, conformance=ConformanceOut.of(m))
+        for pid, m in view.advisors_of(judge)
+    ]
+
+
 class CheckpointReportOut(BaseModel):
     """What the compare page shows of one checkpoint and judge, ready to render."""
 
@@ -119,6 +152,9 @@ class CheckpointReportOut(BaseModel):
     highlights: HighlightsOut
     judges: list[JudgeOut]
     candidates: list[CandidateRowOut]
+    advisors: list[AdvisorOut] | None = Field(
+        None, description="Pooled advice: the agent against each pooled participant's tree."
+    )
 
     @classmethod
     def of(cls, view: CheckpointView, judge: str, whose: str) -> CheckpointReportOut:
@@ -144,6 +180,7 @@ class CheckpointReportOut(BaseModel):
                 CandidateRowOut(**asdict(row), score=_score(asdict(row), judge))
                 for row in view.candidates
             ],
+            advisors=_advisors(view, judge) if view.advisors else None,
         )
 
 

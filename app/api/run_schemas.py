@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, StrictBool
 
 from app.api.schemas import JsonInt, ProgressOut, UtcDatetime
 from app.models import RUN_STATUSES, Run
+from app.services.pools import members
 from app.services.runs import MAX_TIMESTEPS, RUN_TEACHERS, advice_label
 from engine.rl.config import ADVICE_MODES, ALGOS, TrainConfig
 
@@ -16,16 +17,29 @@ Algo = Literal[ALGOS]  # type: ignore[valid-type]
 Teacher = Literal[RUN_TEACHERS]  # type: ignore[valid-type]
 AdviceMode = Literal[ADVICE_MODES]  # type: ignore[valid-type]
 Judge = Literal["shaped", "shaping", "value", "behaviour"]
+DbInt = Annotated[JsonInt, Field(ge=1, le=2**31 - 1)]
+#: Participants one pooled run may name.
+MAX_POOL = 1000
 
 
 class RunCreate(BaseModel):
     """A new training run. Advice: ``participant_id`` (a finished participant of the study),
-    ``teacher`` (a simulated teacher over the study's bracket) or neither (``ppo`` only)."""
+    ``participant_ids`` (two or more of them, pooled: F is the mean of their trees' F),
+    ``all_participants`` (every finished participant, pooled), ``teacher`` (a simulated
+    teacher over the study's bracket) or none (``ppo`` only)."""
 
     model_config = ConfigDict(extra="forbid")
 
     study_id: JsonInt = Field(ge=1, le=2**31 - 1)
     participant_id: JsonInt | None = Field(None, ge=1, le=2**31 - 1)
+    participant_ids: list[DbInt] | None = Field(
+        None,
+        max_length=MAX_POOL,
+        description="Pooled advice: two or more distinct finished participants of the study.",
+    )
+    all_participants: StrictBool = Field(
+        False, description="Pooled advice: every finished participant of the study."
+    )
     teacher: Teacher | None = None
     algo: Algo = "bipars-em"
     timesteps: JsonInt = Field(ge=1, le=MAX_TIMESTEPS, description="Env steps over all envs.")
@@ -60,6 +74,9 @@ class RunOut(BaseModel):
     id: int
     study_id: int
     participant_id: int | None
+    participant_ids: list[int] | None = Field(
+        description="The pooled participants of a run on pooled advice (else null)."
+    )
     teacher: str | None
     advice: str
     algo: str
@@ -84,6 +101,7 @@ class RunOut(BaseModel):
             id=run.id,
             study_id=run.study_id,
             participant_id=run.participant_id,
+            participant_ids=members(run),
             teacher=run.teacher,
             advice=advice_label(run),
             algo=run.algo,

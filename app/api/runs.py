@@ -130,7 +130,7 @@ def advice_tree(run_id: DbId, session: SessionDep, _: ResearcherDep) -> TreeJson
     return tree_to_json(runs.advice_of(runs.get_run(session, run_id=run_id)))
 
 
-def _view(
+def load_view(
     session: SessionDep, run_id: int, root: Path, checkpoint: int | None
 ) -> tuple[Run, comparison.CheckpointView]:
     """The run and the stored artefact of its checkpoint (PendingError: 202)."""
@@ -151,7 +151,7 @@ def agent_tree(
 ) -> TreeJson:
     """The Agent Preference Tree at a checkpoint: the advice bracket replayed with the agent
     as the judge (``acv.tree/1``); 202 while the checkpoint is being judged."""
-    view = _view(session, run_id, root, checkpoint)[1]
+    view = load_view(session, run_id, root, checkpoint)[1]
     return tree_to_json(view.tree(judge))
 
 
@@ -165,7 +165,7 @@ def conformance(
     judge: JudgeQuery = "shaped",
 ) -> ConformanceOut:
     """The conformance metrics at a checkpoint, exactly as ``acv compare --json`` prints."""
-    view = _view(session, run_id, root, checkpoint)[1]
+    view = load_view(session, run_id, root, checkpoint)[1]
     return ConformanceOut.of(view.of(judge))
 
 
@@ -180,7 +180,7 @@ def checkpoint_report(
 ) -> CheckpointReportOut:
     """What the compare page shows of a checkpoint: the verdict, the states to highlight,
     every judge's agreement side by side, and the per-candidate table."""
-    run, view = _view(session, run_id, root, checkpoint)
+    run, view = load_view(session, run_id, root, checkpoint)
     return CheckpointReportOut.of(view, judge, run_report.whose(run))
 
 
@@ -220,7 +220,7 @@ def conformance_csv(
     if checkpoint is None:
         rows = comparison.conformance_curve(session, run_id=run_id, out=out, judge=judge)
     else:
-        view = _view(session, run_id, root, checkpoint)[1]
+        view = load_view(session, run_id, root, checkpoint)[1]
         rows = [(view.step, view.of(judge))]
     which = "curve" if checkpoint is None else f"step{rows[0][0]}"
     return _attachment(
@@ -249,7 +249,7 @@ def tree_image(
     """A tree as SVG or PNG with thumbnails; the rejected advice is drawn in red."""
     run = runs.get_run(session, run_id=run_id)
     thumbs = run_report.thumb_paths(session, data_dir=settings.data_dir, study_id=run.study_id)
-    run, view = _view(session, run_id, root, checkpoint)
+    run, view = load_view(session, run_id, root, checkpoint)
     human, agent = runs.advice_of(run), view.tree(judge)
     marked = comparison.highlights(view.of(judge))
     doc, title = (

@@ -1,12 +1,12 @@
 """One training run from start to end, wherever it executes (a local process, a Ray task).
 
-The run's row says what to train (config, advice tree, resume flag); :func:`execute_run`
-calls :func:`engine.rl.runner.train` in the run directory, stores every metrics row as the
-run's progress, judges every checkpoint once and stores the result as the checkpoint's artefact
-(:mod:`app.services.artefacts`; the web tier only reads it), polls for a cancel (or for the
-run being taken away, e.g. marked ``interrupted`` after a restart) after every update, and
-sets the final state. A stop always writes a checkpoint first (``train`` does), so an
-interrupted or cancelled run can resume.
+The run's row says what to train (config, advice tree or pool of trees, resume flag);
+:func:`execute_run` calls :func:`engine.rl.runner.train` in the run directory, stores every
+metrics row as the run's progress, judges every checkpoint once and stores the result as the
+checkpoint's artefact (:mod:`app.services.artefacts`; the web tier only reads it), polls for a
+cancel (or for the run being taken away, e.g. marked ``interrupted`` after a restart) after
+every update, and sets the final state. A stop always writes a checkpoint first (``train``
+does), so an interrupted or cancelled run can resume.
 """
 
 from __future__ import annotations
@@ -123,14 +123,14 @@ class _Job:
 
     def judge_checkpoint(self, row: Run, out: Path) -> Callable[[int, Path], None] | None:
         """The ``on_checkpoint`` hook: store the checkpoint's artefact (runs with advice)."""
-        advice = row.advice
+        advice, pool = row.advice, row.advice_pool
         if advice is None:
             return None
 
         def judge(step: int, _: Path) -> None:
             try:
                 artefacts.record(
-                    self.sessions, run_id=self.run_id, advice=advice, out=out, step=step
+                    self.sessions, run_id=self.run_id, advice=advice, out=out, step=step, pool=pool
                 )
             except Exception:  # a judge failing must not fail the training; backfill retries
                 log.error(
@@ -162,7 +162,9 @@ def _train(
     from engine.rl.runner import train
     from engine.treefile import tree_from_json
 
-    advice = tree_from_json(row.advice) if row.advice is not None else None
+    advice: Any = tree_from_json(row.advice) if row.advice is not None else None
+    if row.advice_pool:  # pooled: F is the mean of the trees' F (advice.json: the verdict)
+        advice = [tree_from_json(m["tree"]) for m in row.advice_pool]
     train(
         TrainConfig.from_json(row.config),
         advice,

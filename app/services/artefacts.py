@@ -38,6 +38,8 @@ _CHECKPOINT = re.compile(r"^step_(\d+)\.pt$")
 ENDED = (RunStatus.SUCCEEDED, RunStatus.FAILED, RunStatus.CANCELLED, RunStatus.INTERRUPTED)
 #: The key of an artefact that records why its checkpoint could not be judged.
 FAILURE = "error"
+#: The key of a pooled run's per-participant conformance (absent for other runs).
+ADVISORS = "advisors"
 
 
 def checkpoint_steps(out: Path) -> list[int]:
@@ -88,12 +90,31 @@ def computed_steps(session: Session, *, run_id: int) -> set[int]:
     )
 
 
-def compute(out: Path, step: int, advice: TreeDocument) -> dict[str, Any]:
+def compute(
+    out: Path, step: int, advice: TreeDocument, pool: list[dict[str, Any]] | None = None
+) -> dict[str, Any]:
     """The report of checkpoint ``step`` as JSON; loads torch and builds the env (executor
-    processes only)."""
-    from engine.rl.report import checkpoint_report
+    processes only).
 
-    return checkpoint_report(out, step, advice=advice).to_json()
+    For pooled advice (``pool``: ``runs.advice_pool``) the body also holds, under
+    :data:`ADVISORS`, each pooled participant's tree judged by every judge's agent tree:
+    ``[{"participant_id", "judges": {judge: conformance JSON}}]`` (``advice`` is then the
+    pooled verdict, which the body's own conformance is to).
+    """
+    from engine.rl.report import checkpoint_report, members_conformance
+
+    report = checkpoint_report(out, step, advice=advice)
+    body = report.to_json()
+    if pool:
+        per_member = members_conformance(report, [tree_from_json(m["tree"]) for m in pool])
+        body[ADVISORS] = [
+            {
+                "participant_id": m["participant_id"],
+                "judges": {j: c.to_json() for j, c in by.items()},
+            }
+            for m, by in zip(pool, per_member, strict=True)
+        ]
+    return body
 
 
 def store(session: Session, *, run_id: int, step: int, body: dict[str, Any]) -> bool:
@@ -110,15 +131,22 @@ def store(session: Session, *, run_id: int, step: int, body: dict[str, Any]) -> 
 
 
 def record(
-    sessions: sessionmaker[Session], *, run_id: int, advice: dict[str, Any], out: Path, step: int
+    sessions: sessionmaker[Session],
+    *,
+    run_id: int,
+    advice: dict[str, Any],
+    out: Path,
+    step: int,
+    pool: list[dict[str, Any]] | None = None,
 ) -> bool:
     """Compute and store the report of one checkpoint, unless stored already; a checkpoint
-    that cannot be judged (:class:`InputError`, e.g. a corrupt file) stores the reason."""
+    that cannot be judged (:class:`InputError`, e.g. a corrupt file) stores the reason.
+    ``pool`` is the run's ``advice_pool`` (pooled advice only; see :func:`compute`)."""
     with sessions() as session:
         if session.get(CheckpointArtefact, (run_id, step)) is not None:
             return False
     try:
-        body = compute(out, step, tree_from_json(advice))
+        body = compute(out, step, tree_from_json(advice), pool)
     except InputError as exc:
         log.warning("run %d, checkpoint %d cannot be judged: %s", run_id, step, exc)
         body = {FAILURE: str(exc)}
@@ -144,7 +172,7 @@ def backfill(sessions: sessionmaker[Session], *, runs_root: Path, limit: int | N
     with sessions() as session:
         todo = missing(session, runs_root=runs_root)[:limit]
         advice = {
-            r.id: r.advice
+            r.id: (r.advice, r.advice_pool)
             for r in session.scalars(select(Run).where(Run.id.in_({run_id for run_id, _ in todo})))
             if r.advice
         }
@@ -152,7 +180,13 @@ def backfill(sessions: sessionmaker[Session], *, runs_root: Path, limit: int | N
     for run_id, step in todo:
         if run_id not in advice:  # a JSON null, which `IS NOT NULL` lets through: no advice
             continue
+        tree, pool = advice[run_id]
         done += record(
-            sessions, run_id=run_id, advice=advice[run_id], out=runs_root / str(run_id), step=step
+            sessions,
+            run_id=run_id,
+            advice=tree,
+            out=runs_root / str(run_id),
+            step=step,
+            pool=pool,
         )
     return done

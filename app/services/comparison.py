@@ -12,7 +12,7 @@ from __future__ import annotations
 import csv
 import io
 import json
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -67,6 +67,8 @@ class CheckpointView:
     trees: dict[str, TreeDocument]
     conformance: dict[str, Conformance]
     candidates: list[Candidate]
+    #: pooled advice: participant id -> judge -> that participant's tree judged by the agent
+    advisors: dict[int, dict[str, Conformance]] = field(default_factory=dict)
 
     def tree(self, judge: str) -> TreeDocument:
         """The judge's Agent Preference Tree.
@@ -85,6 +87,12 @@ class CheckpointView:
         """The judge's conformance to the advice tree."""
         self.tree(judge)
         return self.conformance[judge]
+
+    def advisors_of(self, judge: str) -> list[tuple[int, Conformance]]:
+        """Pooled advice: (participant id, the judge's conformance to their tree), by id;
+        empty for other runs."""
+        self.tree(judge)
+        return [(pid, by[judge]) for pid, by in sorted(self.advisors.items())]
 
 
 def checkpoints(out: Path) -> list[int]:
@@ -118,6 +126,10 @@ def view_of(step: int, body: dict[str, Any]) -> CheckpointView:
         trees={j: tree_from_json(v["tree"]) for j, v in judges.items()},
         conformance={j: Conformance.from_json(v["conformance"]) for j, v in judges.items()},
         candidates=[Candidate(**row) for row in body.get("candidates") or []],
+        advisors={
+            int(a["participant_id"]): {j: Conformance.from_json(c) for j, c in a["judges"].items()}
+            for a in body.get(artefacts.ADVISORS) or []
+        },
     )
 
 

@@ -33,13 +33,15 @@ _templates = Environment(
 
 
 def who(run: Run) -> str:
-    """Who gave the advice, as the comparison speaks of them: ``you`` (the participant) or
-    ``the standing teacher``."""
+    """Who gave the advice, as the comparison speaks of them: ``you`` (the participant),
+    ``the pool`` (pooled participants: their pooled verdict) or ``the standing teacher``."""
+    if run.advice_pool:
+        return "the pool"
     return "you" if run.participant_id is not None else f"the {run.teacher} teacher"
 
 
 def whose(run: Run) -> str:
-    """The possessive of :func:`who`: ``your`` or ``the standing teacher's``."""
+    """The possessive of :func:`who`: ``your``, ``the pool's`` or ``the standing teacher's``."""
     return "your" if run.participant_id is not None else f"{who(run)}'s"
 
 

@@ -1,8 +1,9 @@
 """Training runs: creation (with their advice), look-ups, cancel and resume.
 
 A run belongs to a study. Its advice is frozen when it is created: a finished participant's
-Human Preference Tree, a simulated teacher's tree over the same bracket (the study's
-candidates and first round), or none (``ppo`` only). A ``ppo`` run may still name advice: it
+Human Preference Tree, several finished participants' trees pooled (:mod:`app.services.pools`),
+a simulated teacher's tree over the same bracket (the study's candidates and first round), or
+none (``ppo`` only). A ``ppo`` run may still name advice: it
 trains without it, and its Agent Preference Tree is compared with that tree (the baseline of
 a ``bipars-em`` run on the same advice). Workers (:mod:`app.jobs`) execute queued runs.
 """
@@ -20,6 +21,7 @@ from app.db import writing
 from app.jobs.execute import run_dir
 from app.jobs.queue import update_if
 from app.models import Run, RunStatus, utcnow
+from app.services import pools
 from app.services.errors import ConflictError, NotFoundError
 from app.services.participants import get_participant
 from app.services.studies import engine_candidates_of, first_round, get_ready_study
@@ -46,6 +48,8 @@ def create_run(
     *,
     study_id: int,
     participant_id: int | None = None,
+    participant_ids: list[int] | None = None,
+    all_participants: bool = False,
     teacher: str | None = None,
     algo: str = "bipars-em",
     timesteps: int,
@@ -56,29 +60,39 @@ def create_run(
     """Validate and queue a new run.
 
     Args:
+        participant_ids: pooled advice: two or more finished participants of the study.
+        all_participants: pooled advice: every finished participant of the study.
         options: further :class:`TrainConfig` fields (``num_steps``, ``checkpoint_every``,
             ...); None values are left at their defaults.
 
     Raises:
-        InputError: bad parameters, both advice sources, or an advised algo without advice.
+        InputError: bad parameters, two advice sources, or an advised algo without advice.
         NotFoundError: no such study or participant (or not in this study).
-        ConflictError: the study is not ready, or the participant has not finished.
+        ConflictError: the study is not ready, or a participant has not finished.
     """
     study = get_ready_study(session, study_id=study_id)
-    if participant_id is not None and teacher is not None:
-        raise InputError("give participant_id or teacher, not both")
     if not 0 < timesteps <= MAX_TIMESTEPS:
         raise InputError(f"timesteps must be in 1..{MAX_TIMESTEPS}, got {timesteps}")
     config = train_config(
         env_id=study.env_id, algo=algo, timesteps=timesteps, seed=seed, n_envs=n_envs, **options
     )
-    advice = advice_tree(session, study_id=study_id, participant_id=participant_id, teacher=teacher)
+    pool, advice = _advice_source(
+        session,
+        study_id=study_id,
+        participant_id=participant_id,
+        participant_ids=participant_ids,
+        all_participants=all_participants,
+        teacher=teacher,
+    )
     if advice is None and config.uses_advice:
-        raise InputError(f"algo {algo} trains with advice: give participant_id or teacher")
+        raise InputError(
+            f"algo {algo} trains with advice: give participant_id, participant_ids or teacher"
+        )
     run = Run(
         study_id=study.id,
         participant_id=participant_id,
         teacher=teacher,
+        advice_pool=pool,
         algo=algo,
         timesteps=timesteps,
         seed=seed,
@@ -118,6 +132,39 @@ def train_config(
         1, base.num_updates // DEFAULT_CHECKPOINTS
     )
     return TrainConfig(**{**base.to_json(), "checkpoint_every": every})
+
+
+def _advice_source(
+    session: Session,
+    *,
+    study_id: int,
+    participant_id: int | None,
+    participant_ids: list[int] | None,
+    all_participants: bool,
+    teacher: str | None,
+) -> tuple[pools.Pool | None, TreeDocument | None]:
+    """The run's pool (pooled advice only) and its advice tree (the pooled verdict for a pool).
+
+    Raises:
+        InputError: more than one advice source, or a bad pool.
+    """
+    pooled = participant_ids is not None or all_participants
+    if sum((participant_id is not None, teacher is not None, pooled)) > 1:
+        raise InputError(
+            "give one advice source: participant_id, participant_ids (or all_participants) "
+            "or teacher, not both"
+        )
+    ids = pools.pool_ids(
+        session,
+        study_id=study_id,
+        participant_ids=participant_ids,
+        all_participants=all_participants,
+    )
+    if ids is not None:
+        return pools.pool_of(session, study_id=study_id, ids=ids)
+    return None, advice_tree(
+        session, study_id=study_id, participant_id=participant_id, teacher=teacher
+    )
 
 
 def advice_tree(
@@ -188,9 +235,11 @@ def same_advice_runs(session: Session, *, run: Run) -> list[Run]:
         if run.teacher is not None
         else Run.participant_id.is_(None) & Run.teacher.is_(None)
     )
-    return list(
-        session.scalars(select(Run).where(Run.study_id == run.study_id, source).order_by(Run.id))
+    found = session.scalars(
+        select(Run).where(Run.study_id == run.study_id, source).order_by(Run.id)
     )
+    # a pool is compared in Python: JSON has no equality in PostgreSQL
+    return [r for r in found if pools.members(r) == pools.members(run)]
 
 
 def advice_of(run: Run) -> TreeDocument:
@@ -202,13 +251,16 @@ def advice_of(run: Run) -> TreeDocument:
     if run.advice is None:
         raise ConflictError(
             f"run {run.id} has no advice tree to compare with (it was "
-            "created without participant_id or teacher)"
+            "created without participant_id, participant_ids or teacher)"
         )
     return tree_from_json(run.advice)
 
 
 def advice_label(run: Run) -> str:
-    """Who gave the advice, for people: ``participant #3``, ``teacher standing``, ``none``."""
+    """Who gave the advice, for people: ``participant #3``, ``3 participants pooled (#1, #2,
+    #4)``, ``teacher standing``, ``none``."""
+    if (ids := pools.members(run)) is not None:
+        return pools.pool_label(ids)
     if run.participant_id is not None:
         return f"participant #{run.participant_id}"
     return f"teacher {run.teacher}" if run.teacher is not None else "none"

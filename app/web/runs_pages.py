@@ -8,6 +8,7 @@ with the CSRF token.
 
 from __future__ import annotations
 
+import re
 from typing import Annotated, Any
 
 from fastapi import APIRouter, Query, Request, Response
@@ -42,6 +43,9 @@ FORM_DEFAULTS = {
     "advice_mode": "",
 }
 _OPTIONAL = ("num_steps", "checkpoint_every", "advice_mode")
+#: Advice choices of pooled advice, and the checkboxes that choose the pool (``pool_<id>``).
+POOL_ALL, POOL_CHOSEN, POOL_FIELD = "pool:all", "pool:chosen", "pool_"
+_POOL_BOX = re.compile(r"pool_\d{1,10}")
 _DB_ID = TypeAdapter(DbId)
 JUDGE_LABELS = (
     ("shaped", "its shaped reward R + z F"),
@@ -70,17 +74,30 @@ def run_list(
     )
 
 
-def _advice_choices(session: Session, study_id: int) -> list[tuple[str, str]]:
-    finished = [
-        s.participant
-        for s in participants.list_participants(session, study_id=study_id)
-        if s.progress.finished
+def _finished(session: Session, study_id: int) -> list[tuple[int, str]]:
+    """(id, label) of the study's finished participants."""
+    return [
+        (p.id, f"participant #{p.id}" + (f" ({p.name})" if p.name else ""))
+        for p in (
+            s.participant
+            for s in participants.list_participants(session, study_id=study_id)
+            if s.progress.finished
+        )
     ]
-    return (
+
+
+def _advice_choices(finished: list[tuple[int, str]]) -> list[tuple[str, str]]:
+    pooled = (
         [
-            (f"participant:{p.id}", f"participant #{p.id}" + (f" ({p.name})" if p.name else ""))
-            for p in finished
+            (POOL_ALL, f"all {len(finished)} finished participants, pooled"),
+            (POOL_CHOSEN, "the participants ticked below, pooled"),
         ]
+        if len(finished) > 1
+        else []
+    )
+    return (
+        [(f"participant:{pid}", label) for pid, label in finished]
+        + pooled
         + [(f"teacher:{t}", f"simulated teacher: {t}") for t in runs.RUN_TEACHERS]
         + [("none", "none (ppo only)")]
     )
@@ -93,8 +110,10 @@ def _form_page(
     values: dict[str, str],
     errors: dict[str, str],
     status_code: int = 200,
+    chosen: list[str] | None = None,
 ) -> HTMLResponse:
     study = studies.get_ready_study(session, study_id=study_id)
+    finished = _finished(session, study_id)
     return render(
         request,
         "run_new.html",
@@ -104,7 +123,9 @@ def _form_page(
             "errors": errors,
             "algos": ALGOS,
             "advice_modes": ADVICE_MODES,
-            "advice_choices": _advice_choices(session, study_id),
+            "advice_choices": _advice_choices(finished),
+            "poolable": finished if len(finished) > 1 else [],
+            "chosen": chosen or [],
         },
         status_code=status_code,
     )
@@ -130,11 +151,20 @@ def new_run_form(
     return _form_page(request, session, study_id, dict(FORM_DEFAULTS), {})
 
 
-def _body(study_id: int, values: dict[str, str]) -> dict[str, Any]:
+def _chosen(fields: dict[str, str]) -> list[str]:
+    """The participant ids ticked to pool (checkboxes ``pool_<id>``)."""
+    return [k.removeprefix(POOL_FIELD) for k in fields if _POOL_BOX.fullmatch(k)]
+
+
+def _body(study_id: int, values: dict[str, str], chosen: list[str]) -> dict[str, Any]:
     """The ``POST /api/runs`` body a submitted form stands for."""
     kind, _, who = values["advice"].partition(":")
     body: dict[str, Any] = {"study_id": study_id, "algo": values["algo"]}
-    if kind == "participant":
+    if values["advice"] == POOL_ALL:
+        body["all_participants"] = True
+    elif values["advice"] == POOL_CHOSEN:
+        body["participant_ids"] = chosen
+    elif kind == "participant":
         body["participant_id"] = who
     elif kind == "teacher":
         body["teacher"] = who
@@ -148,6 +178,7 @@ def _body(study_id: int, values: dict[str, str]) -> dict[str, Any]:
 def create_run(request: Request, session: SessionDep, fields: FormFields) -> Response:
     """Validate like ``POST /api/runs``; errors are shown next to the form's fields."""
     values = {k: fields.get(k, "") for k in FORM_DEFAULTS}
+    chosen = _chosen(fields)
     try:  # bounded here: the error page looks the study up, and SQLite overflows past int64
         study_id = _DB_ID.validate_python(fields.get("study_id", ""))
     except ValidationError:
@@ -155,13 +186,15 @@ def create_run(request: Request, session: SessionDep, fields: FormFields) -> Res
     try:
         run = runs.create_run(
             session,
-            **RunCreate.model_validate(_body(study_id, values), context=FORM_INPUT).model_dump(),
+            **RunCreate.model_validate(
+                _body(study_id, values, chosen), context=FORM_INPUT
+            ).model_dump(),
         )
     except ValidationError as exc:
         errors = {str(e["loc"][0]) if e["loc"] else "form": e["msg"] for e in exc.errors()}
-        return _form_page(request, session, study_id, values, errors, status_code=422)
+        return _form_page(request, session, study_id, values, errors, 422, chosen)
     except InputError as exc:
-        return _form_page(request, session, study_id, values, {"form": str(exc)}, status_code=422)
+        return _form_page(request, session, study_id, values, {"form": str(exc)}, 422, chosen)
     return redirect(f"/runs/{run.id}")
 
 

@@ -9,6 +9,7 @@ tier, which then only reads.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -137,6 +138,23 @@ def checkpoint_report(
         raise InputError(f"{run_dir} was trained without advice: pass the tree to compare with")
     trained = load_agent(find_checkpoint(run_dir, step))
     return trained_report(trained, doc, own, run_dir=run_dir, rollouts=rollouts)
+
+
+def members_conformance(
+    report: CheckpointReport, members: Sequence[TreeDocument]
+) -> list[dict[str, Conformance]]:
+    """Pooled advice: each member's tree judged by every judge's Agent Preference Tree.
+
+    The agent's trees replay the pooled verdict's bracket, which every member's tree shares,
+    so each member's conformance is the same :func:`compare` as the report's own (the pooled
+    verdict's): one ``{judge: Conformance}`` per member, in order.
+
+    Raises:
+        InputError: a member's tree over another bracket.
+    """
+    return [
+        {name: compare(member, r.tree) for name, r in report.judges.items()} for member in members
+    ]
 
 
 def trained_report(

@@ -99,6 +99,28 @@
     }));
   }
 
+  // Pooled advice: one row per participant's tree, then the pooled verdict's.
+  function showAdvisors(body, report) {
+    if (!body || !report.advisors) return;
+    const kept = (m) => m.contested.n === 0 ? "none contested" :
+      `${m.contested.kept} / ${m.contested.n}`;
+    const row = (label, m, pid) => {
+      const tr = document.createElement("tr");
+      if (pid !== null) tr.dataset.participant = pid; else tr.dataset.pooled = "1";
+      const th = document.createElement("th");
+      th.scope = "row";
+      th.textContent = label;
+      tr.appendChild(th);
+      cell(tr, kept(m));
+      cell(tr, `${m.n_agree} / ${m.n_matches}`);
+      return tr;
+    };
+    body.replaceChildren(
+      ...report.advisors.map((a) => row(`participant #${a.participant_id}`, a.conformance,
+        a.participant_id)),
+      row("pooled verdict", report.conformance, null));
+  }
+
   const COLUMNS = ["id", "reward", "advice", "z", "shaping", "score", "value", "behaviour"];
   function showCandidates(table, report, urls, open) {
     const key = table.dataset.sortKey || "id";
@@ -198,6 +220,7 @@
           Object.assign({}, opts, { highlight: marks.agent, onSelect: pick("agent tree") }));
         verdictBox.textContent = report.verdict;
         showJudges(document.getElementById("judges-body"), report);
+        showAdvisors(document.getElementById("advisors-body"), report);
         candidates = report;
         showCandidates(document.getElementById("candidates"), report, urls, open);
         verdictBox.classList.toggle("all-kept", m.rejected.length === 0);

@@ -1,0 +1,34 @@
+"""``/api/runs/{id}/advisors``: a run on pooled advice, the agent against each participant.
+
+Read from the checkpoint's artefact, which the run's executor stores (202 until then), like
+the other comparison endpoints of :mod:`app.api.runs`.
+"""
+
+from __future__ import annotations
+
+from fastapi import APIRouter
+
+from app.api.compare_schemas import AdvisorsOut
+from app.api.deps import DbId, ResearcherDep, SessionDep
+from app.api.runs import PENDING, JudgeQuery, RunsRootDep, Step, load_view
+from app.services.errors import ConflictError
+from app.services.pools import members
+
+router = APIRouter(prefix="/runs", tags=["runs"])
+
+
+@router.get("/{run_id}/advisors", responses=PENDING)
+def advisors(
+    run_id: DbId,
+    session: SessionDep,
+    root: RunsRootDep,
+    _: ResearcherDep,
+    checkpoint: Step = None,
+    judge: JudgeQuery = "shaped",
+) -> AdvisorsOut:
+    """The agent's tree at a checkpoint against each pooled participant's tree, and against
+    the pooled verdict; 409 for a run not on pooled advice."""
+    run, view = load_view(session, run_id, root, checkpoint)
+    if members(run) is None:
+        raise ConflictError(f"run {run_id} is not trained on pooled advice")
+    return AdvisorsOut.of(view, judge)
