@@ -4,7 +4,17 @@ from __future__ import annotations
 
 from fastapi import APIRouter
 
-from app.api import crowd, errors, health, matches, participants, runs, studies, surveys
+from app.api import (
+    crowd,
+    errors,
+    health,
+    matches,
+    participants,
+    runs,
+    studies,
+    survey_crowd,
+    surveys,
+)
 
 api_router = APIRouter(prefix="/api", responses=errors.RESPONSES)
 api_router.include_router(studies.router)
@@ -13,5 +23,6 @@ api_router.include_router(matches.router)
 api_router.include_router(runs.router)
 api_router.include_router(surveys.router)
 api_router.include_router(crowd.router)
+api_router.include_router(survey_crowd.router)
 
 __all__ = ["api_router", "health"]
