@@ -15,7 +15,7 @@ import re
 import secrets
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, TypeVar
+from typing import TypeVar
 from urllib.parse import urlsplit
 
 from sqlalchemy import ColumnElement, select, update
@@ -73,9 +73,11 @@ def check_options(options: LinkOptions) -> None:
     )
 
 
-def save(session: Session, row: Link | None, make: Callable[[], Link], options: Any) -> Link:
-    """Store ``options`` (a :class:`LinkOptions` or a subclass) on the link ``row``, or on a
-    new one from ``make`` with a fresh slug (kept afterwards).
+def save(
+    session: Session, row: Link | None, make: Callable[[], Link], options: LinkOptions
+) -> Link:
+    """Store ``options`` (those of a subclass too) on the link ``row``, or on a new one from
+    ``make`` with a fresh slug (kept afterwards).
 
     Raises:
         InputError: a maximum below the people who already joined.
