@@ -222,27 +222,14 @@ class Label(Base):
     chose_left: Mapped[bool | None] = mapped_column(Boolean, default=None)
 
 
-class CrowdSettings(Base):
-    """A study's open link ``/s/<slug>`` and its crowd options (app.services.crowd).
+class OpenLink:
+    """The columns of an open link (``/s/<slug>`` of a study, ``/q/<slug>`` of a survey).
 
-    ``joined`` counts participants created through the link; the database refuses more than
-    ``max_participants`` (a CHECK), and the join increments it atomically. ``declines``
-    counts declined consents (nothing else of a decline is stored).
+    ``joined`` counts people created through the link; the database refuses more than
+    ``max_participants`` (a CHECK on each table), and a join increments it atomically.
+    ``declines`` counts declined consents (nothing else of a decline is stored).
     """
 
-    __tablename__ = "crowd_settings"
-    __table_args__ = (
-        CheckConstraint(
-            "max_participants >= 1 AND joined >= 0 AND joined <= "
-            "max_participants AND declines >= 0",
-            name="counts",
-        ),
-        CheckConstraint("speed_threshold_ms >= 0", name="speed"),
-    )
-
-    study_id: Mapped[int] = mapped_column(
-        ForeignKey("studies.id", ondelete="CASCADE"), primary_key=True
-    )
     slug: Mapped[str] = mapped_column(String(64), unique=True)
     enabled: Mapped[bool] = mapped_column(Boolean, default=False)
     max_participants: Mapped[int] = mapped_column(Integer)
@@ -252,6 +239,27 @@ class CrowdSettings(Base):
     consent_text: Mapped[str | None] = mapped_column(Text, default=None)
     completion_code: Mapped[str | None] = mapped_column(String(100), default=None)
     redirect_url: Mapped[str | None] = mapped_column(String(500), default=None)
+
+
+def open_link_counts() -> CheckConstraint:
+    return CheckConstraint(
+        "max_participants >= 1 AND joined >= 0 AND joined <= max_participants AND declines >= 0",
+        name="counts",
+    )
+
+
+class CrowdSettings(OpenLink, Base):
+    """A study's open link ``/s/<slug>`` and its crowd options (app.services.crowd)."""
+
+    __tablename__ = "crowd_settings"
+    __table_args__ = (
+        open_link_counts(),
+        CheckConstraint("speed_threshold_ms >= 0", name="speed"),
+    )
+
+    study_id: Mapped[int] = mapped_column(
+        ForeignKey("studies.id", ondelete="CASCADE"), primary_key=True
+    )
     consistency_check: Mapped[bool] = mapped_column(Boolean, default=False)
     speed_threshold_ms: Mapped[int] = mapped_column(Integer, default=800)
 
@@ -400,6 +408,9 @@ class SurveyRespondent(Base):
     """
 
     __tablename__ = "survey_respondents"
+    __table_args__ = (
+        Index("uq_survey_respondents_survey_external_id", "survey_id", "external_id", unique=True),
+    )
 
     id: Mapped[int] = mapped_column(Integer, primary_key=True)
     survey_id: Mapped[int] = mapped_column(ForeignKey("surveys.id", ondelete="CASCADE"), index=True)
@@ -412,11 +423,27 @@ class SurveyRespondent(Base):
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
     started_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), default=None)
     finished_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), default=None)
+    #: Whether they came through the survey's open link (app.services.survey_crowd), and
+    #: their crowd platform's ids (the first external parameter resumes them).
+    via_link: Mapped[bool] = mapped_column(Boolean, default=False)
+    external_id: Mapped[str | None] = mapped_column(String(200), default=None)
+    external_ids: Mapped[dict | None] = mapped_column(JSON, default=None)
 
     @validates("token")
     def _hash_token(self, _key: str, token: str) -> str:
         self.token_hash = token_digest(token)
         return token
+
+
+class SurveyCrowdSettings(OpenLink, Base):
+    """A survey's open link ``/q/<slug>`` (app.services.survey_crowd)."""
+
+    __tablename__ = "survey_crowd_settings"
+    __table_args__ = (open_link_counts(),)
+
+    survey_id: Mapped[int] = mapped_column(
+        ForeignKey("surveys.id", ondelete="CASCADE"), primary_key=True
+    )
 
 
 class SurveyScreen(Base):

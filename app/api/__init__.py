@@ -13,6 +13,7 @@ from app.api import (
     run_advisors,
     runs,
     studies,
+    survey_crowd,
     surveys,
 )
 
@@ -24,5 +25,6 @@ api_router.include_router(runs.router)
 api_router.include_router(run_advisors.router)
 api_router.include_router(surveys.router)
 api_router.include_router(crowd.router)
+api_router.include_router(survey_crowd.router)
 
 __all__ = ["api_router", "health"]

@@ -7,28 +7,36 @@ from typing import Annotated
 from pydantic import BaseModel, ConfigDict, Field, StrictBool
 
 from app.api.schemas import JsonInt
-from app.services.crowd import DEFAULT_EXTERNAL_PARAMS, DEFAULT_SPEED_THRESHOLD_MS, MAX_PARTICIPANTS
+from app.services.crowd import DEFAULT_SPEED_THRESHOLD_MS
+from app.services.open_links import DEFAULT_EXTERNAL_PARAMS, MAX_PARTICIPANTS
 
 ParamName = Annotated[str, Field(pattern=r"^[A-Za-z][A-Za-z0-9_]{0,63}$")]
 
 
-class CrowdIn(BaseModel):
-    """A study's open link and label-quality options."""
+class OpenLinkIn(BaseModel):
+    """An open link's options (a study's ``/s/<slug>``, a survey's ``/q/<slug>``)."""
 
     model_config = ConfigDict(extra="forbid")
 
-    enabled: StrictBool = Field(description="Whether /s/<slug> admits visitors.")
+    enabled: StrictBool = Field(description="Whether the open link admits visitors.")
     max_participants: JsonInt = Field(ge=1, le=MAX_PARTICIPANTS)
     external_params: list[ParamName] = Field(
         list(DEFAULT_EXTERNAL_PARAMS),
         min_length=1,
         max_length=10,
-        description="Query parameters stored on the participant; the first one identifies "
+        description="Query parameters stored on the person; the first one identifies "
         "a returning person.",
     )
     consent_text: str | None = Field(None, min_length=1, max_length=20_000)
     completion_code: str | None = Field(None, min_length=1, max_length=100)
-    redirect_url: str | None = Field(None, min_length=1, max_length=500)
+    redirect_url: str | None = Field(
+        None, min_length=1, max_length=500, description="An http(s) URL to send people to."
+    )
+
+
+class CrowdIn(OpenLinkIn):
+    """A study's open link and label-quality options."""
+
     consistency_check: StrictBool = False
     speed_threshold_ms: JsonInt = Field(DEFAULT_SPEED_THRESHOLD_MS, ge=0, le=600_000)
 
@@ -41,6 +49,20 @@ class CrowdOut(CrowdIn):
     url: str
     joined: int
     declines: int
+
+
+class SurveyCrowdOut(OpenLinkIn):
+    """A survey's open link with its counts: respondents who joined through it, declined
+    consents, and joined respondents who finished."""
+
+    model_config = ConfigDict(from_attributes=True)
+
+    survey_id: int
+    slug: str
+    url: str
+    joined: int
+    declines: int
+    completed: int
 
 
 class SideBiasOut(BaseModel):

@@ -159,6 +159,8 @@ class RespondentOut(BaseModel):
     started: bool
     finished: bool
     stimulus_id: int | None
+    external_id: str | None = None
+    external_ids: dict[str, str] = {}
 
 
 class AnswerBody(BaseModel):

@@ -29,7 +29,7 @@ from app.api.survey_schemas import (
     SurveyOut,
 )
 from app.models import Survey, SurveyRespondent
-from app.services import auth, studies, survey_respond, survey_results, surveys
+from app.services import auth, studies, survey_crowd, survey_respond, survey_results, surveys
 from app.services.errors import AuthError, NotFoundError
 from app.services.images import MEDIA_TYPE, image_file
 from app.services.survey_respond import AnswerIn
@@ -83,6 +83,8 @@ def respondent_out(request: Request, person: SurveyRespondent) -> RespondentOut:
         invite_url=str(request.base_url).rstrip("/") + survey_respond.invite_path(person.token),
         started=person.started_at is not None,
         finished=person.finished_at is not None,
+        external_id=person.external_id,
+        external_ids=person.external_ids or {},
     )
 
 
@@ -91,9 +93,11 @@ def respondent_out(request: Request, person: SurveyRespondent) -> RespondentOut:
 
 @router.get("/me")
 def my_survey(session: SessionDep, person: RespondentDep) -> dict[str, Any]:
-    """The respondent's survey: name, intro, and how many screens are answered."""
+    """The respondent's survey: name, intro, and how many screens are answered; once an
+    open-link respondent has finished, the completion code and redirect URL (or nulls)."""
     survey = surveys.get_survey(session, survey_id=person.survey_id)
     done, total = survey_respond.progress(session, respondent_id=person.id)
+    link = survey_crowd.completion(session, respondent=person)
     return {
         "survey_id": survey.id,
         "name": survey.name,
@@ -101,6 +105,8 @@ def my_survey(session: SessionDep, person: RespondentDep) -> dict[str, Any]:
         "answered": done,
         "total": total,
         "finished": person.finished_at is not None,
+        "completion_code": link.completion_code if link else None,
+        "redirect_url": link.redirect_url if link else None,
     }
 
 

@@ -1,80 +1,57 @@
 """Crowd recruiting (issue 14): a study's open link ``/s/<slug>``, external ids, consent,
 and the completion code.
 
-Each new visitor of an open link becomes a participant of their own. ``joined`` on the
-study's :class:`CrowdSettings` row is incremented by one ``UPDATE ... WHERE joined <
-max_participants`` in the same transaction that creates the participant, so concurrent
-first visits never pass the maximum (the row lock on PostgreSQL, the single writer on
-SQLite, and a CHECK constraint behind both). A visitor carrying the study's first external
-parameter (``PROLIFIC_PID`` by default) who was seen before resumes that participant: the
-``UNIQUE (study_id, external_id)`` constraint settles two first visits at once.
+Each new visitor of an open link becomes a participant of their own; the seat count and the
+options are :mod:`app.services.open_links` (shared with surveys). A visitor carrying the
+study's first external parameter (``PROLIFIC_PID`` by default) who was seen before resumes
+that participant: the ``UNIQUE (study_id, external_id)`` constraint settles two first visits
+at once.
 """
 
 from __future__ import annotations
 
-import re
-import secrets
 from dataclasses import dataclass
-from urllib.parse import urlsplit
 
-from sqlalchemy import select, update
+from sqlalchemy import select
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from app.db import writing
 from app.models import CrowdSettings, Participant
+from app.services import open_links
 from app.services.auth import new_token, participant_by_token
-from app.services.errors import AuthError, ConflictError, NotFoundError
+from app.services.errors import AuthError
+from app.services.open_links import (
+    DEFAULT_EXTERNAL_PARAMS,
+    MAX_PARTICIPANTS,
+    LinkFullError,
+    LinkOptions,
+    is_full,
+)
 from app.services.participants import stage_participants
-from app.services.studies import check_text, get_ready_study
+from app.services.studies import get_ready_study
 from engine.errors import InputError
 
-DEFAULT_EXTERNAL_PARAMS = ("PROLIFIC_PID", "STUDY_ID", "SESSION_ID")
+__all__ = ["DEFAULT_EXTERNAL_PARAMS", "MAX_PARTICIPANTS", "StudyFullError", "is_full"]
 DEFAULT_SPEED_THRESHOLD_MS = 800
-MAX_PARTICIPANTS = 100_000
-MAX_EXTERNAL_CHARS = 200
-_PARAM_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]{0,63}")
 
 
-class StudyFullError(ConflictError):
+class StudyFullError(LinkFullError):
     """The open link reached its largest number of participants."""
 
 
 @dataclass(frozen=True)
-class CrowdOptions:
+class CrowdOptions(LinkOptions):
     """What the researcher sets for a study's open link and label-quality checks."""
 
-    enabled: bool = False
-    max_participants: int = 100
-    external_params: tuple[str, ...] = DEFAULT_EXTERNAL_PARAMS
-    consent_text: str | None = None
-    completion_code: str | None = None
-    redirect_url: str | None = None
     consistency_check: bool = False
     speed_threshold_ms: int = DEFAULT_SPEED_THRESHOLD_MS
 
 
 def _check(options: CrowdOptions) -> None:
-    if not 1 <= options.max_participants <= MAX_PARTICIPANTS:
-        raise InputError(f"max_participants must be in 1..{MAX_PARTICIPANTS}")
-    if not 1 <= len(options.external_params) <= 10 or not all(
-        _PARAM_NAME.fullmatch(p) for p in options.external_params
-    ):
-        raise InputError("external_params must be 1..10 names of letters, digits and _")
-    if len(set(options.external_params)) != len(options.external_params):
-        raise InputError("external_params must not repeat a name")
-    if options.redirect_url is not None and urlsplit(options.redirect_url).scheme not in (
-        "http",
-        "https",
-    ):
-        raise InputError("redirect_url must be an http(s) URL")
+    open_links.check_options(options)
     if not 0 <= options.speed_threshold_ms <= 600_000:
         raise InputError("speed_threshold_ms must be in 0..600000")
-    check_text(
-        consent_text=options.consent_text,
-        completion_code=options.completion_code,
-        redirect_url=options.redirect_url,
-    )
 
 
 def crowd_settings(session: Session, *, study_id: int) -> CrowdSettings | None:
@@ -91,18 +68,12 @@ def configure(session: Session, *, study_id: int, options: CrowdOptions) -> Crow
     """
     _check(options)
     get_ready_study(session, study_id=study_id)
-    row = session.get(CrowdSettings, study_id)
-    if row is None:
-        row = CrowdSettings(study_id=study_id, slug=secrets.token_urlsafe(9), joined=0, declines=0)
-    elif options.max_participants < row.joined:
-        raise InputError(
-            f"max_participants must be at least the {row.joined} participants who already joined"
-        )
-    for field, value in vars(options).items():
-        setattr(row, field, list(value) if field == "external_params" else value)
-    with writing(session):
-        session.add(row)
-    return row
+    return open_links.save(
+        session,
+        session.get(CrowdSettings, study_id),
+        lambda: CrowdSettings(study_id=study_id),
+        options,
+    )
 
 
 def open_link(session: Session, *, slug: str) -> CrowdSettings:
@@ -111,30 +82,12 @@ def open_link(session: Session, *, slug: str) -> CrowdSettings:
     Raises:
         NotFoundError: no such link, or the researcher closed it.
     """
-    row = (
-        session.scalar(select(CrowdSettings).where(CrowdSettings.slug == slug))
-        if len(slug) <= 64
-        else None
-    )
-    if row is None or not row.enabled:
-        raise NotFoundError("This study link is not open. Check the link, or ask the researcher.")
-    return row
+    return open_links.find(session, CrowdSettings, slug=slug, what="study")
 
 
 def external_ids(link: CrowdSettings, query: dict[str, str]) -> dict[str, str]:
-    """The link's external parameters found in ``query`` (trimmed, at most 200 chars).
-
-    Raises:
-        InputError: a value is too long or holds control characters.
-    """
-    found = {}
-    for name in link.external_params:
-        value = query.get(name, "").strip()
-        if len(value) > MAX_EXTERNAL_CHARS or any(ord(c) < 32 for c in value):
-            raise InputError(f"{name} must be at most {MAX_EXTERNAL_CHARS} printable characters")
-        if value:
-            found[name] = value
-    return found
+    """The link's external parameters found in ``query`` (see :func:`open_links.external_ids`)."""
+    return open_links.external_ids(link.external_params, query)
 
 
 def returning(
@@ -159,10 +112,6 @@ def returning(
     return None
 
 
-def is_full(link: CrowdSettings) -> bool:
-    return link.joined >= link.max_participants
-
-
 def join(session: Session, *, link: CrowdSettings, ids: dict[str, str]) -> Participant:
     """A new participant for this visitor, or the one their first external id names.
 
@@ -176,19 +125,15 @@ def join(session: Session, *, link: CrowdSettings, ids: dict[str, str]) -> Parti
     )
     try:
         with writing(session):
-            taken = session.execute(
-                update(CrowdSettings)
-                .where(
-                    CrowdSettings.study_id == study.id,
-                    CrowdSettings.joined < CrowdSettings.max_participants,
-                )
-                .values(joined=CrowdSettings.joined + 1)
-            ).rowcount  # type: ignore[attr-defined]
-            if taken == 0:
-                raise StudyFullError(
-                    "This study is full: it has all the participants it "
-                    "needs. Thank you for your interest."
-                )
+            open_links.take_seat(
+                session,
+                CrowdSettings,
+                CrowdSettings.study_id == study.id,
+                full=StudyFullError(
+                    "This study is full: it has all the participants it needs. "
+                    "Thank you for your interest."
+                ),
+            )
             stage_participants(session, study=study, people=[person])
     except IntegrityError:  # the same external id joined at the same moment: resume it
         existing = returning(session, link=link, ids=ids, token=None)
@@ -200,12 +145,7 @@ def join(session: Session, *, link: CrowdSettings, ids: dict[str, str]) -> Parti
 
 def decline(session: Session, *, link: CrowdSettings) -> None:
     """Count a declined consent; nothing else about the visitor is stored."""
-    with writing(session):
-        session.execute(
-            update(CrowdSettings)
-            .where(CrowdSettings.study_id == link.study_id)
-            .values(declines=CrowdSettings.declines + 1)
-        )
+    open_links.count_decline(session, CrowdSettings, CrowdSettings.study_id == link.study_id)
 
 
 def open_path(slug: str) -> str:

@@ -30,6 +30,8 @@ from app.services.surveys import exclusion_text, get_survey, questions_for, stim
 EXPORT_COLUMNS = (
     "survey_id",
     "respondent_id",
+    "external_id",
+    "external_ids",
     "stimulus_id",
     "stimulus",
     "attention_check",
@@ -176,11 +178,22 @@ def results(session: Session, *, survey_id: int) -> dict[str, Any]:
     }
 
 
+def _external_ids(session: Session, survey_id: int) -> dict[int, tuple[str | None, dict]]:
+    """Each respondent's crowd platform ids (open link), by respondent id."""
+    found = session.execute(
+        select(
+            SurveyRespondent.id, SurveyRespondent.external_id, SurveyRespondent.external_ids
+        ).where(SurveyRespondent.survey_id == survey_id)
+    )
+    return {rid: (key, ids or {}) for rid, key, ids in found}
+
+
 def export_records(session: Session, *, survey_id: int) -> list[dict[str, Any]]:
     """One record per answer (columns :data:`EXPORT_COLUMNS`)."""
     survey = get_survey(session, survey_id=survey_id)
     rows = answer_rows(session, survey_id=survey_id)
     leave_out = excluded(survey, rows)
+    external = _external_ids(session, survey_id)
     out = []
     for r in rows:
         asked = {q["key"]: q for q in questions_for(survey, r.stimulus)}
@@ -189,6 +202,8 @@ def export_records(session: Session, *, survey_id: int) -> list[dict[str, Any]]:
             {
                 "survey_id": survey.id,
                 "respondent_id": r.respondent_id,
+                "external_id": external[r.respondent_id][0],
+                "external_ids": external[r.respondent_id][1],
                 "stimulus_id": r.stimulus.id,
                 "stimulus": r.stimulus.label,
                 "attention_check": r.stimulus.attention_check,
@@ -212,12 +227,16 @@ def _cell(value: Any) -> Any:
 
 
 def export_csv(session: Session, *, survey_id: int) -> str:
-    """The records as CSV (a text answer starting with ``= + - @`` gets a leading ``'``)."""
+    """The records as CSV (a text answer starting with ``= + - @`` gets a leading ``'``;
+    ``external_ids`` is a JSON object)."""
     out = io.StringIO()
     writer = csv.DictWriter(out, fieldnames=EXPORT_COLUMNS, lineterminator="\n")
     writer.writeheader()
     writer.writerows(
-        {k: _cell(v) for k, v in record.items()}
+        {
+            k: _cell(json.dumps(v, sort_keys=True) if k == "external_ids" else v)
+            for k, v in record.items()
+        }
         for record in export_records(session, survey_id=survey_id)
     )
     return out.getvalue()

@@ -18,6 +18,7 @@ from app.web import (
     participant_pages,
     runs_pages,
     studies_pages,
+    survey_crowd_pages,
     surveys_pages,
 )
 
@@ -30,5 +31,6 @@ router.include_router(runs_pages.router)
 router.include_router(surveys_pages.router)
 router.include_router(crowd_pages.router)
 router.include_router(crowd_study_pages.router)
+router.include_router(survey_crowd_pages.router)
 
 __all__ = ["router"]

@@ -1,9 +1,6 @@
-"""A study's open link ``/s/<slug>`` (issue 14): consent, a participant per new visitor,
-"this study is full", and the consistency check after the bracket.
-
-Joining is rate-limited per client address (:mod:`app.web.ratelimit`, the same moving
-window as failed logins, with its own counts); only visits that create a participant count.
-"""
+"""A study's open link ``/s/<slug>`` (issue 14): consent, a participant per new visitor
+(rate-limited, :func:`app.web.open_links.admit`), "this study is full", and the consistency
+check after the bracket."""
 
 from __future__ import annotations
 
@@ -13,19 +10,19 @@ from sqlalchemy.orm import Session
 from app.api.deps import SessionDep
 from app.models import CrowdSettings
 from app.services import auth, crowd, crowd_check, participants, studies
-from app.services.errors import TooManyAttemptsError
+from app.services.open_links import is_full
+from app.web import open_links
 from app.web.csrf import CsrfChecked, FormFields
 from app.web.guards import PageParticipant
 from app.web.participant_pages import THANKS, where_next
-from app.web.ratelimit import client_address
 from app.web.rendering import PageRoute, RedirectTo, is_https, redirect, render
 
 router = APIRouter(route_class=PageRoute, include_in_schema=False)
 CHECK = "/participate/check"
 
 
-def _study(session: Session, link: CrowdSettings) -> object:
-    return studies.get_ready_study(session, study_id=link.study_id)
+def _name(session: Session, link: CrowdSettings) -> str:
+    return studies.get_ready_study(session, study_id=link.study_id).name
 
 
 def _enter(
@@ -35,33 +32,10 @@ def _enter(
     token = request.cookies.get(auth.PARTICIPANT_COOKIE)
     person = crowd.returning(session, link=link, ids=ids, token=token)
     if person is None:
-        limiter, address = request.app.state.join_limiter, client_address(request)
-        if limiter.blocked(address):
-            raise TooManyAttemptsError(
-                "Too many new participants from this address; try again in a minute.",
-                retry_after_s=limiter.retry_after_s(address),
-            )
-        person = crowd.join(session, link=link, ids=ids)
-        limiter.failed(address)  # counts a join
+        person = open_links.admit(request, lambda: crowd.join(session, link=link, ids=ids))
     response = redirect(where_next(participants.progress(session, participant=person)))
     auth.set_participant_cookie(response, token=person.token, secure=is_https(request))
     return response
-
-
-def _message(
-    request: Request,
-    session: Session,
-    link: CrowdSettings,
-    title: str,
-    text: str,
-    status_code: int = 200,
-) -> Response:
-    return render(
-        request,
-        "crowd_message.html",
-        {"study": _study(session, link), "title": title, "text": text},
-        status_code=status_code,
-    )
 
 
 @router.get("/s/{slug}")
@@ -72,22 +46,19 @@ def open_link(slug: str, request: Request, session: SessionDep) -> Response:
     returning = crowd.returning(
         session, link=link, ids=ids, token=request.cookies.get(auth.PARTICIPANT_COOKIE)
     )
-    if returning is None and crowd.is_full(link):
+    if returning is None and is_full(link):
         return _full(request, session, link)
     if returning is None and link.consent_text:
-        return render(
-            request,
-            "crowd_consent.html",
-            {"study": _study(session, link), "link": link, "ids": ids},
+        return open_links.consent(
+            request, _name(session, link), link, crowd.open_path(link.slug), ids
         )
     return _join_or_full(request, session, link, ids)
 
 
 def _full(request: Request, session: Session, link: CrowdSettings) -> Response:
-    return _message(
+    return open_links.message(
         request,
-        session,
-        link,
+        _name(session, link),
         "This study is full",
         "This study has all the participants it needs. Thank you for your interest.",
     )
@@ -109,12 +80,8 @@ def consent(slug: str, request: Request, session: SessionDep, fields: FormFields
     ids = crowd.external_ids(link, fields)
     if fields.get("decision") != "agree":
         crowd.decline(session, link=link)
-        return _message(
-            request,
-            session,
-            link,
-            "You declined",
-            "You declined to take part; nothing about you was stored. You can close this page.",
+        return open_links.message(
+            request, _name(session, link), "You declined", open_links.DECLINED
         )
     return _join_or_full(request, session, link, ids)
 

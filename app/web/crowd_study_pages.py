@@ -6,7 +6,6 @@ from __future__ import annotations
 from typing import Any
 
 from fastapi import APIRouter, Request, Response
-from pydantic import ValidationError
 from sqlalchemy.orm import Session
 
 from app.api.crowd_schemas import CrowdIn
@@ -14,8 +13,8 @@ from app.api.deps import DbId, SessionDep
 from app.services import crowd, crowd_stats
 from app.web.csrf import CsrfChecked, FormFields
 from app.web.guards import ResearcherPage
+from app.web.open_links import link_form, validated, whole
 from app.web.rendering import PageRoute, redirect
-from engine.errors import InputError
 
 router = APIRouter(route_class=PageRoute, include_in_schema=False, dependencies=[ResearcherPage])
 
@@ -71,35 +70,17 @@ def crowd_context(request: Request, session: Session, study_id: int) -> dict[str
 
 def _options(fields: dict[str, str]) -> crowd.CrowdOptions:
     """The form's fields, validated like ``PUT /api/studies/{id}/crowd``."""
-    text = {
-        k: fields.get(k, "").strip() or None
-        for k in ("consent_text", "completion_code", "redirect_url")
-    }
-    params = [p.strip() for p in fields.get("external_params", "").split(",") if p.strip()]
-    try:
-        body = CrowdIn.model_validate(
-            {
-                "enabled": fields.get("enabled") == "on",
-                "consistency_check": fields.get("consistency_check") == "on",
-                "max_participants": _whole(fields, "max_participants"),
-                "speed_threshold_ms": _whole(fields, "speed_threshold_ms"),
-                "external_params": params or list(crowd.DEFAULT_EXTERNAL_PARAMS),
-                **text,
-            }
-        )
-    except ValidationError as exc:
-        first = exc.errors()[0]
-        raise InputError(f"{'.'.join(map(str, first['loc']))}: {first['msg']}") from None
+    body = validated(
+        CrowdIn,
+        link_form(fields)
+        | {
+            "consistency_check": fields.get("consistency_check") == "on",
+            "speed_threshold_ms": whole(fields, "speed_threshold_ms"),
+        },
+    )
     return crowd.CrowdOptions(
         **{**body.model_dump(), "external_params": tuple(body.external_params)}
     )
-
-
-def _whole(fields: dict[str, str], name: str) -> int:
-    try:
-        return int(fields.get(name, "").strip())
-    except ValueError:
-        raise InputError(f"{name} must be a whole number") from None
 
 
 @router.post("/studies/{study_id}/crowd", dependencies=[CsrfChecked])

@@ -1,8 +1,9 @@
 """Survey pages: the researcher's list, new-survey form and survey page (stimuli, invite
-links, results), and the respondent's invite link and one-screen-at-a-time page.
+links, open link, results), and the respondent's invite link and one-screen-at-a-time page.
 
 The pages read through the service layer; their scripts (``static/js/survey*.js``) write
-through the REST API (``/api/surveys``), so there are no form posts here.
+through the REST API (``/api/surveys``), so there are no form posts here (the open-link
+form posts to :mod:`app.web.survey_crowd_pages`).
 """
 
 from __future__ import annotations
@@ -16,8 +17,9 @@ from sqlalchemy.orm import Session
 from app.api.deps import DbId, SessionDep
 from app.api.surveys import RespondentCookie
 from app.models import Survey, SurveyRespondent
-from app.services import survey_respond, survey_results, surveys
+from app.services import survey_crowd, survey_respond, survey_results, surveys
 from app.services.errors import AuthError, NotFoundError
+from app.services.open_links import LinkOptions
 from app.services.survey_sources import source_menus
 from app.web.guards import ResearcherPage
 from app.web.rendering import PageRoute, is_https, redirect, render
@@ -49,6 +51,19 @@ def new_survey_page(request: Request, session: SessionDep) -> HTMLResponse:
     )
 
 
+def crowd_context(request: Request, session: Session, survey_id: int) -> dict[str, Any]:
+    """What the survey page's "Crowd: open link" section shows (the form posts to
+    :mod:`app.web.survey_crowd_pages`)."""
+    row = survey_crowd.crowd_settings(session, survey_id=survey_id)
+    base = str(request.base_url).rstrip("/")
+    return {
+        "crowd": row,
+        "crowd_defaults": LinkOptions(),
+        "open_url": None if row is None else base + survey_crowd.open_path(row.slug),
+        "completed": survey_crowd.completed(session, survey_id=survey_id),
+    }
+
+
 def _survey_context(session: Session, survey: Survey, request: Request) -> dict[str, Any]:
     people = survey_respond.list_respondents(session, survey_id=survey.id)
     base = str(request.base_url).rstrip("/")
@@ -61,6 +76,7 @@ def _survey_context(session: Session, survey: Survey, request: Request) -> dict[
         "results": survey_results.results(session, survey_id=survey.id),
         "exclusion": surveys.exclusion_text(survey),
         "thumb_template": thumb_template(survey.id),
+        **crowd_context(request, session, survey.id),
     }
 
 

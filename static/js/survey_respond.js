@@ -1,7 +1,7 @@
 // A respondent's survey: the intro, then one screen at a time (two trees, left and right as
 // the server planned them, and the questions), then thanks. Answers go to
 // POST /api/surveys/me/screens/{position}/answers with the time spent on the screen.
-/* global ACV, ACVSurvey */
+/* global ACV, ACVSurvey, ACVComplete */
 "use strict";
 
 (function () {
@@ -72,12 +72,30 @@
     const result = await ACV.api("GET", "/api/surveys/me/screen");
     if (result.status === 204) {
       show("done");
+      await complete();
       root.dataset.finished = "true";
     } else if (result.status === 200) {
       render(result.data);
     } else {
       show("screen");
       fail(`Could not load the next screen: ${ACV.errorText(result)}`);
+    }
+  }
+
+  // An open-link respondent's completion code and redirect (the server sends them only
+  // once every screen is answered).
+  async function complete() {
+    const result = await ACV.api("GET", "/api/surveys/me");
+    if (result.status !== 200) return;
+    const { completion_code: code, redirect_url: url } = result.data;
+    if (code) {
+      $("completion-code").textContent = code;
+      $("completion").hidden = false;
+    }
+    if (url) {
+      $("complete-link").href = url;
+      $("complete").hidden = false;
+      ACVComplete.redirectSoon($("complete-link"));
     }
   }
 

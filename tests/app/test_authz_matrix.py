@@ -39,7 +39,7 @@ EVERYONE = frozenset({ANON, A, B, RESEARCHER})
 #: (method or "*", path pattern, who may use it); first match wins.
 RULES: list[tuple[str, str, frozenset[str]]] = [
     ("GET", r"/|/login|/p/\{token\}|/healthz|/openapi\.json|/docs", EVERYONE),
-    ("*", r"/s/\{slug\}", EVERYONE),  # open links: anyone (CSRF on the consent post)
+    ("*", r"/[sq]/\{slug\}", EVERYONE),  # open links: anyone (CSRF on the consent post)
     ("*", r"/api/participants/me(/.*)?|/participate(/.*)?", frozenset({A, B})),
     ("*", r"/api/matches/\{match_id\}/label", frozenset({A})),  # A's match
     ("GET", r"/api/participants/\{participant_id\}/tree", frozenset({A, RESEARCHER})),
@@ -157,7 +157,13 @@ def world(client: TestClient, study: dict[str, Any], make_study) -> dict[str, An
         headers=ADMIN,
         json={"enabled": True, "max_participants": 100},
     ).json()
+    survey_link = client.put(
+        f"/api/surveys/{survey['id']}/crowd",
+        headers=ADMIN,
+        json={"enabled": True, "max_participants": 100},
+    ).json()
     params = {
+        "survey_slug": survey_link["slug"],  # ``slug`` in /q/{slug}
         "study_id": study["id"],
         "candidate_id": 0,
         "participant_id": a.id,
@@ -194,7 +200,10 @@ def _ask(
     *,
     cookies: bool,
 ):
-    url = path.format(**world["params"]) + QUERIES.get((method, path), "").format(**world["params"])
+    params = dict(world["params"])
+    if path.startswith("/q/"):  # a survey's open link
+        params["slug"] = params["survey_slug"]
+    url = path.format(**params) + QUERIES.get((method, path), "").format(**params)
     body = BODIES.get((method, path), world["label"] if "label" in path else None)
     headers = {} if cookies else dict(caller.headers)
     if cookies:

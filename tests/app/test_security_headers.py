@@ -101,7 +101,7 @@ def test_every_form_post_needs_a_csrf_token(client, study) -> None:
     routes = _form_routes(client)
     assert {"/login", "/logout", "/studies"} <= set(routes)
     page = logged_in(client)
-    ids = {"study_id": study["id"], "run_id": 2**31 - 1, "slug": "no-such-link"}
+    ids = {"study_id": study["id"], "run_id": 2**31 - 1, "survey_id": 2**31 - 1, "slug": "no-link"}
     for path in routes:
         url = re.sub(r"\{(\w+)\}", lambda m: str(ids[m.group(1)]), path)
         for fields in ({}, {"csrf_token": "forged"}):

@@ -96,3 +96,4 @@ def test_survey_invite_tokens_stay_out_of_the_access_log() -> None:
     assert mask_invite_tokens("/r/AbC-123_x") == "/r/***"
     assert mask_invite_tokens("/p/AbC-123_x") == "/p/***"
     assert mask_invite_tokens("/surveys/3") == "/surveys/3"
+    assert mask_invite_tokens("/q/slug?PROLIFIC_PID=abc") == "/q/***"

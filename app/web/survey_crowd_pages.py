@@ -1,0 +1,106 @@
+"""A survey's open link ``/q/<slug>`` (issue 14): consent, a respondent per new visitor
+(rate-limited with the studies' links, :func:`app.web.open_links.admit`), "this survey is
+full"; and the researcher's open-link form on the survey page (its context:
+:func:`app.web.surveys_pages.crowd_context`).
+
+``/q/`` (questionnaire) rather than the studies' ``/s/``: each kind of link has its own
+table whose UNIQUE slug the database enforces, so neither path needs a look-up in the other.
+"""
+
+from __future__ import annotations
+
+from fastapi import APIRouter, Request, Response
+from sqlalchemy.orm import Session
+
+from app.api.crowd_schemas import OpenLinkIn
+from app.api.deps import DbId, SessionDep
+from app.api.surveys import RespondentCookie
+from app.models import SurveyCrowdSettings
+from app.services import survey_crowd, survey_respond, surveys
+from app.services.open_links import LinkOptions, is_full
+from app.web import open_links
+from app.web.csrf import CsrfChecked, FormFields
+from app.web.guards import ResearcherPage
+from app.web.rendering import PageRoute, is_https, redirect
+from app.web.surveys_pages import RESPOND
+
+router = APIRouter(route_class=PageRoute, include_in_schema=False)
+
+
+def _name(session: Session, link: SurveyCrowdSettings) -> str:
+    return surveys.get_survey(session, survey_id=link.survey_id).name
+
+
+def _full(request: Request, session: Session, link: SurveyCrowdSettings) -> Response:
+    return open_links.message(
+        request,
+        _name(session, link),
+        "This survey is full",
+        "This survey has all the respondents it needs. Thank you for your interest.",
+    )
+
+
+def _enter(
+    request: Request,
+    session: Session,
+    link: SurveyCrowdSettings,
+    ids: dict[str, str],
+    cookie: str | None,
+) -> Response:
+    """Resume a returning visitor, or make a respondent of a new one; "full" past the max."""
+    person = survey_crowd.returning(session, link=link, ids=ids, token=cookie)
+    if person is None:
+        try:
+            person = open_links.admit(
+                request, lambda: survey_crowd.join(session, link=link, ids=ids)
+            )
+        except survey_crowd.SurveyFullError:
+            return _full(request, session, link)
+    response = redirect(RESPOND)
+    survey_respond.set_respondent_cookie(response, token=person.token, secure=is_https(request))
+    return response
+
+
+@router.get("/q/{slug}")
+def open_link(
+    slug: str, request: Request, session: SessionDep, cookie: RespondentCookie = None
+) -> Response:
+    """The consent page, or straight on to the survey; "full" past the maximum."""
+    link = survey_crowd.open_link(session, slug=slug)
+    ids = survey_crowd.external_ids(link, dict(request.query_params))
+    returning = survey_crowd.returning(session, link=link, ids=ids, token=cookie)
+    if returning is None and is_full(link):
+        return _full(request, session, link)
+    if returning is None and link.consent_text:
+        path = survey_crowd.open_path(link.slug)
+        return open_links.consent(request, _name(session, link), link, path, ids)
+    return _enter(request, session, link, ids, cookie)
+
+
+@router.post("/q/{slug}", dependencies=[CsrfChecked])
+def consent(
+    slug: str,
+    request: Request,
+    session: SessionDep,
+    fields: FormFields,
+    cookie: RespondentCookie = None,
+) -> Response:
+    """Agree (a respondent is made) or decline (only the count of declines grows)."""
+    link = survey_crowd.open_link(session, slug=slug)
+    ids = survey_crowd.external_ids(link, fields)
+    if fields.get("decision") != "agree":
+        survey_crowd.decline(session, link=link)
+        return open_links.message(
+            request, _name(session, link), "You declined", open_links.DECLINED
+        )
+    return _enter(request, session, link, ids, cookie)
+
+
+@router.post("/surveys/{survey_id}/crowd", dependencies=[ResearcherPage, CsrfChecked])
+def set_crowd(survey_id: DbId, session: SessionDep, fields: FormFields) -> Response:
+    """Save the open-link form (validated like ``PUT /api/surveys/{id}/crowd``), then show
+    the survey page's crowd section."""
+    body = open_links.validated(OpenLinkIn, open_links.link_form(fields))
+    options = LinkOptions(**{**body.model_dump(), "external_params": tuple(body.external_params)})
+    survey_crowd.configure(session, survey_id=survey_id, options=options)
+    return redirect(f"/surveys/{survey_id}#crowd")
