@@ -39,7 +39,7 @@ LOG_LINE = re.compile(r"^(DEBUG|INFO|WARNING|ERROR|CRITICAL)\b")
 def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[str, Path]]:
     """``acv serve`` on a free port; yields ``(base URL, file with its output and logs)``."""
     data_dir = tmp_path_factory.mktemp("acv-browser-data")
-    log = data_dir.parent / "server.log"
+    log = data_dir / "server.log"  # one per server: tests find the data dir as its folder
     env = clean_env(ACV_DATA_DIR=str(data_dir), ACV_ADMIN_TOKEN=ADMIN_TOKEN)
     with acv_serve(env, log) as base:
         yield base, log

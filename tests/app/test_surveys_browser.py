@@ -176,7 +176,7 @@ def test_respondent_on_a_phone_and_the_results(server, browser, screens: Path) -
 def stored_agent_tree(log: Path, study_id: int, tree: dict) -> int:
     """A run row of the server's study whose checkpoint 512 holds ``tree`` as its "value"
     agent tree (what the run executor stores), written into the server's SQLite file."""
-    data_dir = next(log.parent.glob("acv-browser-data*"))  # the ``server`` fixture's
+    data_dir = log.parent  # the ``server`` fixture's (several may exist in this worker)
     engine = make_engine(f"sqlite:///{data_dir / SQLITE_FILE}")
     try:
         with make_sessions(engine)() as session:
