@@ -135,4 +135,5 @@
   $("add-stimulus").addEventListener("click", addStimulus);
   $("add-question").addEventListener("click", addQuestion);
   addStimulus();
+  form.dataset.ready = "true"; // the controls above answer from now on (tests wait for it)
 })();
