@@ -28,8 +28,6 @@ import contextlib
 import csv
 import io
 import json
-import os
-import subprocess
 import sys
 import tempfile
 import time
@@ -48,9 +46,9 @@ ADMIN = {"Authorization": f"Bearer {ADMIN_TOKEN}"}
 CEILING_S, CEILING_LOOPS = 4.0, 64
 
 
-sys.path.insert(0, str(REPO))  # the test-support helpers: free ports, a PostgreSQL cluster
-from tests.support.net import free_port  # noqa: E402
+sys.path.insert(0, str(REPO))  # test-support helpers: the server launcher, a PostgreSQL cluster
 from tests.support.postgres import PostgresCluster  # noqa: E402
+from tests.support.server import acv_serve, clean_env  # noqa: E402
 
 
 @contextlib.contextmanager
@@ -70,55 +68,18 @@ def database(kind: str) -> Iterator[str | None]:
 @contextlib.contextmanager
 def server(database_url: str | None, workers: int) -> Iterator[str]:
     """``acv serve`` in a subprocess on a fresh data dir; yields its base URL."""
-    port = free_port()
     with tempfile.TemporaryDirectory(prefix="acv-crowd-") as data_dir:
-        env = {k: v for k, v in os.environ.items() if k != "DATABASE_URL"}
-        env |= {"ACV_DATA_DIR": data_dir, "ACV_ADMIN_TOKEN": ADMIN_TOKEN, "PYTHONPATH": str(REPO)}
+        env = clean_env(ACV_DATA_DIR=data_dir, ACV_ADMIN_TOKEN=ADMIN_TOKEN, PYTHONPATH=str(REPO))
         if database_url:
             env["DATABASE_URL"] = database_url
         extra = ["--workers", str(workers)] if workers != 1 else []
         log = Path(data_dir) / "server.log"
-        with log.open("w") as log_file:
-            proc = subprocess.Popen(
-                [
-                    sys.executable,
-                    "-m",
-                    "app.cli",
-                    "serve",
-                    "--host",
-                    "127.0.0.1",
-                    "--port",
-                    str(port),
-                    "--no-access-log",
-                    *extra,
-                ],
-                cwd=REPO,
-                env=env,
-                stdout=log_file,
-                stderr=subprocess.STDOUT,
-            )
-        base = f"http://127.0.0.1:{port}"
         try:
-            _wait_healthy(base, proc)
-            yield base
+            with acv_serve(env, log, "--no-access-log", *extra) as base:
+                yield base
         except BaseException:
             print(f"server log:\n{log.read_text()[-4000:]}", file=sys.stderr)
             raise
-        finally:
-            proc.terminate()
-            proc.wait(timeout=60)
-
-
-def _wait_healthy(base: str, proc: subprocess.Popen, timeout_s: float = 120.0) -> None:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        if proc.poll() is not None:
-            raise SystemExit("the server exited")
-        with contextlib.suppress(httpx.TransportError):
-            if httpx.get(f"{base}/healthz").status_code == 200:
-                return
-        time.sleep(0.1)
-    raise SystemExit("the server did not become healthy")
 
 
 def prepare(base: str, n_candidates: int, count: int) -> tuple[int, list[str]]:
