@@ -19,6 +19,8 @@ from fastapi.responses import HTMLResponse
 
 SWAGGER_JS = "/static/vendor/swagger-ui-bundle.js"
 SWAGGER_CSS = "/static/vendor/swagger-ui.css"
+# ACV's corrections to Swagger UI's colours (WCAG 2.1 AA contrast); loaded after its CSS.
+OVERRIDES_CSS = "/static/css/swagger-overrides.css"
 FAVICON = "/static/favicon.svg"
 _INLINE_SCRIPT = re.compile(rb"<script>(.*?)</script>", re.DOTALL)
 
@@ -47,6 +49,18 @@ def docs_policy(html: bytes) -> str:
     )
 
 
+def accessible(html: bytes) -> bytes:
+    """FastAPI's page with a language (axe's ``html-has-lang``) and ACV's colour overrides.
+
+    Raises:
+        ValueError: the page no longer has the ``<html>`` or ``</head>`` it is edited at.
+    """
+    if html.count(b"<html>") != 1 or html.count(b"</head>") != 1:
+        raise ValueError("FastAPI's docs page changed: check docs_router's edits")
+    link = f'<link type="text/css" rel="stylesheet" href="{OVERRIDES_CSS}">'.encode()
+    return html.replace(b"<html>", b'<html lang="en">').replace(b"</head>", link + b"</head>")
+
+
 def docs_router(*, openapi_url: str, title: str) -> APIRouter:
     """A router serving Swagger UI for ``openapi_url`` at ``/docs`` (the page is built once)."""
     page = get_swagger_ui_html(
@@ -57,7 +71,7 @@ def docs_router(*, openapi_url: str, title: str) -> APIRouter:
         swagger_favicon_url=FAVICON,
         swagger_ui_parameters={"validatorUrl": None},
     )  # no badge from swagger.io
-    html = bytes(page.body)  # Starlette types a body as bytes or memoryview; this is bytes
+    html = accessible(bytes(page.body))  # Starlette types a body as bytes or memoryview
     headers = {"Content-Security-Policy": docs_policy(html), "Referrer-Policy": "no-referrer"}
     router = APIRouter(include_in_schema=False)
 

@@ -1,6 +1,9 @@
 // Labelling page: one match at a time through the REST API, with the invite cookie.
 // Choose with a click or tap on a picture, the Left/Right buttons, or the arrow keys; the
-// response time sent is measured from both pictures being shown to the choice. Undo takes
+// response time sent is measured from the moment the page settles (both pictures decoded and
+// on screen, the fade-in over) to the choice, so it measures the participant, not the fade.
+// `#match` carries `data-ready` (the controls are enabled) and `data-settled` (enabled, and
+// nothing on the page is animating): tests wait for `data-settled`. Undo takes
 // back the latest label while no later match depends on it. A label's answer carries the
 // next match, and the next match's pictures are fetched while the participant decides, so
 // the next pair appears at once.
@@ -33,6 +36,17 @@ function setEnabled() {
   $("undo").disabled = state.busy || !state.canUndo;
   $("match").setAttribute("aria-busy", String(!ready));
   $("match").dataset.ready = String(ready);
+  $("match").dataset.settled = String(ready && document.getAnimations().length === 0);
+}
+
+// Resolves once no animation or transition runs on the page (the match's fade-in, the
+// progress bar), however long they take: `transitionend` never fires when a transition is
+// skipped (prefers-reduced-motion), but an empty `getAnimations()` always comes.
+async function settled() {
+  for (let animations = document.getAnimations(); animations.length > 0;
+    animations = document.getAnimations()) {
+    await Promise.all(animations.map((a) => a.finished.catch(() => undefined)));
+  }
 }
 
 function say(text, isError) {
@@ -55,7 +69,7 @@ function placed(next) {
   return next.left === next.b.candidate_id ? { a: next.b, b: next.a } : { a: next.a, b: next.b };
 }
 
-// Show the two pictures; the clock starts once both are decoded and on screen.
+// Show the two pictures; the clock starts once both are decoded, on screen and settled.
 async function showMatch(next) {
   if (state.match && state.match.match_id === next.match_id && state.shownAt !== null) return;
   state.match = next;
@@ -73,6 +87,8 @@ async function showMatch(next) {
   await Promise.all(images.map(([img]) => img.decode().catch(() => undefined)));
   if (state.match !== next) return;  // a newer match replaced this one meanwhile
   box.classList.remove("loading");
+  await settled();
+  if (state.match !== next) return;
   state.shownAt = performance.now();
 }
 
@@ -195,7 +211,17 @@ function playerChip(id, cell, thumbTemplate) {
   img.src = ACV.thumbUrl(thumbTemplate, id);
   img.alt = "";
   chip.append(img, `#${id}`);
-  if (cell.winner !== null && !cell.is_bye) chip.classList.add(cell.winner === id ? "w" : "l");
+  if (cell.winner !== null && !cell.is_bye) {
+    const won = cell.winner === id;
+    chip.classList.add(won ? "w" : "l");
+    // Said in words and by a mark, not by colour or faintness alone.
+    const mark = Object.assign(document.createElement("span"),
+      { className: "mark", textContent: won ? "✓" : "✗" });
+    mark.setAttribute("aria-hidden", "true");
+    const word = Object.assign(document.createElement("span"),
+      { className: "visually-hidden", textContent: won ? " won" : " lost" });
+    chip.append(mark, word);
+  }
   return chip;
 }
 

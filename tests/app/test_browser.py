@@ -21,6 +21,7 @@ import httpx
 import pytest
 from playwright.sync_api import Browser, BrowserContext, Page, expect, sync_playwright
 
+from tests.support.browser import wait_for_match
 from tests.support.server import acv_serve, clean_env
 
 pytestmark = pytest.mark.browser
@@ -102,16 +103,6 @@ def create_study_and_invite(page: Page, base: str) -> tuple[str, str]:
     invite = page.locator("td.invite input").first.input_value()
     assert invite.startswith(f"{base}/p/")
     return page.url.split("?")[0], invite
-
-
-def wait_for_match(page: Page, previous: str | None = None) -> str:
-    """Wait until a match (other than ``previous``) is shown and choosable; its match id."""
-    page.wait_for_function(
-        """prev => { const m = document.getElementById('match');
-                     return m && m.dataset.ready === 'true' && m.dataset.matchId !== prev; }""",
-        arg=previous or "",
-    )
-    return page.get_attribute("#match", "data-match-id")
 
 
 def shown(page: Page, side: str) -> int:

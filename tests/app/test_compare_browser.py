@@ -27,6 +27,7 @@ from playwright.sync_api import Browser, Page, expect, sync_playwright
 from engine.envs import env_model
 from engine.teachers import standing_score
 from tests.support.a11y import assert_accessible
+from tests.support.labelling import label_bracket, wait_until_prepared
 from tests.support.server import acv_serve, clean_env
 from tests.support.wait import wait_for
 
@@ -66,13 +67,13 @@ def _standing_participant(api: httpx.Client, study_id: int) -> int:
     cands = api.get(f"/api/studies/{study_id}/candidates").json()
     scores = standing_score(np.array([c["qpos"] for c in cands]), env_model("Humanoid-v5"))
     token = api.post(f"/api/studies/{study_id}/participants").json()["token"]
+
+    def standing(match: dict) -> int:
+        a, b = match["a"]["candidate_id"], match["b"]["candidate_id"]
+        return a if scores[a] >= scores[b] else b
+
+    label_bracket(api, token, standing)
     me = {"Authorization": f"Bearer {token}"}
-    while (m := api.get("/api/participants/me/next-match", headers=me)).status_code == 200:
-        a, b = m.json()["a"]["candidate_id"], m.json()["b"]["candidate_id"]
-        winner = a if scores[a] >= scores[b] else b
-        api.post(
-            f"/api/matches/{m.json()['match_id']}/label", headers=me, json={"winner": winner}
-        ).raise_for_status()
     return api.get("/api/participants/me", headers=me).json()["id"]
 
 
@@ -90,13 +91,7 @@ def finished_run(server: str) -> dict:
                 "seed": 5,
             },
         ).json()
-        prepared = wait_for(
-            lambda: api.get(f"/api/studies/{study['id']}").json(),
-            lambda got: got["status"] != "preparing",
-            what="the study",
-            timeout_s=180,
-        )
-        assert prepared["status"] == "ready", prepared
+        wait_until_prepared(api, study["id"])
         pid = _standing_participant(api, study["id"])
         ids = []
         for body in (RUN, BASELINE):
@@ -236,7 +231,7 @@ def test_run_page_shows_progress_curves_and_checkpoints(
     expect(p.locator("#chart-z svg g.band path")).to_have_count(1)  # mean ± std
     expect(p.locator("svg style")).to_have_count(0)  # Plot's inline <style>: the CSP forbids it
     assert_accessible(p, "run page")
-    assert p.locator("#run-progress").get_attribute("value") == "4096"
+    expect(p.locator("#run-progress")).to_have_attribute("value", "4096")
     p.screenshot(path=SCREENS / "run.png", full_page=True)
     p.goto(f"{server}/runs/{finished_run['id']}/compare")
     expect(p.locator(f"a[href='/runs/{finished_run['id']}/compare-runs']")).to_have_text(
@@ -254,6 +249,7 @@ def test_run_page_shows_progress_curves_and_checkpoints(
         expect(row.locator("td").nth(1)).to_have_text(algo)
     expect(p.locator("#chart-runs svg g.line path")).to_have_count(2)  # one curve per run
     expect(p.locator("#chart-runs .plot-legend li")).to_have_count(2)
+    assert_accessible(p, "runs on the same advice")
     p.screenshot(path=SCREENS / "compare-runs.png", full_page=True)
     assert errors == []
 

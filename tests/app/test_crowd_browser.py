@@ -3,16 +3,14 @@ with the study page's form; a visitor arrives with Prolific's query parameters, 
 plays the bracket (sides as the server placed them), answers the consistency check, sees
 the completion code and is sent to the completion URL (a local page this test serves).
 Another visitor declines; a third finds the study full. The study page then shows the
-quality flags and the agreement heat map (screenshot: /work/wt/crowd-shots/study.png).
+quality flags and the agreement heat map (screenshots: /tmp/acv_screens).
 axe-core checks every page added or changed.
 """
 
 from __future__ import annotations
 
 import json
-import shutil
 import threading
-import time
 from collections.abc import Iterator
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
@@ -30,11 +28,11 @@ from tests.app.test_browser import (  # noqa: F401 (fixtures)
     shown,
     wait_for_match,
 )
-from tests.app.test_surveys_browser import assert_accessible
+from tests.support.a11y import assert_accessible
+from tests.support.labelling import label_bracket, wait_until_prepared
 
 ADMIN = {"Authorization": f"Bearer {ADMIN_TOKEN}"}
 DESKTOP = {"width": 1280, "height": 900}
-SHOTS = Path("/work/wt/crowd-shots")
 
 
 class _Done(BaseHTTPRequestHandler):
@@ -67,8 +65,7 @@ def ready_study(api: httpx.Client) -> int:
         "/api/studies",
         json={"name": "Crowd study", "env_id": "Hopper-v5", "n_candidates": 4, "seed": 8},
     ).json()
-    while api.get(f"/api/studies/{study['id']}").json()["status"] == "preparing":
-        time.sleep(0.1)
+    wait_until_prepared(api, study["id"])
     return study["id"]
 
 
@@ -169,18 +166,10 @@ def test_open_link_consent_bracket_check_and_completion(
 
 
 def _play_api(base: str, link: str, pid: str, pick) -> None:
+    """Join by the open link as ``pid`` and decide every match with ``pick``."""
     with httpx.Client(base_url=base, timeout=60, follow_redirects=False) as visitor:
         token = visitor.get(f"{link}?PROLIFIC_PID={pid}").cookies["acv_participant"]
-        me = {"Authorization": f"Bearer {token}"}
-        while (
-            match := visitor.get("/api/participants/me/next-match", headers=me)
-        ).status_code == 200:
-            body = match.json()
-            visitor.post(
-                f"/api/matches/{body['match_id']}/label",
-                headers=me,
-                json={"winner": pick(body), "response_ms": 300 * len(pid)},
-            )
+        label_bracket(visitor, token, pick, response_ms=300 * len(pid))
 
 
 def test_study_page_shows_agreement_and_quality_flags(
@@ -193,8 +182,7 @@ def test_study_page_shows_agreement_and_quality_flags(
             "/api/studies",
             json={"name": "Crowd agreement", "env_id": "Hopper-v5", "n_candidates": 8, "seed": 2},
         ).json()["id"]
-        while api.get(f"/api/studies/{study_id}").json()["status"] == "preparing":
-            time.sleep(0.1)
+        wait_until_prepared(api, study_id)
         link = api.put(
             f"/api/studies/{study_id}/crowd", json={"enabled": True, "max_participants": 10}
         ).json()["url"]
@@ -215,12 +203,9 @@ def test_study_page_shows_agreement_and_quality_flags(
     page.screenshot(path=screens / "study-full.png", full_page=True)
     top = page.locator("#quality").bounding_box()["y"] + page.evaluate("window.scrollY")
     bottom = page.locator("#trees").bounding_box()["y"] + page.evaluate("window.scrollY")
-    shot = screens / "study.png"
     page.screenshot(
-        path=shot,
+        path=screens / "study.png",
         full_page=True,
         clip={"x": 0, "y": top - 8, "width": 1280, "height": bottom - top},
     )
-    SHOTS.mkdir(parents=True, exist_ok=True)
-    shutil.copy(shot, SHOTS / "study.png")
     assert errors == []

@@ -29,7 +29,7 @@ from tests.app.test_browser import (  # noqa: F401 (fixtures)
     server,
 )
 from tests.support.a11y import assert_accessible
-from tests.support.wait import wait_for
+from tests.support.labelling import label_bracket, wait_until_prepared
 
 pytestmark = pytest.mark.browser
 
@@ -48,23 +48,10 @@ def two_finished_participants(base: str) -> int:
             "/api/studies",
             json={"name": "Survey trees", "env_id": "Hopper-v5", "n_candidates": 5, "seed": 4},
         ).json()
-        wait_for(
-            lambda: api.get(f"/api/studies/{study['id']}").json()["status"],
-            lambda status: status != "preparing",
-            what="the study",
-        )
+        wait_until_prepared(api, study["id"])
         for side in ("a", "b"):
             token = api.post(f"/api/studies/{study['id']}/participants").json()["token"]
-            me = {"Authorization": f"Bearer {token}"}
-            while (
-                match := api.get("/api/participants/me/next-match", headers=me)
-            ).status_code == 200:
-                body = match.json()
-                api.post(
-                    f"/api/matches/{body['match_id']}/label",
-                    headers=me,
-                    json={"winner": body[side]["candidate_id"]},
-                )
+            label_bracket(api, token, lambda match, side=side: match[side]["candidate_id"])
     return study["id"]
 
 
