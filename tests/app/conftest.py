@@ -174,3 +174,11 @@ def invite(client: TestClient, study: dict[str, Any]) -> Callable[..., Player]:
         return Player(client, body["id"], body["token"], body["invite_url"])
 
     return _invite
+
+
+@pytest.hookimpl(tryfirst=True)  # before `-m` selects by marker
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """A test that drives the browser is a ``browser`` test, whether its module says so or not."""
+    for item in items:
+        if "browser" in getattr(item, "fixturenames", ()):
+            item.add_marker(pytest.mark.browser)

@@ -31,6 +31,7 @@ from tests.app.test_browser import (  # noqa: F401 (fixtures)
 from tests.support.a11y import assert_accessible
 from tests.support.labelling import label_bracket, wait_until_prepared
 
+pytestmark = pytest.mark.browser
 ADMIN = {"Authorization": f"Bearer {ADMIN_TOKEN}"}
 DESKTOP = {"width": 1280, "height": 900}
 
