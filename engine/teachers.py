@@ -5,6 +5,9 @@
   ``exp(-((h - h0) / 0.1)^2) * clip((up + 1) / 1.9, 0, 1)`` with ``h`` the torso height,
   ``h0`` its height in the model's initial pose (1.4 for Humanoid) and ``up`` the torso's
   uprightness.
+- ``orthogonal``: prefers a posture the environment's reward does not pay for (Humanoid:
+  arms raised; Hopper: a bent knee; :mod:`engine.postures`), so that following it is
+  something R cannot explain.
 - ``random``: a fair coin per match.
 
 Any teacher may flip each decision with probability ``noise``, mimicking human error.
@@ -19,13 +22,14 @@ import numpy as np
 
 from engine.candidates import Candidate
 from engine.errors import InputError
+from engine.postures import orthogonal_score
 from engine.rewards import posture_slice, torso_height, uprightness
 from engine.tournament import Judge, ScoreJudge
 
 if TYPE_CHECKING:  # mujoco loads where an env is built, not in web processes
     import mujoco
 
-TEACHERS: tuple[str, ...] = ("good", "standing", "random")
+TEACHERS: tuple[str, ...] = ("good", "standing", "orthogonal", "random")
 
 
 def standing_score(qpos: np.ndarray, model: mujoco.MjModel) -> np.ndarray:
@@ -36,14 +40,17 @@ def standing_score(qpos: np.ndarray, model: mujoco.MjModel) -> np.ndarray:
     return score
 
 
+POSTURE_SCORES = {"standing": standing_score, "orthogonal": orthogonal_score}
+
+
 def teacher_scores(
     name: str, candidates: Sequence[Candidate], model: mujoco.MjModel
 ) -> dict[int, float] | None:
     """The scores a score-based teacher judges by; ``None`` for ``random``."""
     if name == "good":
         return {c.id: c.env_reward for c in candidates}
-    if name == "standing":
-        scores = standing_score(np.stack([c.qpos for c in candidates]), model)
+    if name in POSTURE_SCORES:
+        scores = POSTURE_SCORES[name](np.stack([c.qpos for c in candidates]), model)
         return {c.id: float(s) for c, s in zip(candidates, scores, strict=True)}
     if name == "random":
         return None
