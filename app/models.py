@@ -50,6 +50,15 @@ class RunStatus(StrEnum):
     INTERRUPTED = "interrupted"
 
 
+class ExperimentRole(StrEnum):
+    """A run's part in an experiment: trained with the advice, or a no-advice baseline that
+    the verdict compares with (``baseline``) or that picks the contested matches (``pilot``)."""
+
+    ADVISED = "advised"
+    BASELINE = "baseline"
+    PILOT = "pilot"
+
+
 STUDY_STATUSES: tuple[str, ...] = tuple(s.value for s in StudyStatus)
 RUN_STATUSES: tuple[str, ...] = tuple(s.value for s in RunStatus)
 
@@ -325,6 +334,45 @@ class Run(Base):
     started_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), default=None)
     heartbeat_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), default=None)
     finished_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), default=None)
+
+
+class Experiment(Base):
+    """One advice source, algorithm, env and budget trained on several seeds, with its
+    matched no-advice baseline (the same seeds) and pilot runs (seeds of their own).
+
+    ``spec`` is the request its advised runs were created from, less the seed (``/api/runs``'s
+    body); ``seeds`` the evaluation seeds, ``pilot_seeds`` the pilot runs' seeds (disjoint).
+    Its runs are listed in ``experiment_runs``; a baseline or pilot run may be shared by
+    several experiments (the same study, config and seed).
+    """
+
+    __tablename__ = "experiments"
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    study_id: Mapped[int] = mapped_column(ForeignKey("studies.id", ondelete="CASCADE"), index=True)
+    spec: Mapped[dict] = mapped_column(JSON)
+    seeds: Mapped[list] = mapped_column(JSON)
+    pilot_seeds: Mapped[list] = mapped_column(JSON)
+    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+
+
+class ExperimentRun(Base):
+    """A run's part in an experiment (:class:`ExperimentRole`)."""
+
+    __tablename__ = "experiment_runs"
+    __table_args__ = (
+        CheckConstraint(
+            "role IN (" + ", ".join(f"'{r.value}'" for r in ExperimentRole) + ")", name="role"
+        ),
+    )
+
+    experiment_id: Mapped[int] = mapped_column(
+        ForeignKey("experiments.id", ondelete="CASCADE"), primary_key=True
+    )
+    run_id: Mapped[int] = mapped_column(
+        ForeignKey("runs.id", ondelete="CASCADE"), primary_key=True, index=True
+    )
+    role: Mapped[str] = mapped_column(String(8))
 
 
 class CheckpointArtefact(Base):
