@@ -8,7 +8,14 @@ import numpy as np
 import pytest
 
 from engine.bracket import Bracket, make_first_round
-from engine.conformance import compare, tree_edit_distance
+from engine.conformance import (
+    compare,
+    contested_match,
+    r_winner,
+    reference_agreement,
+    stored_reward,
+    tree_edit_distance,
+)
 from engine.errors import InputError
 from engine.pipeline import replay
 from engine.tournament import ScoreJudge, play
@@ -80,3 +87,25 @@ def test_edit_distance_is_normalised_to_unit_interval() -> None:
     assert tree_edit_distance(human.tree, human.tree) == 0.0
     flipped = replay(human, ScoreJudge({c.id: -c.env_reward for c in human.candidates}), "x")
     assert 0 < tree_edit_distance(human.tree, flipped.tree) <= 1
+
+
+def test_contested_and_reference_follow_the_r_map_passed_in() -> None:
+    human = _doc()  # judged by the stored R: nothing contested, reference agreement 1
+    assert compare(human, human).contested.n == 0 and reference_agreement(human) == 1.0
+    flipped = {c.id: -c.env_reward for c in human.candidates}
+    c = compare(human, human, flipped)
+    assert c.contested.n == c.n_matches and c.reference_agreement == 0.0
+    assert reference_agreement(human, flipped) == 0.0
+
+
+def test_a_tie_in_r_is_neither_contested_nor_an_r_agreement() -> None:
+    human = _doc()
+    m, winner = human.matches[0]
+    reward = stored_reward(human)
+    loser = m.b if winner == m.a else m.a
+    reward[loser] = reward[winner]  # R has no preference in this match (the loser plays no other)
+    assert r_winner(reward, m.a, m.b) is None
+    assert not contested_match(reward, m.a, m.b, winner)
+    c = compare(human, human, reward)
+    assert c.contested.n == 0
+    assert c.reference_agreement == (c.n_matches - 1) / c.n_matches
