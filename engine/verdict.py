@@ -182,7 +182,9 @@ def classify(inputs: VerdictInputs, options: VerdictOptions = VerdictOptions()) 
     pilot = inputs.pilot.mean(axis=0) if len(inputs.pilot) else np.zeros_like(inputs.advice)
     min_advice = options.margin_advice * np.ptp(inputs.advice)
     min_pilot = options.margin_baseline * np.ptp(pilot)
-    contested, agreed, uninformative = [], [], []
+    contested: list[Pair] = []
+    agreed: list[Pair] = []
+    uninformative: list[Pair] = []
     for a, b, w in inputs.matches:
         loser = b if w == a else a
         lead, pilot_lead = inputs.advice[w] - inputs.advice[loser], pilot[w] - pilot[loser]
@@ -190,14 +192,8 @@ def classify(inputs: VerdictInputs, options: VerdictOptions = VerdictOptions()) 
             uninformative.append((a, b, w))
         else:
             (agreed if pilot_lead > 0 else contested).append((a, b, w))
-    reward = inputs.reward
-    r_contested = (
-        ()
-        if reward is None
-        else tuple(
-            p for p in contested + agreed if contested_match(dict(enumerate(reward.tolist())), *p)
-        )
-    )
+    reward = {} if inputs.reward is None else dict(enumerate(inputs.reward.tolist()))
+    r_contested = tuple(p for p in contested + agreed if reward and contested_match(reward, *p))
     return MatchClasses(tuple(contested), tuple(agreed), tuple(uninformative), r_contested)
 
 

@@ -106,7 +106,8 @@ def test_verdict_sentence_names_the_numbers() -> None:
         f"On {len(v.matches.contested)} matches where your advice and an agent without it disagree"
     )
     assert "(5 seeds)" in v.text and ": used your advice." in v.text and "Δ ≥" in v.text
-    assert v.interval is not None and v.interval[0] <= v.delta <= v.interval[1]
+    assert v.interval is not None and v.delta is not None
+    assert v.interval[0] <= v.delta <= v.interval[1]
     assert v.p_value == pytest.approx(2 / 252) and v.auc == 1.0
 
 
@@ -125,7 +126,7 @@ def test_two_informative_contested_matches_cannot_tell() -> None:
     assert classes.contested == ((0, 1, 0), (2, 3, 2))
     assert classes.agreed == ((4, 5, 4),) and classes.uninformative == ((6, 7, 6),)
     v = verdict(inputs, np.random.default_rng(0))
-    assert v.outcome == "cannot-tell" and "only 2 informative contested matches" in v.reason
+    assert v.outcome == "cannot-tell" and "only 2 informative contested matches" in (v.reason or "")
     assert v.delta == 1.0  # reported, but it decides nothing
 
 
