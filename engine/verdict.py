@@ -163,6 +163,20 @@ class Verdict:
         out["n_contested"] = len(self.matches.contested)
         return out
 
+    @classmethod
+    def from_json(cls, obj: dict[str, Any]) -> Verdict:
+        """Inverse of :meth:`to_json`."""
+        fields = {k: v for k, v in obj.items() if k != "n_contested"}
+        fields["matches"] = MatchClasses(
+            **{k: tuple(tuple(p) for p in v) for k, v in obj["matches"].items()}
+        )
+        fields["ca_advised"], fields["ca_baseline"] = (
+            tuple(obj["ca_advised"]),
+            tuple(obj["ca_baseline"]),
+        )
+        fields["interval"] = None if obj["interval"] is None else tuple(obj["interval"])
+        return cls(**fields)
+
 
 def advice_scores(doc: TreeDocument) -> np.ndarray:
     """The advice's score per candidate: its recorded judge scores where the tree has them,
@@ -180,20 +194,43 @@ def bracket_pairs(doc: TreeDocument) -> tuple[Pair, ...]:
 def classify(inputs: VerdictInputs, options: VerdictOptions = VerdictOptions()) -> MatchClasses:
     """Split the matches into contested, agreed and uninformative (module docstring)."""
     pilot = inputs.pilot.mean(axis=0) if len(inputs.pilot) else np.zeros_like(inputs.advice)
-    min_advice = options.margin_advice * np.ptp(inputs.advice)
-    min_pilot = options.margin_baseline * np.ptp(pilot)
+    return split_matches(inputs.advice, pilot, inputs.matches, options, inputs.reward)
+
+
+def split_matches(
+    advice: np.ndarray,
+    baseline: np.ndarray,
+    matches: tuple[Pair, ...],
+    options: VerdictOptions = VerdictOptions(),
+    reward: np.ndarray | None = None,
+) -> MatchClasses:
+    """Split ``matches`` by the advice's and one baseline's preferences.
+
+    Also what a study shows before any baseline is trained: pass R as ``baseline`` (an agent
+    that goes by R alone) to estimate how many matches can tell.
+
+    Args:
+        advice: the advice's score per candidate, shape ``(N,)``.
+        baseline: the no-advice scores that pick the contested matches, shape ``(N,)`` (the
+            pilot runs' mean).
+        matches: ``(a, b, winner)`` of the advice.
+        options: the margins.
+        reward: R per candidate, shape ``(N,)``, for the immediate-R contested matches.
+    """
+    min_advice = options.margin_advice * np.ptp(advice)
+    min_baseline = options.margin_baseline * np.ptp(baseline)
     contested: list[Pair] = []
     agreed: list[Pair] = []
     uninformative: list[Pair] = []
-    for a, b, w in inputs.matches:
+    for a, b, w in matches:
         loser = b if w == a else a
-        lead, pilot_lead = inputs.advice[w] - inputs.advice[loser], pilot[w] - pilot[loser]
-        if lead <= 0 or lead < min_advice or pilot_lead == 0 or abs(pilot_lead) < min_pilot:
+        lead, base_lead = advice[w] - advice[loser], baseline[w] - baseline[loser]
+        if lead <= 0 or lead < min_advice or base_lead == 0 or abs(base_lead) < min_baseline:
             uninformative.append((a, b, w))
         else:
-            (agreed if pilot_lead > 0 else contested).append((a, b, w))
-    reward = {} if inputs.reward is None else dict(enumerate(inputs.reward.tolist()))
-    r_contested = tuple(p for p in contested + agreed if reward and contested_match(reward, *p))
+            (agreed if base_lead > 0 else contested).append((a, b, w))
+    r_map = {} if reward is None else dict(enumerate(reward.tolist()))
+    r_contested = tuple(p for p in contested + agreed if r_map and contested_match(r_map, *p))
     return MatchClasses(tuple(contested), tuple(agreed), tuple(uninformative), r_contested)
 
 

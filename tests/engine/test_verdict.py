@@ -4,6 +4,7 @@ shares, plus ``shift`` times the advice (the advice's pull on advised runs), plu
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
@@ -12,11 +13,16 @@ import pytest
 from engine.errors import InputError
 from engine.verdict import (
     Pair,
+    Verdict,
     VerdictInputs,
     VerdictOptions,
+    advice_scores,
+    bracket_pairs,
     classify,
+    split_matches,
     verdict,
 )
+from tests.engine.conftest import r_judged_doc
 
 N = 16
 #: seed noise against a latent preference of spread 1: seeds disagree often, as real judges do
@@ -193,6 +199,7 @@ def test_to_json_lists_the_matches_and_numbers() -> None:
     assert obj["n_contested"] == len(obj["matches"]["contested"])
     assert isinstance(obj["interval"], list) and len(obj["ca_advised"]) == 5
     assert json.loads(json.dumps(obj)) == obj
+    assert Verdict.from_json(json.loads(json.dumps(obj))).to_json() == obj
 
 
 @pytest.mark.parametrize(
@@ -217,3 +224,22 @@ def test_bad_inputs_are_input_errors(bad: dict[str, object]) -> None:
     }
     with pytest.raises(InputError):
         VerdictInputs(**fields)  # type: ignore[arg-type]
+
+
+def test_advice_scores_are_the_trees_scores_else_its_heights() -> None:
+    doc = r_judged_doc()
+    assert advice_scores(doc).tolist() == [doc.scores[c.id] for c in doc.candidates]
+    heights = advice_scores(dataclasses.replace(doc, scores=None))
+    assert heights.tolist() == [doc.tree.nodes[c.id].height for c in doc.candidates]
+    pairs = bracket_pairs(doc)
+    assert len(pairs) == len(doc.candidates) - 1
+    assert all(heights[w] >= heights[b if w == a else a] + 1 for a, b, w in pairs)
+
+
+def test_before_any_baseline_r_estimates_the_matches_that_can_tell() -> None:
+    doc = r_judged_doc()  # judged by R itself: an R-only agent contests nothing
+    r = np.array([c.env_reward for c in doc.candidates])
+    classes = split_matches(advice_scores(doc), r, bracket_pairs(doc))
+    assert classes.contested == () and len(classes.agreed) == len(doc.matches)
+    reversed_r = split_matches(advice_scores(doc), -r, bracket_pairs(doc), reward=r)
+    assert len(reversed_r.contested) == len(doc.matches) and reversed_r.r_contested == ()
