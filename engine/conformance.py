@@ -9,14 +9,19 @@
   canonical order, divided by ``n_human + n_agent`` so that it lies in [0, 1].
 - same champion, and the *rejected advice*: the human's matches the agent overturned.
 - *contested* matches: the human's matches whose winner has the lower environment reward R
-  (the stored ``env_reward``). A judge that ignored the advice and went by R would overturn
+  (by default the stored ``env_reward``; callers may pass another R map, such as the judge's
+  R with the control cost). A judge that ignored the advice and went by R would overturn
   them; keeping an uncontested match proves nothing, so the verdict leads with these.
 - reference agreement: the match agreement that an R-only judge scores against the human,
   that is, what ignoring the advice would score.
+
+Ties in R are handled one way in both (:func:`r_winner`): R has no preference, so a tied match
+is neither contested nor one that the R-only judge agrees with.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass
 from typing import Any
 
@@ -95,16 +100,25 @@ class Conformance:
         return cls(**fields)
 
 
-def compare(human: TreeDocument, agent: TreeDocument) -> Conformance:
-    """Conformance of ``agent``'s tree to ``human``'s; both must share one bracket."""
+def compare(
+    human: TreeDocument, agent: TreeDocument, reward: Mapping[int, float] | None = None
+) -> Conformance:
+    """Conformance of ``agent``'s tree to ``human``'s; both must share one bracket.
+
+    Args:
+        human: the advice tree.
+        agent: the tree compared with it.
+        reward: candidate id -> R that decides which matches are contested and the reference
+            agreement; the stored ``env_reward`` when None.
+    """
     check_same_bracket(human, agent)
     if not human.matches:  # binomtest needs n >= 1
         raise InputError("the trees have no matches to compare (fewer than 2 candidates)")
-    reward = {c.id: c.env_reward for c in human.candidates}
+    reward = stored_reward(human) if reward is None else reward
     rejected, agree, contested, contested_kept = [], 0, 0, 0
     for m, human_winner in human.matches:
         pick = agent_pick(agent, m.round, m.a, m.b)
-        is_contested = _is_contested(reward, m.a, m.b, human_winner)
+        is_contested = contested_match(reward, m.a, m.b, human_winner)
         contested += is_contested
         if pick == human_winner:
             agree += 1
@@ -122,14 +136,26 @@ def compare(human: TreeDocument, agent: TreeDocument) -> Conformance:
         human.tree.root == agent.tree.root,
         rejected,
         _contested(contested_kept, contested),
-        reference_agreement(human),
+        reference_agreement(human, reward),
     )
 
 
-def _is_contested(reward: dict[int, float], a: int, b: int, winner: int) -> bool:
-    """Whether ``winner`` of ``a`` vs ``b`` has the strictly lower R."""
-    loser = b if winner == a else a
-    return reward[winner] < reward[loser]
+def stored_reward(doc: TreeDocument) -> dict[int, float]:
+    """Candidate id -> the stored ``env_reward`` (R without the control cost)."""
+    return {c.id: c.env_reward for c in doc.candidates}
+
+
+def r_winner(reward: Mapping[int, float], a: int, b: int) -> int | None:
+    """The candidate of ``a`` vs ``b`` with the strictly higher R; None on a tie."""
+    if reward[a] == reward[b]:
+        return None
+    return a if reward[a] > reward[b] else b
+
+
+def contested_match(reward: Mapping[int, float], a: int, b: int, winner: int) -> bool:
+    """Whether ``winner`` of ``a`` vs ``b`` has the strictly lower R (a tie is not contested)."""
+    r_pick = r_winner(reward, a, b)
+    return r_pick is not None and r_pick != winner
 
 
 def _contested(kept: int, n: int) -> Contested:
@@ -142,11 +168,16 @@ def wilson(k: int, n: int) -> tuple[float, float]:
     return float(ci.low), float(ci.high)
 
 
-def reference_agreement(human: TreeDocument) -> float:
+def reference_agreement(human: TreeDocument, reward: Mapping[int, float] | None = None) -> float:
     """The match agreement of an R-only judge with ``human``: the share of the human's matches
-    won by the higher-R candidate (a tie in R counts as not agreeing)."""
-    reward = {c.id: c.env_reward for c in human.candidates}
-    agree = sum(reward[w] > reward[m.b if w == m.a else m.a] for m, w in human.matches)
+    won by the higher-R candidate (a tie in R counts as not agreeing).
+
+    Args:
+        human: the advice tree.
+        reward: candidate id -> R; the stored ``env_reward`` when None.
+    """
+    reward = stored_reward(human) if reward is None else reward
+    agree = sum(r_winner(reward, m.a, m.b) == w for m, w in human.matches)
     return agree / len(human.matches)
 
 

@@ -20,6 +20,7 @@ def _register_commands() -> None:
         survey,
         tournament,
         train,
+        verdict,
         worker,
     )
 

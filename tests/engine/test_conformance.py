@@ -4,38 +4,24 @@ from __future__ import annotations
 
 import dataclasses
 
-import numpy as np
 import pytest
 
-from engine.bracket import Bracket, make_first_round
-from engine.conformance import compare, tree_edit_distance
+from engine.conformance import (
+    compare,
+    contested_match,
+    r_winner,
+    reference_agreement,
+    stored_reward,
+    tree_edit_distance,
+)
 from engine.errors import InputError
 from engine.pipeline import replay
-from engine.tournament import ScoreJudge, play
-from engine.treefile import TreeDocument, make_document
-from tests.engine.conftest import make_candidates
-
-
-def _doc(n: int = 16, seed: int = 0) -> TreeDocument:
-    rng = np.random.default_rng(seed)
-    cands = make_candidates(n, rng)
-    scores = {c.id: c.env_reward for c in cands}
-    first = make_first_round(list(range(n)), np.array(list(scores.values())), 0.9, rng)
-    results = play(Bracket(first), {c.id: c for c in cands}, ScoreJudge(scores))
-    return make_document(
-        env_id="Hopper-v5",
-        seed=seed,
-        p=0.9,
-        judge="good",
-        candidates=cands,
-        first_round=first,
-        results=results,
-        scores=scores,
-    )
+from engine.tournament import ScoreJudge
+from tests.engine.conftest import r_judged_doc
 
 
 def test_reversed_judge_rejects_every_first_round_match() -> None:
-    human = _doc()
+    human = r_judged_doc()
     agent = replay(
         human,
         ScoreJudge({c.id: -c.env_reward for c in human.candidates}),
@@ -53,7 +39,7 @@ def test_reversed_judge_rejects_every_first_round_match() -> None:
 
 
 def test_one_flipped_first_round_match_is_listed() -> None:
-    human = _doc()
+    human = r_judged_doc()
     m, winner = human.matches[0]
     loser = m.b if winner == m.a else m.a
     scores = {c.id: c.env_reward for c in human.candidates}
@@ -69,14 +55,36 @@ def test_one_flipped_first_round_match_is_listed() -> None:
 
 def test_trees_over_different_brackets_are_rejected() -> None:
     with pytest.raises(InputError):
-        compare(_doc(seed=0), _doc(seed=1))
-    other = dataclasses.replace(_doc(), env_id="Humanoid-v5")
+        compare(r_judged_doc(seed=0), r_judged_doc(seed=1))
+    other = dataclasses.replace(r_judged_doc(), env_id="Humanoid-v5")
     with pytest.raises(InputError):
-        compare(_doc(), other)
+        compare(r_judged_doc(), other)
 
 
 def test_edit_distance_is_normalised_to_unit_interval() -> None:
-    human = _doc(8)
+    human = r_judged_doc(8)
     assert tree_edit_distance(human.tree, human.tree) == 0.0
     flipped = replay(human, ScoreJudge({c.id: -c.env_reward for c in human.candidates}), "x")
     assert 0 < tree_edit_distance(human.tree, flipped.tree) <= 1
+
+
+def test_contested_and_reference_follow_the_r_map_passed_in() -> None:
+    human = r_judged_doc()  # judged by the stored R: nothing contested, reference agreement 1
+    assert compare(human, human).contested.n == 0 and reference_agreement(human) == 1.0
+    flipped = {c.id: -c.env_reward for c in human.candidates}
+    c = compare(human, human, flipped)
+    assert c.contested.n == c.n_matches and c.reference_agreement == 0.0
+    assert reference_agreement(human, flipped) == 0.0
+
+
+def test_a_tie_in_r_is_neither_contested_nor_an_r_agreement() -> None:
+    human = r_judged_doc()
+    m, winner = human.matches[0]
+    reward = stored_reward(human)
+    loser = m.b if winner == m.a else m.a
+    reward[loser] = reward[winner]  # R has no preference in this match (the loser plays no other)
+    assert r_winner(reward, m.a, m.b) is None
+    assert not contested_match(reward, m.a, m.b, winner)
+    c = compare(human, human, reward)
+    assert c.contested.n == 0
+    assert c.reference_agreement == (c.n_matches - 1) / c.n_matches

@@ -1,0 +1,111 @@
+"""``acv verdict`` on tiny trained runs, in-process: the sentence, the JSON, and bad input."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import pytest
+
+from app.cli import main
+from engine.pipeline import run_tournament
+from engine.treefile import dump_tree
+
+pytestmark = pytest.mark.training
+
+TINY = ["--timesteps", "128", "--n-envs", "2", "--num-steps", "64", "--checkpoint-every", "128"]
+
+
+def acv(monkeypatch, capsys, *args: str) -> tuple[int, str, str]:
+    """Run ``acv ARGS``; return the exit code, stdout and stderr."""
+    monkeypatch.setattr(sys, "argv", ["acv", *args])
+    with pytest.raises(SystemExit) as exc:
+        main()
+    out = capsys.readouterr()
+    return exc.value.code or 0, out.out, out.err
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory) -> Path:
+    """An advice tree, two advised seeds, two baseline seeds and one pilot seed (7)."""
+    root = tmp_path_factory.mktemp("verdict")
+    doc = run_tournament(env_id="Hopper-v5", n_candidates=6, p=0.9, seed=2, teacher="standing")
+    dump_tree(doc, root / "human.json")
+    mp = pytest.MonkeyPatch()
+    for name, algo, seed in [
+        ("adv0", "ppo-shaped", 0),
+        ("adv1", "ppo-shaped", 1),
+        ("base0", "ppo", 0),
+        ("base1", "ppo", 1),
+        ("pilot7", "ppo", 7),
+    ]:
+        advice = ["--advice", str(root / "human.json")] if algo != "ppo" else []
+        mp.setattr(sys, "argv", ["acv", "train", *advice, "--algo", algo, "--seed", str(seed)])
+        sys.argv += ["--env", "Hopper-v5", "--out", str(root / name), *TINY]
+        with pytest.raises(SystemExit) as exc:
+            main()
+        assert not exc.value.code
+    mp.undo()
+    return root
+
+
+def _args(root: Path, *, pilot: str = "pilot7", baseline: str = "base0") -> list[str]:
+    return [
+        "verdict",
+        "--advice",
+        str(root / "human.json"),
+        "--advised",
+        str(root / "adv0"),
+        "--advised",
+        str(root / "adv1"),
+        "--baseline",
+        str(root / baseline),
+        "--baseline",
+        str(root / "base1"),
+        "--pilot",
+        str(root / pilot),
+        "--judge",
+        "shaped",
+    ]
+
+
+def test_verdict_prints_the_sentence_and_the_json(monkeypatch, capsys, runs: Path) -> None:
+    code, out, err = acv(monkeypatch, capsys, *_args(runs))
+    assert code == 0, err
+    assert out.startswith("On ") and "cannot tell" in out  # 2 seeds against 2 never reach 0.05
+    code, out, err = acv(monkeypatch, capsys, *_args(runs), "--json")
+    assert code == 0, err
+    obj = json.loads(out)
+    assert obj["outcome"] == "cannot-tell" and obj["min_detectable_delta"] is None
+    n = sum(len(obj["matches"][k]) for k in ("contested", "agreed", "uninformative"))
+    assert n == 5  # every match of the 6-player bracket, each in one class
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        ({"pilot": "base1"}, "listed twice"),
+        ({"baseline": "adv0"}, "train without advice"),
+        ({"pilot": "base0", "baseline": "pilot7"}, "pilot seed(s) 0 are also evaluation seeds"),
+        ({"pilot": "nowhere"}, "is not a training run"),
+    ],
+)
+def test_bad_input_is_one_line_and_exit_2(
+    monkeypatch, capsys, runs: Path, change: dict[str, str], message: str
+) -> None:
+    args = _args(runs, **change)
+    if change == {"baseline": "adv0"}:  # list adv0 once only, as a baseline
+        i = args.index("--advised")
+        del args[i : i + 2]
+    code, _, err = acv(monkeypatch, capsys, *args)
+    assert code == 2 and message in err and err.count("\n") == 1
+
+
+def test_bad_margin_and_judge(monkeypatch, capsys, runs: Path) -> None:
+    code, _, err = acv(monkeypatch, capsys, *_args(runs), "--margin-advice", "2")
+    assert code == 2 and "--margin-advice must be in [0, 1]" in err
+    args = _args(runs)
+    args[-1] = "nonsense"
+    code, _, err = acv(monkeypatch, capsys, *args)
+    assert code == 2 and "unknown judge" in err
