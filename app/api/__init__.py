@@ -6,6 +6,7 @@ from fastapi import APIRouter
 
 from app.api import (
     crowd,
+    experiments,
     errors,
     health,
     matches,
@@ -23,6 +24,7 @@ api_router.include_router(participants.router)
 api_router.include_router(matches.router)
 api_router.include_router(runs.router)
 api_router.include_router(run_advisors.router)
+api_router.include_router(experiments.router)
 api_router.include_router(surveys.router)
 api_router.include_router(crowd.router)
 api_router.include_router(survey_crowd.router)

@@ -23,8 +23,9 @@ from app.db import writing
 from app.models import Experiment, ExperimentRole, ExperimentRun, Run, RunStatus
 from app.services import artefacts, runs
 from app.services.errors import NotFoundError
+from app.services.studies import get_ready_study
 from engine.errors import InputError
-from engine.treefile import tree_from_json
+from engine.treefile import TreeDocument, tree_from_json
 from engine.verdict import Verdict, VerdictInputs, advice_scores, bracket_pairs, verdict
 
 #: Evaluation seeds per arm: the default, and the range the form and API accept.
@@ -81,9 +82,7 @@ def create_experiment(session: Session, *, spec: ExperimentSpec) -> Experiment:
         NotFoundError, ConflictError: as :func:`app.services.runs.create_run`.
     """
     _check_spec(spec)
-    advised = [
-        runs.create_run(session, **spec.run, seed=seed) for seed in spec.evaluation_seeds()
-    ]
+    advised = [runs.create_run(session, **spec.run, seed=seed) for seed in spec.evaluation_seeds()]
     baseline = [_baseline_run(session, spec, seed) for seed in spec.evaluation_seeds()]
     pilot = [_baseline_run(session, spec, seed) for seed in spec.pilot_seed_list()]
     experiment = Experiment(
@@ -117,7 +116,7 @@ def _baseline_run(session: Session, spec: ExperimentSpec, seed: int) -> Run:
     request = {k: v for k, v in spec.run.items() if k not in ADVICE_OPTIONS}
     request["algo"] = "ppo"
     config = runs.train_config(
-        env_id=runs.study_env(session, study_id=request["study_id"]),
+        env_id=get_ready_study(session, study_id=request["study_id"]).env_id,
         algo="ppo",
         timesteps=request["timesteps"],
         seed=seed,
@@ -191,7 +190,10 @@ def experiment_verdict(
     step = _verdict_step(judged) if step is None else step
     if step is None:
         return None
-    table = {role: {rid: t[step] for rid, t in by_run.items() if step in t} for role, by_run in judged.items()}
+    table = {
+        role: {rid: t[step] for rid, t in by_run.items() if step in t}
+        for role, by_run in judged.items()
+    }
     if any(len(table[role.value]) < n for role, n in MIN_JUDGED.items()):
         return None
     advice = _advice_of(session, experiment)
@@ -213,7 +215,9 @@ def _judged_tables(
     session: Session, members_: list[tuple[str, Run]]
 ) -> dict[str, dict[int, dict[int, list[dict[str, Any]]]]]:
     """role -> run id -> step -> the per-candidate rows of that judged checkpoint."""
-    tables: dict[str, dict[int, dict[int, list[dict[str, Any]]]]] = {r.value: {} for r in ExperimentRole}
+    tables: dict[str, dict[int, dict[int, list[dict[str, Any]]]]] = {
+        r.value: {} for r in ExperimentRole
+    }
     for role, run in members_:
         bodies = artefacts.payloads(session, run_id=run.id)
         tables[role][run.id] = {
@@ -244,9 +248,11 @@ def _scores(tables: list[list[dict[str, Any]]], judge: str) -> np.ndarray:
         raise InputError(f"the runs' checkpoints have no {judge!r} scores") from None
 
 
-def _advice_of(session: Session, experiment: Experiment):  # noqa: ANN202
+def _advice_of(session: Session, experiment: Experiment) -> TreeDocument:
     """The advice tree the experiment's advised runs train with."""
-    advised = next(run for role, run in members(session, experiment_id=experiment.id) if role == "advised")
+    advised = next(
+        run for role, run in members(session, experiment_id=experiment.id) if role == "advised"
+    )
     if advised.advice is None:
         raise InputError(f"experiment {experiment.id}'s runs have no advice tree")
     return tree_from_json(advised.advice)

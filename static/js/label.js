@@ -18,7 +18,9 @@ const API = {
   label: (matchId) => `/api/matches/${matchId}/label`,
 };
 
-const state = { match: null, shownAt: null, busy: false, canUndo: false };
+// `shown`: the match's pictures are on screen and settled; `shownAt`: when its controls
+// began to answer (the response clock's start).
+const state = { match: null, shown: false, shownAt: null, busy: false, canUndo: false };
 const $ = (id) => document.getElementById(id);
 
 class ApiError extends Error {
@@ -31,7 +33,8 @@ class ApiError extends Error {
 }
 
 function setEnabled() {
-  const ready = !state.busy && state.shownAt !== null;
+  const ready = !state.busy && state.shown;
+  if (ready && state.shownAt === null) state.shownAt = performance.now();
   for (const id of ["pick-a", "pick-b", "btn-left", "btn-right"]) $(id).disabled = !ready;
   $("undo").disabled = state.busy || !state.canUndo;
   $("match").setAttribute("aria-busy", String(!ready));
@@ -71,8 +74,9 @@ function placed(next) {
 
 // Show the two pictures; the clock starts once both are decoded, on screen and settled.
 async function showMatch(next) {
-  if (state.match && state.match.match_id === next.match_id && state.shownAt !== null) return;
+  if (state.match && state.match.match_id === next.match_id && state.shown) return;
   state.match = next;
+  state.shown = false;
   state.shownAt = null;
   const box = $("match");
   box.classList.add("loading");
@@ -88,8 +92,7 @@ async function showMatch(next) {
   if (state.match !== next) return;  // a newer match replaced this one meanwhile
   box.classList.remove("loading");
   await settled();
-  if (state.match !== next) return;
-  state.shownAt = performance.now();
+  if (state.match === next) state.shown = true;  // the clock starts when the controls answer
 }
 
 // Pictures fetched ahead, kept referenced so that the browser keeps them decoded.
