@@ -51,9 +51,9 @@ def cannot_tell_reason(
         return "no advised runs" if not k_a else "no baseline runs"
     if n < options.min_contested:
         return (
-            f"only {n} informative contested match{'es' * (n != 1)} "
-            f"(at least {options.min_contested} needed; {len(classes.uninformative)} "
-            "uninformative not counted)"
+            f"only {n} informative contested match{'es' * (n != 1)}, at least "
+            f"{options.min_contested} needed; {len(classes.uninformative)} uninformative "
+            "not counted"
         )
     floor = smallest_p(k_a, k_b)
     if floor > options.alpha:
@@ -93,5 +93,6 @@ def sentence(v: Verdict) -> str:
             f"without your advice kept {kept_b:.1f} ({k_b} seed{'s' * (k_b != 1)}). "
             f"Δ = {v.delta:.2f} [{low:.2f}, {high:.2f}], {p}: {v.label}{why}."
         )
-    mde = "no Δ up to 1" if v.min_detectable_delta is None else f"Δ ≥ {v.min_detectable_delta:.2f}"
-    return f"{head} This design detects {mde} at α = {v.alpha:g} with power {v.power:g}."
+    mde = v.min_detectable_delta
+    can = "cannot detect any Δ" if mde is None else f"detects Δ ≥ {mde:.2f}"
+    return f"{head} This design {can} at α = {v.alpha:g} with power {v.power:g}."

@@ -11,10 +11,10 @@ from pathlib import Path
 
 import numpy as np
 
-from engine.conformance import stored_reward
 from engine.errors import InputError
-from engine.rl.agent_judge import JUDGES, agent_tree
+from engine.rl.agent_judge import JUDGES, agent_tree, candidate_terms, load_agent
 from engine.rl.behaviour import RolloutOptions
+from engine.rl.checkpoint import find_checkpoint
 from engine.rl.config import TrainConfig
 from engine.rl.runner import load_run_config
 from engine.treefile import TreeDocument
@@ -96,6 +96,17 @@ def judge_scores(
     return rows
 
 
+def judges_reward(runs: Sequence[Path], advice: TreeDocument) -> np.ndarray:
+    """The judges' R per candidate, shape ``(N,)``: the stored env reward minus the control
+    cost of each run's mean action there, averaged over ``runs`` (the pilot runs, so that the
+    immediate-R contested matches use the R the no-advice judge sees)."""
+    rewards = [
+        candidate_terms(load_agent(find_checkpoint(Path(run))), advice).reward for run in runs
+    ]
+    mean: np.ndarray = np.mean(rewards, axis=0)
+    return mean
+
+
 def runs_verdict(
     advice: TreeDocument,
     arms: tuple[Sequence[Path], Sequence[Path], Sequence[Path]],
@@ -105,7 +116,8 @@ def runs_verdict(
     rollouts: RolloutOptions = RolloutOptions(),
 ) -> Verdict:
     """The verdict of the advised runs against the baseline, contested matches picked by the
-    pilot runs, on the advice tree's bracket. Immediate-R contested uses the stored R.
+    pilot runs, on the advice tree's bracket. Immediate-R contested uses the pilot judges' R
+    (:func:`judges_reward`).
 
     Args:
         advice: the advice tree.
@@ -117,13 +129,8 @@ def runs_verdict(
     """
     check_arms(advice, *arms)
     advised, baseline, pilot = (judge_scores(runs, advice, judge, rollouts) for runs in arms)
-    reward = stored_reward(advice)
+    reward = judges_reward(arms[2], advice) if len(arms[2]) else None
     inputs = VerdictInputs(
-        advice_scores(advice),
-        advised,
-        baseline,
-        pilot,
-        bracket_pairs(advice),
-        np.array([reward[c.id] for c in advice.candidates]),
+        advice_scores(advice), advised, baseline, pilot, bracket_pairs(advice), reward
     )
     return verdict(inputs, rng, options)

@@ -6,6 +6,7 @@ import json
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from app.cli import main
@@ -109,3 +110,19 @@ def test_bad_margin_and_judge(monkeypatch, capsys, runs: Path) -> None:
     args[-1] = "nonsense"
     code, _, err = acv(monkeypatch, capsys, *args)
     assert code == 2 and "unknown judge" in err
+
+
+def test_immediate_r_contested_uses_the_pilot_judges_r(monkeypatch, capsys, runs: Path) -> None:
+    from engine.treefile import load_tree
+    from engine.verdict_runs import judges_reward
+
+    advice = load_tree(runs / "human.json")
+    r = judges_reward([runs / "pilot7"], advice)
+    stored = np.array([c.env_reward for c in advice.candidates])
+    assert (r < stored).all()  # minus the control cost of the pilot's actions
+    code, out, err = acv(monkeypatch, capsys, *_args(runs), "--json")
+    assert code == 0, err
+    m = json.loads(out)["matches"]
+    informative = [tuple(p) for p in m["contested"] + m["agreed"]]
+    expected = [(a, b, w) for a, b, w in informative if r[w] < r[b if w == a else a]]
+    assert [tuple(p) for p in m["r_contested"]] == expected
