@@ -6,8 +6,8 @@ from fastapi import APIRouter
 
 from app.api import (
     crowd,
-    experiments,
     errors,
+    experiments,
     health,
     matches,
     participants,

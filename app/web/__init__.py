@@ -15,6 +15,7 @@ from app.web import (
     crowd_pages,
     crowd_study_pages,
     downloads,
+    experiment_pages,
     participant_pages,
     runs_pages,
     studies_pages,
@@ -28,6 +29,7 @@ router.include_router(participant_pages.router)
 router.include_router(downloads.router)
 router.include_router(studies_pages.router)
 router.include_router(runs_pages.router)
+router.include_router(experiment_pages.router)
 router.include_router(surveys_pages.router)
 router.include_router(crowd_pages.router)
 router.include_router(crowd_study_pages.router)

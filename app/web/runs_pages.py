@@ -17,13 +17,15 @@ from pydantic import TypeAdapter, ValidationError
 from sqlalchemy.orm import Session
 
 from app.api.deps import MAX_DB_ID, DbId, SessionDep
+from app.api.experiments import ExperimentCreate
 from app.api.run_schemas import Judge, RunCreate, RunOut
 from app.api.runs import RunsRootDep
 from app.api.schemas import FORM_INPUT
 from app.jobs.execute import run_dir
 from app.models import Run
-from app.services import comparison, participants, run_report, runs, studies
+from app.services import comparison, experiments, participants, run_report, runs, studies
 from app.services.errors import PendingError
+from app.services.experiments import DEFAULT_SEEDS
 from app.web.csrf import CsrfChecked, FormFields
 from app.web.guards import ResearcherPage
 from app.web.rendering import PageRoute, redirect, render, thumb_template
@@ -41,6 +43,8 @@ FORM_DEFAULTS = {
     "num_steps": "",
     "checkpoint_every": "",
     "advice_mode": "",
+    "experiment": "on",
+    "seeds": str(DEFAULT_SEEDS),
 }
 _OPTIONAL = ("num_steps", "checkpoint_every", "advice_mode")
 #: Advice choices of pooled advice, and the checkboxes that choose the pool (``pool_<id>``).
@@ -183,12 +187,15 @@ def create_run(request: Request, session: SessionDep, fields: FormFields) -> Res
         study_id = _DB_ID.validate_python(fields.get("study_id", ""))
     except ValidationError:
         raise InputError("the form names no study") from None
+    body = _body(study_id, values, chosen)
     try:
+        if values["experiment"] and values["algo"] != "ppo":
+            spec = ExperimentCreate.model_validate(
+                body | {"seeds": values["seeds"].strip()}, context=FORM_INPUT
+            ).spec()
+            return redirect(f"/experiments/{experiments.create_experiment(session, spec=spec).id}")
         run = runs.create_run(
-            session,
-            **RunCreate.model_validate(
-                _body(study_id, values, chosen), context=FORM_INPUT
-            ).model_dump(),
+            session, **RunCreate.model_validate(body, context=FORM_INPUT).model_dump()
         )
     except ValidationError as exc:
         errors = {str(e["loc"][0]) if e["loc"] else "form": e["msg"] for e in exc.errors()}

@@ -15,12 +15,15 @@ import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 from sqlalchemy import func, select
+from typer.testing import CliRunner
 
+from app.cli.root import cli
 from app.models import Run
 from app.services import artefacts
 from engine.rl.report import SCHEMA
 from tests.app.conftest import ADMIN, new_study
 from tests.app.runs_support import TINY, run_app
+from tests.support.web import audit, csrf_token, logged_in
 
 BODY = {"algo": "bipars-em", "timesteps": 512, **TINY}
 STEP = 256
@@ -168,3 +171,81 @@ def test_unknown_experiments_and_judges(client, study) -> None:
     )
     assert response.status_code == 422
     assert client.get("/api/experiments", headers={}).status_code == 401
+
+
+def test_the_cli_queues_lists_and_gives_the_verdict(client, study, settings, monkeypatch) -> None:
+    """``acv experiment`` on this module's database: the same service as the API."""
+    monkeypatch.setenv("ACV_DATA_DIR", str(settings.data_dir))
+    monkeypatch.setenv("DATABASE_URL", settings.sqlalchemy_url)
+    created = CliRunner().invoke(
+        cli,
+        [
+            "experiment",
+            "create",
+            "--study",
+            str(study["id"]),
+            "--teacher",
+            "good",
+            "--timesteps",
+            "640",
+            "--seeds",
+            "2",
+            "--pilot-seeds",
+            "1",
+        ],
+    )
+    assert created.exit_code == 0, created.output
+    experiment_id = int(created.output.split()[1])
+    assert created.output.count("\tadvised\t") == 2 and created.output.count("\tpilot\t") == 1
+    listed = CliRunner().invoke(cli, ["experiment", "list", "--study", str(study["id"])])
+    assert f"{experiment_id}\tstudy {study['id']}\tbipars-em\t2 seeds\t0/5 runs" in listed.output
+    pending = CliRunner().invoke(cli, ["experiment", "verdict", str(experiment_id)])
+    assert pending.exit_code == 2 and "too few judged runs" in pending.output
+    bad = CliRunner().invoke(
+        cli,
+        [
+            "experiment",
+            "create",
+            "--study",
+            str(study["id"]),
+            "--timesteps",
+            "640",
+            "--teacher",
+            "good",
+            "--seeds",
+            "1",
+        ],
+    )
+    assert bad.exit_code == 2 and "seeds must be in 2..20" in bad.output
+
+
+def test_the_run_form_starts_an_experiment_and_its_page_shows_it(client, study) -> None:
+    page = logged_in(client)
+    form = {
+        "csrf_token": csrf_token(page, f"/runs/new?study_id={study['id']}"),
+        "study_id": str(study["id"]),
+        "advice": "teacher:good",
+        "algo": "bipars-em",
+        "timesteps": "896",
+        "seed": "0",
+        "n_envs": "1",
+        "num_steps": "128",
+        "experiment": "on",
+        "seeds": "2",
+    }
+    response = page.post("/runs", data=form, follow_redirects=False)
+    assert response.status_code == 303, response.text
+    experiment_id = int(response.headers["location"].rsplit("/", 1)[1])
+    experiment = client.get(f"/api/experiments/{experiment_id}", headers=ADMIN).json()
+    assert [r["role"] for r in experiment["runs"]].count("advised") == 2
+    shown = page.get(f"/experiments/{experiment_id}")
+    assert shown.status_code == 200 and audit(shown.text) == []
+    assert "No verdict yet" in shown.text and shown.text.count('<tr data-run-id="') == 6
+    # Seeds out of range are shown next to the form's field, and nothing is queued.
+    before = _n_runs(client)
+    refused = page.post("/runs", data=form | {"seeds": "25"}, follow_redirects=False)
+    assert refused.status_code == 422 and 'id="seeds"' in refused.text
+    assert _n_runs(client) == before
+    # ppo is one run: the box does not apply.
+    single = page.post("/runs", data=form | {"algo": "ppo"}, follow_redirects=False)
+    assert single.status_code == 303 and "/runs/" in single.headers["location"]

@@ -48,6 +48,7 @@ def test_a_run_on_pooled_advice_from_the_form_to_the_comparison(
     page.fill("#timesteps", "256")
     page.fill("#n_envs", "1")
     page.fill("#num_steps", "128")
+    page.uncheck("#experiment")  # one pooled run, not an experiment
     page.click("text=Start training")
     page.wait_for_url(re.compile(rf"{base}/runs/\d+$"))
     run_id = int(page.url.rstrip("/").rsplit("/", 1)[1])

@@ -1,0 +1,83 @@
+"""``acv experiment``: advised runs on k seeds with a matched no-advice baseline, and the
+verdict (the same service layer as ``/api/experiments``). Runs train on the worker
+(``acv serve`` or ``acv worker``), as every queued run does."""
+
+from __future__ import annotations
+
+import json
+from typing import Annotated, Any
+
+import typer
+
+from app.cli.root import cli, fail
+from app.cli.serve import cli_runtime
+from app.services import experiments
+from app.services.experiments import DEFAULT_PILOT_SEEDS, DEFAULT_SEEDS, ExperimentSpec
+
+Opt = typer.Option
+experiment_cli = typer.Typer(help="Experiments: k seeds with a matched baseline.")
+cli.add_typer(experiment_cli, name="experiment", no_args_is_help=True)
+
+
+@experiment_cli.command("create")
+def create(
+    study: Annotated[int, Opt(help="The study whose bracket the advice is over.")],
+    timesteps: Annotated[int, Opt(help="Env steps per run.")],
+    teacher: Annotated[str | None, Opt(help="A simulated teacher's advice.")] = None,
+    participant: Annotated[int | None, Opt(help="A finished participant's advice.")] = None,
+    algo: Annotated[str, Opt(help="How the advised runs train.")] = "bipars-em",
+    seeds: Annotated[int, Opt(help="Evaluation seeds per arm (2..20).")] = DEFAULT_SEEDS,
+    pilot_seeds: Annotated[int, Opt(help="Pilot runs (1..10).")] = DEFAULT_PILOT_SEEDS,
+    first_seed: Annotated[int, Opt(help="The first evaluation seed.")] = 0,
+    n_envs: Annotated[int, Opt(help="Parallel envs per run.")] = 4,
+) -> None:
+    """Queue the advised, baseline and pilot runs (baseline and pilot runs already trained
+    with the same settings are reused); prints the experiment's id and its runs."""
+    run: dict[str, Any] = {"study_id": study, "algo": algo, "timesteps": timesteps}
+    run |= {"n_envs": n_envs, "teacher": teacher, "participant_id": participant}
+    spec = ExperimentSpec(
+        run={k: v for k, v in run.items() if v is not None},
+        seeds=seeds,
+        first_seed=first_seed,
+        pilot_seeds=pilot_seeds,
+    )
+    with cli_runtime() as runtime, runtime.sessions() as session:
+        experiment = experiments.create_experiment(session, spec=spec)
+        members = experiments.members(session, experiment_id=experiment.id)
+    typer.echo(f"experiment {experiment.id} queued: {len(members)} runs")
+    for role, member in members:
+        typer.echo(f"{member.id}\t{role}\t{member.algo}\tseed {member.seed}\t{member.status}")
+
+
+@experiment_cli.command("list")
+def list_(study: Annotated[int | None, Opt(help="Only this study's.")] = None) -> None:
+    """One line per experiment: id, study, algo, seeds, runs succeeded."""
+    with cli_runtime() as runtime, runtime.sessions() as session:
+        for experiment in experiments.list_experiments(session, study_id=study):
+            members = experiments.members(session, experiment_id=experiment.id)
+            done = sum(run.status == "succeeded" for _, run in members)
+            typer.echo(
+                f"{experiment.id}\tstudy {experiment.study_id}\t{experiment.spec.get('algo')}\t"
+                f"{len(experiment.seeds)} seeds\t{done}/{len(members)} runs succeeded"
+            )
+
+
+@experiment_cli.command("verdict")
+def verdict(
+    experiment: Annotated[int, typer.Argument(help="The experiment's id.")],
+    judge: Annotated[str, Opt(help="How the runs score states.")] = "behaviour",
+    step: Annotated[int | None, Opt(help="Checkpoint (default: latest judged).")] = None,
+    as_json: Annotated[bool, Opt("--json", help="Print JSON instead of the sentence.")] = False,
+) -> None:
+    """The verdict: advised runs against the matched baseline, on the matches that can tell."""
+    with cli_runtime() as runtime, runtime.sessions() as session:
+        found = experiments.experiment_verdict(
+            session, experiment_id=experiment, judge=judge, step=step
+        )
+    if found is None:
+        fail(f"experiment {experiment} has too few judged runs for a verdict yet")
+    if as_json:
+        body = {"judge": found.judge, "step": found.step, "runs": found.runs}
+        typer.echo(json.dumps(body | {"verdict": found.verdict.to_json()}, indent=1))
+    else:
+        typer.echo(f"step {found.step}, judge {found.judge}: {found.verdict.text}")

@@ -1,0 +1,40 @@
+// The experiment page: while runs train, poll the experiment every few seconds and update
+// each run's status and progress; when a verdict appears or changes step, reload the page
+// (the verdict is rendered on the server). Stops once every run has ended.
+/* global ACV */
+"use strict";
+
+(function () {
+  const root = document.getElementById("experiment");
+  if (!root) return;
+  const POLL_MS = 4000;
+  const live = (status) => status === "queued" || status === "running";
+
+  function update(runs) {
+    for (const run of runs) {
+      const row = root.querySelector(`tr[data-run-id="${run.id}"]`);
+      if (!row) continue;
+      const badge = row.querySelector("[data-status]");
+      badge.textContent = run.status;
+      badge.className = `badge run-${run.status}`;
+      row.querySelector("[data-progress]").textContent =
+        `${run.progress.done} / ${run.progress.total}`;
+    }
+  }
+
+  async function poll() {
+    const experiment = await ACV.api("GET", root.dataset.experimentUrl);
+    if (experiment.status !== 200) return;
+    update(experiment.data.runs);
+    const verdictUrl = `${root.dataset.experimentUrl}/verdict?judge=${root.dataset.judge}`;
+    const verdict = await ACV.api("GET", verdictUrl);
+    if (verdict.status === 200 && String(verdict.data.step) !== root.dataset.verdictStep) {
+      window.location.reload();
+      return;
+    }
+    if (experiment.data.runs.some((run) => live(run.status))) setTimeout(poll, POLL_MS);
+  }
+
+  root.dataset.ready = "true";
+  setTimeout(poll, POLL_MS);
+})();
