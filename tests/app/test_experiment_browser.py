@@ -1,0 +1,105 @@
+"""The experiment page in a real browser (issue 25 §1): the runs by role while nothing is
+judged, then the verdict once every run's checkpoint is, without a reload by the person.
+
+The server's run worker is off: each run's checkpoint artefact is written into the server's
+database as its executor would write it, with per-candidate scores whose truth is known
+(advised runs follow the advice, the others go against it), so the verdict must say "used".
+axe-core audits the page in both states, on a desktop and on a phone.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from pathlib import Path
+
+import httpx
+import numpy as np
+import pytest
+from playwright.sync_api import Browser, expect
+
+from app.db import make_engine, make_sessions
+from app.services import artefacts
+from engine.rl.report import SCHEMA
+from tests.support.a11y import assert_accessible
+from tests.support.labelling import wait_until_prepared
+from tests.support.server import acv_serve, clean_env
+
+from .test_browser import ADMIN_TOKEN, DESKTOP, PHONE, browser, new_page  # noqa: F401
+
+pytestmark = pytest.mark.browser
+ADMIN = {"Authorization": f"Bearer {ADMIN_TOKEN}"}
+STEP = 256
+
+
+@pytest.fixture(scope="module")
+def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[str, Path]]:
+    """``acv serve`` without its run worker; yields ``(base URL, data dir)``."""
+    data_dir = tmp_path_factory.mktemp("acv-experiment-data")
+    env = clean_env(ACV_DATA_DIR=str(data_dir), ACV_ADMIN_TOKEN=ADMIN_TOKEN, ACV_RUN_WORKER="false")
+    with acv_serve(env, data_dir / "server.log") as base:
+        yield base, data_dir
+
+
+def _judge_every_run(data_dir: Path, experiment: dict, advice: np.ndarray) -> None:
+    """Store each run's artefact at :data:`STEP` in the server's SQLite database."""
+    engine = make_engine(f"sqlite:///{data_dir / 'acv.sqlite3'}")
+    rng = np.random.default_rng(1)
+    try:
+        with make_sessions(engine)() as session:
+            for run in experiment["runs"]:
+                sign = 1.0 if run["role"] == "advised" else -1.0
+                scores = sign * advice + rng.normal(0, 1e-3, advice.size)
+                rows = [
+                    {
+                        "id": i,
+                        "reward": 0.0,
+                        "advice": 0.0,
+                        "z": 0.0,
+                        "shaping": 0.0,
+                        "shaped": 0.0,
+                        "value": 0.0,
+                        "behaviour": float(s),
+                    }
+                    for i, s in enumerate(scores)
+                ]
+                body = {"schema": SCHEMA, "step": STEP, "judges": {}, "candidates": rows}
+                assert artefacts.store(session, run_id=run["id"], step=STEP, body=body)
+    finally:
+        engine.dispose()
+
+
+def test_the_verdict_arrives_on_the_experiment_page(server, browser: Browser) -> None:
+    base, data_dir = server
+    with httpx.Client(base_url=base, headers=ADMIN, timeout=60) as api:
+        study = api.post(
+            "/api/studies", json={"name": "exp", "env_id": "Hopper-v5", "n_candidates": 8}
+        ).json()
+        wait_until_prepared(api, study["id"])
+        body = {"study_id": study["id"], "teacher": "good", "timesteps": 512, "n_envs": 1}
+        experiment = api.post("/api/experiments", json=body | {"seeds": 5, "pilot_seeds": 1})
+        assert experiment.status_code == 202, experiment.text
+        experiment = experiment.json()
+        candidates = api.get(f"/api/studies/{study['id']}/candidates").json()
+    advice = np.array([c["env_reward"] for c in candidates])
+    errors: list[str] = []
+    context, page = new_page(browser, errors, viewport=DESKTOP)
+    page.goto(f"{base}/login#token={ADMIN_TOKEN}")
+    page.wait_for_url(f"{base}/studies")
+    page.goto(f"{base}/experiments/{experiment['id']}")
+    expect(page.locator("#experiment-runs tbody tr")).to_have_count(11)
+    expect(page.locator("#verdict")).to_have_attribute("data-outcome", "pending")
+    assert_accessible(page, "experiment page, nothing judged yet")
+    _judge_every_run(data_dir, experiment, advice)
+    # The page polls and shows the verdict by itself.
+    expect(page.locator("#verdict")).to_have_attribute("data-outcome", "used", timeout=30_000)
+    expect(page.locator("#verdict")).to_contain_text("used your advice")
+    assert_accessible(page, "experiment page with its verdict")
+    context.close()
+    phone, p = new_page(browser, errors, viewport=PHONE, is_mobile=True, has_touch=True)
+    p.goto(f"{base}/login#token={ADMIN_TOKEN}")
+    p.wait_for_url(f"{base}/studies")
+    p.goto(f"{base}/experiments/{experiment['id']}?judge=shaped")
+    expect(p.locator("#judge")).to_have_value("shaped")
+    assert_accessible(p, "experiment page on a phone, a diagnostic judge")
+    phone.close()
+    assert errors == []
