@@ -6,7 +6,7 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, StrictBool
 
-from app.api.schemas import JsonInt, ProgressOut, UtcDatetime
+from app.api.schemas import JsonFloat, JsonInt, ProgressOut, UtcDatetime
 from app.models import RUN_STATUSES, Run
 from app.services.pools import members
 from app.services.runs import MAX_TIMESTEPS, RUN_TEACHERS, advice_label
@@ -55,6 +55,13 @@ class RunCreate(BaseModel):
         ge=1,
         le=MAX_TIMESTEPS,
         description="Env steps between checkpoints (default: about 10 checkpoints).",
+    )
+    advice_scale: JsonFloat | None = Field(
+        None,
+        gt=0,
+        le=100,
+        allow_inf_nan=False,
+        description="Multiplies F(s) before shaping (default 1); 10 lets the advice dominate R.",
     )
     advice_mode: AdviceMode | None = Field(
         None,

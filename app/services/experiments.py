@@ -34,7 +34,7 @@ DEFAULT_PILOT_SEEDS, MAX_PILOT_SEEDS = 2, 10
 #: Pilot seeds start here, far from any evaluation seed (those are below it).
 PILOT_SEED_BASE = 1_000_000
 #: Run options that only shape the advice: a baseline trains without them.
-ADVICE_OPTIONS = ("advice_mode",)
+ADVICE_OPTIONS = ("advice_mode", "advice_scale")
 #: Fewest runs per role with a judged checkpoint before a verdict is attempted.
 MIN_JUDGED = {ExperimentRole.ADVISED: 2, ExperimentRole.BASELINE: 2, ExperimentRole.PILOT: 1}
 

@@ -259,6 +259,7 @@ def compare_page(
             "who": run_report.who(run),
             "whose": run_report.whose(run),
             "selected": checkpoint if checkpoint in steps else (steps[-1] if steps else None),
+            "experiment_ids": experiments.experiments_of_run(session, run_id=run_id),
             "thumb_template": thumb_template(run.study_id),
             "image_template": thumb_template(run.study_id).removesuffix("?size=thumb"),
             "others": len(runs.same_advice_runs(session, run=run)),
@@ -284,6 +285,13 @@ def compare_runs_page(
             "run": RunOut.of(run),
             "study": studies.get_study(session, study_id=run.study_id),
             "rows": rows,
+            "experiment_ids": sorted(
+                {
+                    e
+                    for r in rows
+                    for e in experiments.experiments_of_run(session, run_id=r["run"].id)
+                }
+            ),
             "whose": run_report.whose(run),
             "advice": runs.advice_label(run),
         },

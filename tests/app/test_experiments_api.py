@@ -249,3 +249,30 @@ def test_the_run_form_starts_an_experiment_and_its_page_shows_it(client, study) 
     # ppo is one run: the box does not apply.
     single = page.post("/runs", data=form | {"algo": "ppo"}, follow_redirects=False)
     assert single.status_code == 303 and "/runs/" in single.headers["location"]
+    # A run's comparison pages lead to its experiment's verdict, or say how to get one.
+    advised = experiment["runs"][0]["id"]
+    for path in (f"/runs/{advised}/compare", f"/runs/{advised}/compare-runs"):
+        linked = page.get(path)
+        assert f'href="/experiments/{experiment_id}"' in linked.text and audit(linked.text) == []
+    alone = page.get(single.headers["location"] + "/compare")
+    assert "start an experiment" in alone.text and "/experiments/" not in alone.text
+
+
+def test_advice_scale_shapes_the_advised_runs_only(client, study) -> None:
+    """A dose of advice (issue 27's positive controls): the baseline is the same ppo runs."""
+    plain = _create(client, study_id=study["id"], teacher="good", seeds=2, **BODY)
+    dosed = _create(client, study_id=study["id"], teacher="good", seeds=2, advice_scale=10, **BODY)
+    runs = {
+        r["id"]: client.get(f"/api/runs/{r['id']}", headers=ADMIN).json() for r in dosed["runs"]
+    }
+    shared = lambda e: [r["id"] for r in e["runs"] if r["role"] != "advised"]  # noqa: E731
+    assert shared(dosed) == shared(plain)
+    for run in dosed["runs"]:
+        assert runs[run["id"]]["config"]["advice_scale"] == (10 if run["role"] == "advised" else 1)
+    for bad in (0, -1, 101, True, "10"):
+        response = client.post(
+            "/api/experiments",
+            json={"study_id": study["id"], "teacher": "good", "advice_scale": bad, **BODY},
+            headers=ADMIN,
+        )
+        assert response.status_code == 422 and "advice_scale" in response.text, (bad, response.text)
