@@ -101,6 +101,19 @@ class CandidateOut(BaseModel):
     thumb_url: str
 
 
+class AdvicePowerOut(BaseModel):
+    """Can a participant's advice be told apart on this bracket (estimated from R)?"""
+
+    participant_id: int
+    n_matches: int
+    contested: int = Field(description="Informative matches where R picks the other winner.")
+    uninformative: int = Field(description="Matches where the advice or R has no preference.")
+    min_detectable_delta: float | None = Field(
+        description="Smallest Δ an experiment detects (α 0.05, power 0.8); null: none."
+    )
+    can_tell: bool = Field(description="At least 8 contested matches.")
+
+
 class ProgressOut(BaseModel):
     done: int
     total: int

@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
-from typing import Any
+from dataclasses import asdict
+from typing import Annotated, Any
 
-from fastapi import APIRouter, Request, Response
+from fastapi import APIRouter, Query, Request, Response
 from fastapi.responses import FileResponse
 
 from app.api.deps import (
@@ -17,6 +18,7 @@ from app.api.deps import (
     ViewerDep,
 )
 from app.api.schemas import (
+    AdvicePowerOut,
     CandidateOut,
     ParticipantBatchCreate,
     ParticipantCreate,
@@ -29,7 +31,9 @@ from app.api.schemas import (
 from app.api.urls import image_url, invite_url
 from app.models import Participant
 from app.services import participants, studies, trees
+from app.services import study_power as power
 from app.services.errors import NotFoundError
+from app.services.experiments import DEFAULT_SEEDS, MAX_SEEDS, MIN_SEEDS
 from app.services.images import MEDIA_TYPE, ImageSize, image_file
 from engine.treefile import tree_to_json
 
@@ -55,6 +59,21 @@ def list_studies(session: SessionDep, _: ResearcherDep) -> list[StudyOut]:
 @router.get("/{study_id}")
 def get_study(study_id: DbId, session: SessionDep, _: ResearcherDep) -> StudyOut:
     return StudyOut.model_validate(studies.get_study(session, study_id=study_id))
+
+
+@router.get("/{study_id}/power")
+def study_power(
+    study_id: DbId,
+    session: SessionDep,
+    _: ResearcherDep,
+    seeds: Annotated[int, Query(ge=MIN_SEEDS, le=MAX_SEEDS)] = DEFAULT_SEEDS,
+) -> list[AdvicePowerOut]:
+    """Can this bracket tell? Per finished participant: the matches that can tell whether an
+    agent used their advice, estimated with R standing in for an agent without it, and the
+    smallest Δ an experiment of ``seeds`` seeds per arm detects (α = 0.05, power 0.8)."""
+    studies.get_study(session, study_id=study_id)
+    found = power.study_power(session, study_id=study_id, seeds=seeds)
+    return [AdvicePowerOut.model_validate(asdict(p)) for p in found]
 
 
 @router.get("/{study_id}/candidates")

@@ -16,7 +16,8 @@ from sqlalchemy.orm import Session
 from app.api.deps import DbId, RuntimeDep, SessionDep
 from app.api.schemas import FORM_INPUT, StudyCreate
 from app.api.urls import image_url
-from app.services import participants, studies
+from app.services import participants, studies, study_power
+from app.services.experiments import DEFAULT_SEEDS
 from app.services.participants import MAX_BATCH
 from app.web.crowd_study_pages import crowd_context
 from app.web.csrf import CsrfChecked, FormFields
@@ -123,8 +124,17 @@ def study_page(
             "candidates": _candidates(session, study_id),
             "participants": _participants(request, session, study_id),
             **(crowd_context(request, session, study_id) if study.status == "ready" else {}),
+            **(_power(session, study_id) if study.status == "ready" else {}),
         },
     )
+
+
+def _power(session: Session, study_id: int) -> dict[str, Any]:
+    return {
+        "power": study_power.study_power(session, study_id=study_id),
+        "enough": study_power.ENOUGH_MATCHES,
+        "seeds": DEFAULT_SEEDS,
+    }
 
 
 def _candidates(session: Session, study_id: int) -> list[dict[str, Any]]:

@@ -23,6 +23,7 @@ from app.services import artefacts
 from engine.rl.report import SCHEMA
 from tests.app.conftest import ADMIN, new_study
 from tests.app.runs_support import TINY, run_app
+from tests.support.labelling import label_bracket
 from tests.support.web import audit, csrf_token, logged_in
 
 BODY = {"algo": "bipars-em", "timesteps": 512, **TINY}
@@ -276,3 +277,35 @@ def test_advice_scale_shapes_the_advised_runs_only(client, study) -> None:
             headers=ADMIN,
         )
         assert response.status_code == 422 and "advice_scale" in response.text, (bad, response.text)
+
+
+def test_a_study_says_whether_its_bracket_can_tell(client, study) -> None:
+    """Per finished participant, from R: the matches that can tell (API and study page)."""
+    empty = client.get(f"/api/studies/{study['id']}/power", headers=ADMIN)
+    assert empty.status_code == 200 and empty.json() == []
+    rewards = {
+        c["id"]: c["env_reward"]
+        for c in client.get(f"/api/studies/{study['id']}/candidates", headers=ADMIN).json()
+    }
+    person = client.post(f"/api/studies/{study['id']}/participants", headers=ADMIN).json()
+    label_bracket(
+        client,
+        person["token"],
+        lambda m: min(  # against R every time it can
+            (m["a"]["candidate_id"], m["b"]["candidate_id"]), key=rewards.__getitem__
+        ),
+    )
+    power = client.get(f"/api/studies/{study['id']}/power?seeds=10", headers=ADMIN).json()
+    assert len(power) == 1 and power[0]["participant_id"] == person["id"]
+    row = power[0]
+    assert row["n_matches"] == 7 and row["contested"] + row["uninformative"] == 7
+    assert row["contested"] >= 5 and row["can_tell"] is False  # 7 matches: never 8
+    assert row["min_detectable_delta"] is not None
+    page = logged_in(client).get(f"/studies/{study['id']}")
+    assert "Can this bracket tell?" in page.text and "this bracket cannot tell" in page.text
+    assert audit(page.text) == []
+    for bad in ("1", "21", "x"):
+        assert (
+            client.get(f"/api/studies/{study['id']}/power?seeds={bad}", headers=ADMIN).status_code
+            == 422
+        )
