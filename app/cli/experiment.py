@@ -30,11 +30,16 @@ def create(
     pilot_seeds: Annotated[int, Opt(help="Pilot runs (1..10).")] = DEFAULT_PILOT_SEEDS,
     first_seed: Annotated[int, Opt(help="The first evaluation seed.")] = 0,
     n_envs: Annotated[int, Opt(help="Parallel envs per run.")] = 4,
+    advice_scale: Annotated[float | None, Opt(help="Multiplies F (advised runs).")] = None,
+    checkpoint_every: Annotated[int | None, Opt(help="Env steps between checkpoints.")] = None,
+    num_steps: Annotated[int | None, Opt(help="Steps per env per rollout.")] = None,
 ) -> None:
     """Queue the advised, baseline and pilot runs (baseline and pilot runs already trained
     with the same settings are reused); prints the experiment's id and its runs."""
     run: dict[str, Any] = {"study_id": study, "algo": algo, "timesteps": timesteps}
     run |= {"n_envs": n_envs, "teacher": teacher, "participant_id": participant}
+    run |= {"advice_scale": advice_scale, "checkpoint_every": checkpoint_every}
+    run |= {"num_steps": num_steps}
     spec = ExperimentSpec(
         run={k: v for k, v in run.items() if v is not None},
         seeds=seeds,

@@ -34,8 +34,9 @@ from engine.teachers import make_teacher
 from engine.tournament import play
 from engine.treefile import TreeDocument, make_document, tree_from_json, tree_to_json
 
-#: Simulated teachers a run may take its advice from (the paper's two cases).
-RUN_TEACHERS = ("good", "standing", "orthogonal")
+#: Simulated teachers a run may take its advice from: the paper's two cases, a posture R does
+#: not reward, and a fair coin per match (shuffled advice, a negative control).
+RUN_TEACHERS = ("good", "standing", "orthogonal", "random")
 RESUMABLE: tuple[RunStatus, ...] = (RunStatus.INTERRUPTED, RunStatus.FAILED, RunStatus.CANCELLED)
 FINAL: tuple[RunStatus, ...] = (RunStatus.SUCCEEDED, RunStatus.FAILED, RunStatus.CANCELLED)
 MAX_TIMESTEPS = 100_000_000
