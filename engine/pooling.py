@@ -50,12 +50,18 @@ def pooled_advice(
     )
 
 
-def pooled_tree(docs: Sequence[TreeDocument]) -> TreeDocument:
-    """The pooled verdict: the shared bracket replayed by the pool's mean F at each candidate.
+def pooled_tree(
+    docs: Sequence[TreeDocument],
+    mode: str = "nearest",
+    depth_factor: str = "none",
+    kappa: float = 10.0,
+) -> TreeDocument:
+    """The pooled verdict: the shared bracket replayed by the pool's mean F at each candidate,
+    with the F options the run trains with (:func:`pooled_advice`).
 
     Its ``judge`` is ``pooled:<judge>,<judge>,...``; its scores are the mean F.
     """
-    f = pooled_advice(docs)
+    f = pooled_advice(docs, mode, depth_factor, kappa)
     base = docs[0]
     values = f(np.stack([c.qpos for c in base.candidates]))
     scores = {c.id: float(v) for c, v in zip(base.candidates, values, strict=True)}

@@ -70,7 +70,13 @@ def _finished_ids(session: Session, *, study_id: int) -> list[int]:
     return sorted(done)
 
 
-def pool_of(session: Session, *, study_id: int, ids: Sequence[int]) -> tuple[Pool, TreeDocument]:
+def pool_of(
+    session: Session,
+    *,
+    study_id: int,
+    ids: Sequence[int],
+    tree_options: dict[str, Any] | None = None,
+) -> tuple[Pool, TreeDocument]:
     """The frozen pool of ``ids`` and its pooled verdict tree.
 
     Raises:
@@ -87,7 +93,7 @@ def pool_of(session: Session, *, study_id: int, ids: Sequence[int]) -> tuple[Poo
     pool = [
         {"participant_id": pid, "tree": tree_to_json(t)} for pid, t in zip(ids, trees, strict=True)
     ]
-    return pool, pooled_tree(trees)
+    return pool, pooled_tree(trees, **(tree_options or {}))
 
 
 def members(run: Run) -> list[int] | None:

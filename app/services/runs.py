@@ -79,6 +79,7 @@ def create_run(
     )
     pool, advice = _advice_source(
         session,
+        config=config,
         study_id=study_id,
         participant_id=participant_id,
         participant_ids=participant_ids,
@@ -138,6 +139,7 @@ def train_config(
 def _advice_source(
     session: Session,
     *,
+    config: TrainConfig,
     study_id: int,
     participant_id: int | None,
     participant_ids: list[int] | None,
@@ -162,7 +164,9 @@ def _advice_source(
         all_participants=all_participants,
     )
     if ids is not None:
-        return pools.pool_of(session, study_id=study_id, ids=ids)
+        return pools.pool_of(
+            session, study_id=study_id, ids=ids, tree_options=config.tree_options()
+        )
     return None, advice_tree(
         session, study_id=study_id, participant_id=participant_id, teacher=teacher
     )

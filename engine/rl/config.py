@@ -176,6 +176,12 @@ class TrainConfig:
         """Whether the algorithm learns z_phi."""
         return self.algo in BIPARS_ALGOS
 
+    def tree_options(self) -> dict[str, Any]:
+        """F's options for a tree of this run (the pooled verdict): ``nearest`` when F = R,
+        which has none of its own."""
+        mode = "nearest" if self.advice_mode == REWARD_ADVICE else self.advice_mode
+        return {"mode": mode, "depth_factor": self.advice_depth_factor, "kappa": self.advice_kappa}
+
     def to_json(self) -> dict[str, Any]:
         """Plain dict for ``config.json``."""
         return dataclasses.asdict(self)

@@ -174,7 +174,7 @@ def _write_new_run(config: TrainConfig, advice: Advice, out_dir: Path) -> None:
         (out_dir / POOL_DIR).mkdir(exist_ok=True)
         for i, doc in enumerate(advice):
             dump_tree(doc, out_dir / POOL_DIR / f"{i}.json")
-        dump_tree(pooled_tree(advice), out_dir / ADVICE_FILE)
+        dump_tree(pooled_tree(advice, **config.tree_options()), out_dir / ADVICE_FILE)
     (out_dir / CONFIG_FILE).write_text(json.dumps(config.to_json(), indent=1) + "\n")
 
 

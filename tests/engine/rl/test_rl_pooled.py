@@ -50,6 +50,28 @@ def test_the_pooled_verdict_ranks_by_mean_rounds_won(people: list[TreeDocument])
     assert pooled_tree([people[0], people[0]]).tree.root == people[0].tree.root
 
 
+@pytest.mark.parametrize(
+    "options", [{"depth_factor": "paper"}, {"mode": "softmax", "kappa": 2.0}], ids=str
+)
+def test_the_pooled_verdict_uses_the_runs_f_options(people: list[TreeDocument], options) -> None:
+    """The pooled verdict is the bracket replayed by the same F the run trains with."""
+    config = TrainConfig(
+        env_id="Hopper-v5",
+        algo="bipars-em",
+        **{
+            {"mode": "advice_mode", "kappa": "advice_kappa", "depth_factor": "advice_depth_factor"}[
+                k
+            ]: v
+            for k, v in options.items()
+        },
+    )
+    verdict = pooled_tree(people, **config.tree_options())
+    qpos = np.stack([c.qpos for c in people[0].candidates])
+    expected = pooled_advice(people, **config.tree_options())(qpos)
+    np.testing.assert_allclose([verdict.scores[c.id] for c in people[0].candidates], expected)
+    assert not np.allclose(expected, pooled_advice(people)(qpos))  # not nearest/none
+
+
 def test_a_pool_needs_two_trees_over_one_bracket(people: list[TreeDocument]) -> None:
     with pytest.raises(InputError, match="at least two"):
         pooled_advice(people[:1])
