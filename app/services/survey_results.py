@@ -122,16 +122,20 @@ def _block(question: dict[str, Any], stimulus: SurveyStimulus, rows: list[Row]) 
         "expected": expected,
         "accuracy": None,
         "mean_value": None,
+        "versus_neutral": None,
         "mean_confidence": stats.mean([r.confidence for r in rows if r.confidence]),
         "median_time_ms": stats.median([r.screen_ms for r in rows if r.screen_ms is not None]),
     }
-    if expected is not None and question["options"]:
+    if expected is not None and question["options"] and question["kind"] != "likert":
         result = stats.proportion(
             values.count(expected), len(values), chance=1 / len(question["options"])
         )
         out["accuracy"] = result.to_json() if result else None
     if question["kind"] == "likert":
-        out["mean_value"] = stats.mean([int(v) for v in values])
+        points = [int(v) for v in values]
+        out["mean_value"] = stats.mean(points)
+        leaning = stats.versus_neutral(points, neutral=(len(question["options"]) + 1) / 2)
+        out["versus_neutral"] = leaning.to_json() if leaning else None
     if question["kind"] == "text":
         out["texts"] = values
     return out

@@ -64,6 +64,44 @@ def _exact(k: int, n: int, *, chance: float) -> Proportion:
     )
 
 
+@dataclass(frozen=True)
+class VersusNeutral:
+    """Likert answers against the scale's stated neutral value (its midpoint): an exact
+    two-sided sign test, answers at the neutral value left out (none left: no p-value).
+
+    A Likert answer is not right or wrong, so it is never tested against chance = 1/points:
+    the question is whether people lean to one side of neutral.
+    """
+
+    neutral: float
+    above: int
+    below: int
+    at: int
+    p_value: float | None
+    median: float
+    method: str = "exact two-sided sign test against the neutral value"
+
+    def to_json(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+def versus_neutral(values: Sequence[float], *, neutral: float) -> VersusNeutral | None:
+    """How ``values`` sit around ``neutral``; ``None`` for no values."""
+    if not values:
+        return None
+    above = sum(v > neutral for v in values)
+    below = sum(v < neutral for v in values)
+    sided = above + below
+    return VersusNeutral(
+        neutral=neutral,
+        above=above,
+        below=below,
+        at=len(values) - sided,
+        p_value=float(binomtest(above, sided, 0.5).pvalue) if sided else None,
+        median=float(statistics.median(values)),
+    )
+
+
 def mean(values: Sequence[float]) -> float | None:
     """The mean, or ``None`` for no values."""
     return statistics.fmean(values) if values else None

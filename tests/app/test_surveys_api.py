@@ -23,6 +23,7 @@ from tests.app.surveys_support import (
     run_with_artefact,
     tree_json,
 )
+from tests.support.web import logged_in
 
 
 @pytest.fixture(scope="module")
@@ -369,3 +370,31 @@ def test_free_text_answers_cannot_run_as_spreadsheet_formulas(client, trees) -> 
     assert json.loads(jsonl)["value"] == formula  # JSONL keeps the answer as given
     results = client.get(f"/api/surveys/{survey['id']}/results", headers=ADMIN).json()
     assert results["without_exclusions"][0]["texts"] == [formula]
+
+
+def test_likert_answers_are_tested_against_the_neutral_value(client, trees) -> None:
+    """Not against chance = 1/points (issue 25 §6): a sign test around the scale's midpoint."""
+    body = {
+        "name": "Likert",
+        "template": "blank",
+        "questions": [
+            {"kind": "likert", "text": "The trees are easy to read.", "points": 5, "expected": "5"}
+        ],
+        "stimuli": [{"tree1": trees["human"], "tree2": trees["agent"]}],
+        "seed": 2,
+    }
+    survey = create(client, body)
+    for person, value in zip(invite(client, survey["id"], count=4), "5435", strict=True):
+        while (screen := person.screen()) is not None:
+            answer = {"q1": {"value": value}}
+            response = person.answer(screen["position"], answer)
+            assert response.status_code == 201, response.text
+    [block] = client.get(f"/api/surveys/{survey['id']}/results", headers=ADMIN).json()[
+        "without_exclusions"
+    ]
+    assert block["accuracy"] is None  # a Likert answer is not right or wrong
+    leaning = block["versus_neutral"]
+    assert (leaning["neutral"], leaning["above"], leaning["below"], leaning["at"]) == (3, 3, 0, 1)
+    assert leaning["p_value"] == pytest.approx(2 * 0.5**3)  # exact two-sided sign test
+    page = logged_in(client).get(f"/surveys/{survey['id']}")
+    assert "3 above, 0 below, 1 at the neutral 3" in page.text

@@ -8,7 +8,7 @@ from math import comb
 
 import pytest
 
-from app.services.survey_stats import mean, median, paper_figures, proportion
+from app.services.survey_stats import mean, median, paper_figures, proportion, versus_neutral
 
 
 def _tail_at_least(k: int, n: int, p: float) -> float:
@@ -73,3 +73,12 @@ def test_the_papers_figures() -> None:
     assert q1["ci_low"] == pytest.approx(0.8316, abs=1e-4)
     assert (q2["ci_low"], q2["ci_high"]) == pytest.approx((0.6211, 0.9679), abs=1e-4)
     assert q2["proportion"] == 0.85
+
+
+def test_likert_sign_test_against_the_neutral_value() -> None:
+    """5, 4, 4, 3, 2 around 3: three above, one below, one at; p = P(|X - 2| >= 1), X ~ B(4, .5)."""
+    result = versus_neutral([5, 4, 4, 3, 2], neutral=3)
+    assert (result.above, result.below, result.at, result.median) == (3, 1, 1, 4)
+    assert result.p_value == pytest.approx((comb(4, 0) + comb(4, 1) + comb(4, 3) + comb(4, 4)) / 16)
+    assert versus_neutral([4, 4], neutral=4).p_value is None  # all at neutral: nothing to test
+    assert versus_neutral([], neutral=4) is None
