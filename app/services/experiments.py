@@ -207,7 +207,7 @@ def experiment_verdict(
         reward=np.array([c.env_reward for c in advice.candidates]),
     )
     result = verdict(inputs, np.random.default_rng([experiment.id, step]))
-    used = {role: sorted(rows) for role, rows in table.items()}
+    used = {role: list(rows) for role, rows in table.items()}  # in the arrays' order
     return ExperimentVerdict(judge=judge, step=step, verdict=result, runs=used)
 
 
