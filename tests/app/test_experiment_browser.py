@@ -19,8 +19,8 @@ from playwright.sync_api import Browser, expect
 
 from app.db import make_engine, make_sessions
 from app.services import artefacts
-from engine.rl.report import SCHEMA
 from tests.support.a11y import assert_accessible
+from tests.support.artefacts import report_body
 from tests.support.labelling import wait_until_prepared
 from tests.support.server import acv_serve, clean_env
 
@@ -48,21 +48,7 @@ def _judge_every_run(data_dir: Path, experiment: dict, advice: np.ndarray) -> No
         with make_sessions(engine)() as session:
             for run in experiment["runs"]:
                 sign = 1.0 if run["role"] == "advised" else -1.0
-                scores = sign * advice + rng.normal(0, 1e-3, advice.size)
-                rows = [
-                    {
-                        "id": i,
-                        "reward": 0.0,
-                        "advice": 0.0,
-                        "z": 0.0,
-                        "shaping": 0.0,
-                        "shaped": 0.0,
-                        "value": 0.0,
-                        "behaviour": float(s),
-                    }
-                    for i, s in enumerate(scores)
-                ]
-                body = {"schema": SCHEMA, "step": STEP, "judges": {}, "candidates": rows}
+                body = report_body(STEP, sign * advice + rng.normal(0, 1e-3, advice.size))
                 assert artefacts.store(session, run_id=run["id"], step=STEP, body=body)
     finally:
         engine.dispose()

@@ -20,9 +20,9 @@ from typer.testing import CliRunner
 from app.cli.root import cli
 from app.models import Run
 from app.services import artefacts
-from engine.rl.report import SCHEMA
 from tests.app.conftest import ADMIN, new_study
 from tests.app.runs_support import TINY, run_app
+from tests.support.artefacts import report_body
 from tests.support.labelling import label_bracket
 from tests.support.web import audit, csrf_token, logged_in
 
@@ -54,22 +54,8 @@ def _n_runs(client: TestClient) -> int:
 
 def _write_artefact(client: TestClient, run_id: int, step: int, behaviour: np.ndarray) -> None:
     """The run's report at ``step`` as its executor stores it (only the table matters here)."""
-    rows = [
-        {
-            "id": i,
-            "reward": 0.0,
-            "advice": 0.0,
-            "z": 0.0,
-            "shaping": 0.0,
-            "shaped": 0.0,
-            "value": 0.0,
-            "behaviour": float(score),
-        }
-        for i, score in enumerate(behaviour)
-    ]
-    body = {"schema": SCHEMA, "step": step, "judges": {}, "candidates": rows}
     with client.app.state.runtime.sessions() as session:
-        assert artefacts.store(session, run_id=run_id, step=step, body=body)
+        assert artefacts.store(session, run_id=run_id, step=step, body=report_body(step, behaviour))
 
 
 def test_an_experiment_queues_advised_baseline_and_pilot_runs(client, study) -> None:
