@@ -27,6 +27,7 @@ from playwright.sync_api import Browser, Page, expect, sync_playwright
 from engine.envs import env_model
 from engine.teachers import standing_score
 from tests.support.a11y import assert_accessible
+from tests.support.browser import SETTLE_TIMEOUT_MS  # noqa: F401 (sets expect's timeout)
 from tests.support.labelling import label_bracket, wait_until_prepared
 from tests.support.server import acv_serve, clean_env
 from tests.support.wait import wait_for

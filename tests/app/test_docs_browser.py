@@ -26,7 +26,7 @@ def test_docs_page(server, browser: Browser, scheme) -> None:
     errors: list[str] = []
     context, page = new_page(browser, errors, viewport=DESKTOP, color_scheme=scheme)
     page.goto(f"{base}/docs")
-    expect(page.locator(".opblock-tag-section").first).to_be_visible()
+    expect(page.locator(".opblock-summary").first).to_be_visible()
     assert page.evaluate("document.documentElement.lang") == "en"
     page.locator(".opblock-summary").first.click()  # one operation opened
     expect(page.locator(".opblock-body").first).to_be_visible()

@@ -8,9 +8,13 @@ its result depend on timing. Every wait has a deadline (Playwright's ``timeout``
 
 from __future__ import annotations
 
-from playwright.sync_api import Page
+from playwright.sync_api import Page, expect
 
 SETTLE_TIMEOUT_MS = 30_000
+# Playwright's assertions wait 5 s by default, its actions 30 s here (new_page): on a loaded
+# 2-core CI machine a page can take longer than 5 s to render (Swagger UI did), so that an
+# assertion failed where the page was only slow. Every browser test imports this module.
+expect.set_options(timeout=SETTLE_TIMEOUT_MS)
 
 # The labelling page's `#match` says `data-settled` once its pictures are shown, the fade-in
 # is over and the controls are enabled (static/js/label.js); a different match id than
