@@ -17,10 +17,9 @@ from typing import Any
 
 import numpy as np
 from fastapi import Response
-from sqlalchemy import exists, func, select, update
+from sqlalchemy import func, select, update
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
-from sqlalchemy.sql.expression import Exists
 
 from app.db import writing
 from app.models import (
@@ -290,27 +289,28 @@ def submit(
     if screen.answered_at is not None:
         return _same_as_stored(session, screen, answers)
     try:
-        _store(session, screen, answers, screen_ms)
+        _store(
+            session,
+            screen,
+            answers,
+            screen_ms,
+            finished=all(s.answered_at is not None for s in plan if s.position != position),
+        )
     except IntegrityError:  # a concurrent submit of the same screen won
         return _same_as_stored(session, screen, answers)
     return True
 
 
 def _store(
-    session: Session, screen: SurveyScreen, answers: dict[str, AnswerIn], screen_ms: int
+    session: Session,
+    screen: SurveyScreen,
+    answers: dict[str, AnswerIn],
+    screen_ms: int,
+    *,
+    finished: bool,
 ) -> None:
-    """Store the answers and mark the screen answered; in the same transaction, the
-    respondent is finished once no screen of theirs is left unanswered, as stored.
-
-    The respondent's row is locked first (PostgreSQL; SQLite queues writers anyway), so two
-    screens submitted at once are stored one after the other and the second sees the first:
-    deciding "finished" from the plan read before the transaction left respondents whose last
-    two screens arrived together unfinished for ever.
-    """
     now = utcnow()
-    respondent = SurveyRespondent.id == screen.respondent_id
     with writing(session):
-        session.execute(select(SurveyRespondent.id).where(respondent).with_for_update())
         session.add_all(
             SurveyAnswer(
                 respondent_id=screen.respondent_id,
@@ -330,18 +330,12 @@ def _store(
             )
             .values(answered_at=now, screen_ms=screen_ms)
         )
-        session.execute(
-            update(SurveyRespondent)
-            .where(respondent, SurveyRespondent.finished_at.is_(None), ~_unanswered(screen))
-            .values(finished_at=now)
-        )
-
-
-def _unanswered(screen: SurveyScreen) -> Exists:
-    """Whether the screen's respondent has a screen not answered yet (as stored)."""
-    return exists().where(
-        SurveyScreen.respondent_id == screen.respondent_id, SurveyScreen.answered_at.is_(None)
-    )
+        if finished:
+            session.execute(
+                update(SurveyRespondent)
+                .where(SurveyRespondent.id == screen.respondent_id)
+                .values(finished_at=now)
+            )
 
 
 def _same_as_stored(session: Session, screen: SurveyScreen, answers: dict[str, AnswerIn]) -> bool:

@@ -12,11 +12,8 @@ from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
 import pytest
-from alembic import command
 from fastapi.testclient import TestClient
-from sqlalchemy import text
 
-from app.db import alembic_config, make_engine, upgrade
 from tests.app.conftest import ADMIN
 from tests.app.surveys_support import (
     finished,
@@ -401,58 +398,3 @@ def test_likert_answers_are_tested_against_the_neutral_value(client, trees) -> N
     assert leaning["p_value"] == pytest.approx(2 * 0.5**3)  # exact two-sided sign test
     page = logged_in(client).get(f"/surveys/{survey['id']}")
     assert "3 above, 0 below, 1 at the neutral 3" in page.text
-
-
-def test_screens_submitted_at_once_still_finish_the_respondent(client, trees) -> None:
-    """Issue 24 F2: 30 respondents each send both of their screens at the same time; every
-    one ends finished (on SQLite and PostgreSQL), however the two requests interleave."""
-    body = {
-        "name": "Two screens at once",
-        "template": "blank",
-        "questions": [{"kind": "text", "text": "What does Tree 2 prefer?"}],
-        "stimuli": [{"tree1": trees["human"], "tree2": trees["agent"]}] * 2,
-        "seed": 9,
-    }
-    survey = create(client, body)
-    people = invite(client, survey["id"], count=30)
-    for person in people:
-        assert person.screen()["position"] == 1  # the plan exists: two screens
-    sends = [(person, position) for person in people for position in (1, 2)]
-    with ThreadPoolExecutor(max_workers=8) as pool:
-        statuses = list(
-            pool.map(lambda s: s[0].answer(s[1], {"q1": {"value": "bent"}}).status_code, sends)
-        )
-    assert statuses == [201] * 60
-    listed = client.get(f"/api/surveys/{survey['id']}/respondents", headers=ADMIN).json()
-    assert [r["finished"] for r in listed] == [True] * 30
-
-
-def test_the_migration_finishes_respondents_left_stuck(client, trees, settings) -> None:
-    """Respondents stuck before the fix (every screen answered, not finished) are finished by
-    revision 0010, at their last answer; the others are left as they are."""
-    survey = create(client, paper_body(trees["human"], trees["agent"]))
-    stuck, started = invite(client, survey["id"], count=2)
-    _finish(stuck, q1="different", q2="yes", check="same", ms=1000)
-    started.screen()
-    engine = make_engine(settings.sqlalchemy_url)
-    try:
-        with engine.begin() as db:  # as the race left it
-            db.execute(
-                text("UPDATE survey_respondents SET finished_at = NULL WHERE id = :i"),
-                {"i": stuck.id},
-            )
-        command.downgrade(alembic_config(settings.sqlalchemy_url), "0009")
-        upgrade(settings.sqlalchemy_url)
-        with engine.connect() as db:
-            rows = dict(
-                db.execute(
-                    text(
-                        "SELECT r.id, r.finished_at = (SELECT max(answered_at) FROM survey_screens s "
-                        "WHERE s.respondent_id = r.id) FROM survey_respondents r WHERE r.id IN (:a, :b)"
-                    ),
-                    {"a": stuck.id, "b": started.id},
-                ).all()
-            )
-    finally:
-        engine.dispose()
-    assert rows[stuck.id] and rows[started.id] is None  # finished at its last answer; not the other
