@@ -22,6 +22,7 @@ from app.services import artefacts
 from app.services.errors import PendingError
 from engine.conformance import Conformance
 from engine.errors import InputError
+from engine.judges import current_keys
 from engine.treefile import TreeDocument, tree_from_json
 
 #: Columns of the conformance CSV exports (one row per checkpoint).
@@ -57,6 +58,7 @@ class Candidate:
     shaped: float
     value: float
     behaviour: float
+    env_return: float | None = None
 
 
 @dataclass(frozen=True)
@@ -120,7 +122,7 @@ def pick_checkpoint(out: Path, step: int | None) -> int:
 
 def view_of(step: int, body: dict[str, Any]) -> CheckpointView:
     """A stored ``acv.checkpoint/1`` document as a :class:`CheckpointView`."""
-    judges = body.get("judges") or {}
+    judges = current_keys(body.get("judges") or {})
     return CheckpointView(
         step=step,
         trees={j: tree_from_json(v["tree"]) for j, v in judges.items()},

@@ -48,10 +48,15 @@ POOL_ALL, POOL_CHOSEN, POOL_FIELD = "pool:all", "pool:chosen", "pool_"
 _POOL_BOX = re.compile(r"pool_\d{1,10}")
 _DB_ID = TypeAdapter(DbId)
 JUDGE_LABELS = (
-    ("shaped", "its shaped reward R + z F"),
-    ("shaping", "the advice part z F"),
-    ("value", "its shaped critic V"),
-    ("behaviour", "its behaviour: a revealed-preference tree of the postures it actually adopts"),
+    ("return", "the return it earns from each state (provisional)"),
+    (
+        "behaviour",
+        "its behaviour: a revealed-preference tree of the postures it actually adopts "
+        "(provisional)",
+    ),
+    ("shaped", "diagnostic, is your advice still in its reward? R + z F"),
+    ("shaping", "diagnostic, is your advice still in its reward? the advice part z F"),
+    ("shaped-value", "diagnostic, is your advice still in its reward? its shaped critic V"),
 )
 
 

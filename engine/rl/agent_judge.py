@@ -38,6 +38,8 @@ import torch
 from engine.envs import make_env, restore
 from engine.errors import InputError
 from engine.gym_types import box
+from engine.judges import JUDGES as JUDGES
+from engine.judges import judge_name
 from engine.pipeline import replay
 from engine.rewards import control_cost
 from engine.rl.behaviour import RolloutOptions, occupancy_scores, visited_states
@@ -52,16 +54,6 @@ from engine.rl.runner import advice_reward, load_run_advice, load_run_pool, pool
 from engine.rl.shaping import AdviceFn, EnvRewardAdvice
 from engine.tournament import ScoreJudge
 from engine.treefile import TreeDocument
-
-JUDGES: tuple[str, ...] = ("return", "behaviour", "shaped", "shaping", "shaped-value")
-#: The judges a verdict reads (provisional until validated on known answers).
-VERDICT_JUDGES: tuple[str, ...] = ("return", "behaviour")
-#: The judges that read the agent's shaped reward: a diagnostic, never a verdict.
-DIAGNOSTIC_JUDGES: tuple[str, ...] = ("shaped", "shaping", "shaped-value")
-#: Judges by their names before the rename (stored reports and API callers).
-LEGACY_JUDGES: dict[str, str] = {"value": "shaped-value"}
-#: The judges whose scores come from :class:`CandidateTerms`.
-_TERM_JUDGES: tuple[str, ...] = ("shaped", "shaping", "shaped-value")
 
 
 @dataclass(frozen=True)
@@ -183,18 +175,6 @@ def _advice_values(
         reward if isinstance(f, EnvRewardAdvice) else f(np.stack([c.qpos for c in doc.candidates]))
     )
     return cfg.advice_scale * np.asarray(raw, dtype=np.float64)
-
-
-def judge_name(judge: str) -> str:
-    """``judge`` under its current name (``value`` is ``shaped-value``).
-
-    Raises:
-        InputError: not a judge.
-    """
-    judge = LEGACY_JUDGES.get(judge, judge)
-    if judge not in JUDGES:
-        raise InputError(f"unknown judge {judge!r}: expected one of {', '.join(JUDGES)}")
-    return judge
 
 
 def term_scores(terms: CandidateTerms, judge: str, doc: TreeDocument) -> dict[int, float]:

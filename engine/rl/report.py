@@ -3,9 +3,9 @@
 :func:`checkpoint_report` loads a checkpoint once and gives, for every judge of
 :data:`engine.rl.agent_judge.JUDGES`, the Agent Preference Tree over the advice bracket and its
 conformance to the advice tree, plus the per-candidate table that explains them (R, F, z, z F,
-V, the behaviour score and the return). Reports stored before ``value`` was renamed
-``shaped-value`` read with the new name. The executor stores :meth:`CheckpointReport.to_json` for the web
-tier, which then only reads.
+V, the behaviour score and the return). The executor stores :meth:`CheckpointReport.to_json`
+for the web tier, which then only reads. Reports stored before ``value`` was renamed
+``shaped-value`` read with the new name.
 """
 
 from __future__ import annotations
@@ -17,9 +17,8 @@ from typing import Any
 
 from engine.conformance import Conformance, compare
 from engine.errors import InputError
+from engine.judges import JUDGES, LEGACY_JUDGES
 from engine.rl.agent_judge import (
-    JUDGES,
-    LEGACY_JUDGES,
     CandidateTerms,
     TrainedAgent,
     agent_scores,
@@ -30,8 +29,8 @@ from engine.rl.agent_judge import (
     term_scores,
 )
 from engine.rl.behaviour import RolloutOptions
-from engine.rl.returns import ReturnOptions
 from engine.rl.checkpoint import find_checkpoint
+from engine.rl.returns import ReturnOptions
 from engine.rl.runner import load_run_advice
 from engine.treefile import TreeDocument, tree_from_json, tree_to_json
 
