@@ -2,8 +2,10 @@
 
 A run is queued by ``POST /api/runs`` (202) and executed by a worker (:mod:`app.jobs`).
 ``checkpoint`` query parameters default to the latest checkpoint; ``judge`` picks how the
-agent scores states (``shaped`` R + z F, ``shaping`` z F, ``value`` the shaped critic,
-``behaviour`` how near its own rollouts come to each state: a revealed-preference tree). What
+agent scores states: ``return`` what its policy earns from each state and ``behaviour`` how
+near its own rollouts come to each state (a revealed-preference tree), both provisional; the
+diagnostics ``shaped`` R + z F, ``shaping`` z F and ``shaped-value`` the shaped critic
+(``value``, its old name, is still accepted). What
 is shown of a checkpoint is read from its artefact, which the run's executor stores; until
 then these endpoints answer 202 ``{"status": "pending"}``.
 """

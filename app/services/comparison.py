@@ -22,7 +22,7 @@ from app.services import artefacts
 from app.services.errors import PendingError
 from engine.conformance import Conformance
 from engine.errors import InputError
-from engine.judges import current_keys
+from engine.judges import LEGACY_JUDGES, current_keys
 from engine.treefile import TreeDocument, tree_from_json
 
 #: Columns of the conformance CSV exports (one row per checkpoint).
@@ -78,6 +78,7 @@ class CheckpointView:
         Raises:
             InputError: the artefact has no tree for this judge.
         """
+        judge = LEGACY_JUDGES.get(judge, judge)
         if judge not in self.trees:
             raise InputError(
                 f"checkpoint {self.step} has no tree for judge {judge!r}; it has: "
@@ -88,12 +89,13 @@ class CheckpointView:
     def of(self, judge: str) -> Conformance:
         """The judge's conformance to the advice tree."""
         self.tree(judge)
-        return self.conformance[judge]
+        return self.conformance[LEGACY_JUDGES.get(judge, judge)]
 
     def advisors_of(self, judge: str) -> list[tuple[int, Conformance]]:
         """Pooled advice: (participant id, the judge's conformance to their tree), by id;
         empty for other runs."""
         self.tree(judge)
+        judge = LEGACY_JUDGES.get(judge, judge)
         return [(pid, by[judge]) for pid, by in sorted(self.advisors.items())]
 
 
@@ -129,7 +131,9 @@ def view_of(step: int, body: dict[str, Any]) -> CheckpointView:
         conformance={j: Conformance.from_json(v["conformance"]) for j, v in judges.items()},
         candidates=[Candidate(**row) for row in body.get("candidates") or []],
         advisors={
-            int(a["participant_id"]): {j: Conformance.from_json(c) for j, c in a["judges"].items()}
+            int(a["participant_id"]): {
+                j: Conformance.from_json(c) for j, c in current_keys(a["judges"]).items()
+            }
             for a in body.get(artefacts.ADVISORS) or []
         },
     )

@@ -93,7 +93,7 @@ def test_every_arm_with_its_seeds_and_every_judge(summary: dict) -> None:
                 assert set(seed[bracket][-1]["judges"]) == set(JUDGES)
         final = entry["final"]["main"]["behaviour"]
         assert final["match_agreement"]["n"] == len(entry["seeds"])
-        assert len(entry["curve"]["agent"]["value"]) == 2
+        assert len(entry["curve"]["agent"]["shaped-value"]) == 2
     arms = summary["arms"]
     assert arms["ppo"]["seeds"][0]["z_mean_final"] == 0.0
     assert arms["control"]["seeds"][0]["z_mean_final"] == 1.0
