@@ -11,7 +11,7 @@ The judges themselves are in :mod:`engine.rl.agent_judge`.
 
 from __future__ import annotations
 
-from typing import TypeVar
+from typing import Final, TypeVar
 
 from engine.errors import InputError
 
@@ -26,7 +26,7 @@ DIAGNOSTIC_JUDGES: tuple[str, ...] = ("shaped", "shaping", "shaped-value")
 #: Old name -> judge (stored reports and API callers from before the rename).
 LEGACY_JUDGES: dict[str, str] = {"value": "shaped-value"}
 #: The judge a single tree or curve shows when none is asked for.
-DEFAULT_JUDGE = "return"
+DEFAULT_JUDGE: Final = "return"
 
 
 def judge_name(judge: str) -> str:

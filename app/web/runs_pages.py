@@ -28,6 +28,7 @@ from app.web.csrf import CsrfChecked, FormFields
 from app.web.guards import ResearcherPage
 from app.web.rendering import PageRoute, redirect, render, thumb_template
 from engine.errors import InputError
+from engine.judges import DEFAULT_JUDGE
 from engine.rl.config import ADVICE_MODES, ALGOS
 
 router = APIRouter(route_class=PageRoute, include_in_schema=False, dependencies=[ResearcherPage])
@@ -240,7 +241,7 @@ def compare_page(
     session: SessionDep,
     root: RunsRootDep,
     checkpoint: Annotated[int | None, Query(ge=0)] = None,
-    judge: Judge = "shaped",
+    judge: Judge = DEFAULT_JUDGE,
 ) -> HTMLResponse:
     """Human and Agent Preference Tree side by side, the rejected advice, the metrics with a
     verdict, a checkpoint selector and the conformance curve."""

@@ -28,7 +28,6 @@ runs z = 1.
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -43,63 +42,17 @@ from engine.judges import judge_name
 from engine.pipeline import replay
 from engine.rewards import control_cost
 from engine.rl.behaviour import RolloutOptions, occupancy_scores, visited_states
-from engine.rl.checkpoint import find_checkpoint, load_checkpoint
+from engine.rl.checkpoint import find_checkpoint
 from engine.rl.config import TrainConfig
-from engine.rl.inference import NumpyAgent
-from engine.rl.judge_cache import cached_array, file_digest
-from engine.rl.networks import Agent
-from engine.rl.normalize import ObsNormalizer
+from engine.rl.judge_cache import cached_array
 from engine.rl.returns import ReturnOptions, return_scores
 from engine.rl.runner import advice_reward, load_run_advice, load_run_pool, pool_reward
 from engine.rl.shaping import AdviceFn, EnvRewardAdvice
+from engine.rl.trained import TrainedAgent as TrainedAgent
+from engine.rl.trained import deterministic_policy as deterministic_policy
+from engine.rl.trained import load_agent as load_agent
 from engine.tournament import ScoreJudge
 from engine.treefile import TreeDocument
-
-
-@dataclass(frozen=True)
-class TrainedAgent:
-    """The networks and normaliser of one checkpoint.
-
-    Attributes:
-        config: the run's configuration.
-        agent: actor, critics and z_phi, in eval mode.
-        obs_norm: the observation normaliser at that checkpoint.
-        timesteps: env steps trained.
-        digest: SHA-256 of the checkpoint file, the key of the judges' caches.
-    """
-
-    config: TrainConfig
-    agent: Agent
-    obs_norm: ObsNormalizer
-    timesteps: int
-    digest: str = ""
-
-
-def load_agent(path: Path) -> TrainedAgent:
-    """Rebuild the agent of a checkpoint file.
-
-    Raises:
-        InputError: the file is not an ACV checkpoint or its networks do not fit its config.
-    """
-    state = load_checkpoint(path)
-    try:
-        cfg = TrainConfig.from_json(state["config"])
-        agent = Agent(
-            int(state["obs_dim"]),
-            int(state["act_dim"]),
-            cfg.hidden,
-            cfg.algo,
-            cfg.z_max,
-            cfg.z_init,
-        )
-        agent.load_state_dict(state["agent"])
-        obs_norm = ObsNormalizer((int(state["obs_dim"]),), enabled=cfg.norm_obs)
-        obs_norm.load_state_dict(state["obs_norm"])
-    except (KeyError, TypeError, ValueError, RuntimeError) as exc:
-        if isinstance(exc, InputError):
-            raise
-        raise InputError(f"{path} is a damaged checkpoint ({type(exc).__name__}: {exc})") from exc
-    return TrainedAgent(cfg, agent.eval(), obs_norm, int(state["timesteps"]), file_digest(path))
 
 
 @dataclass(frozen=True)
@@ -251,19 +204,6 @@ def behaviour_scores(
         lambda: visited_states(deterministic_policy(trained), doc.env_id, rollouts),
     )
     return occupancy_scores(visited, doc)
-
-
-def deterministic_policy(trained: TrainedAgent) -> Callable[[np.ndarray], np.ndarray]:
-    """The checkpoint's policy without exploration noise: observation -> action mean (to be
-    clipped by the env's action space, as training does)."""
-    net = NumpyAgent(trained.agent)
-
-    def act(obs: np.ndarray) -> np.ndarray:
-        x = trained.obs_norm(np.asarray(obs, dtype=np.float64)[None])
-        action: np.ndarray = net.mean(x, net.z(x))[0]
-        return action
-
-    return act
 
 
 @torch.no_grad()
