@@ -9,7 +9,7 @@ from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from app.services.comparison import CheckpointView, highlights, verdict
+from app.services.comparison import CheckpointView, highlights, score_column, verdict
 from engine.conformance import Conformance
 from engine.judges import LEGACY_JUDGES
 
@@ -190,11 +190,6 @@ class CheckpointReportOut(BaseModel):
         )
 
 
-#: The candidate column that holds a judge's score, where it is not the judge's own name.
-_SCORE_COLUMN = {"shaped-value": "value", "return": "env_return"}
-
-
 def _score(row: dict[str, Any], judge: str) -> float:
-    """The judge's score of a candidate: its column (``shaped``, ``shaping``, ``value`` for
-    ``shaped-value``, ``behaviour``, ``env_return`` for ``return``)."""
-    return float(row[_SCORE_COLUMN.get(judge, judge)])
+    """The judge's score of a candidate: its column (:func:`score_column`)."""
+    return float(row[score_column(judge)])

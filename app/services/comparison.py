@@ -46,6 +46,17 @@ _EPISODE_KEYS = ("episode_returns", "episode_shaped_returns")
 _REWARD_JUDGE, _BEHAVIOUR_JUDGE = "shaped", "behaviour"
 
 
+#: The candidate column that holds a judge's score, where it is not the judge's own name.
+_SCORE_COLUMN = {"shaped-value": "value", "return": "env_return"}
+
+
+def score_column(judge: str) -> str:
+    """The :class:`Candidate` field holding ``judge``'s score (``value`` for ``shaped-value``,
+    ``env_return`` for ``return``; else the judge's name)."""
+    judge = LEGACY_JUDGES.get(judge, judge)
+    return _SCORE_COLUMN.get(judge, judge)
+
+
 @dataclass(frozen=True)
 class Candidate:
     """One candidate at a checkpoint (the columns of :class:`engine.rl.report.CandidateRow`)."""

@@ -114,7 +114,7 @@ def test_agent_tree_and_conformance_equal_the_engines(
     latest = api(client, f"/api/runs/{run_id}/agent-tree")
     assert latest == api(client, f"/api/runs/{run_id}/agent-tree?checkpoint=1024")
     agent = tree_from_json(latest)  # a valid acv.tree/1 document over the same bracket
-    assert agent.judge == "agent:shaped@1024"
+    assert agent.judge == "agent:return@1024"  # the default judge
     expected = compare(tree_from_json(human), agent).to_json()
     assert api(client, f"/api/runs/{run_id}/conformance") == expected
     curve = api(client, f"/api/runs/{run_id}/conformance-curve")
