@@ -25,8 +25,22 @@ class Judge(Protocol):
         ...
 
 
+def score_winner(scores: Mapping[int, float], a: int, b: int) -> int | None:
+    """The one tie rule of every score-based judgement: of ``a`` and ``b``, the id with the
+    strictly higher score; None on a tie (the scores express no preference).
+
+    Conformance's reference (the R-only judge) and contested matches, and :class:`ScoreJudge`
+    all decide by it, so a tie means the same everywhere: no preference, which agrees with
+    neither side. Only where a bracket must go on does :class:`ScoreJudge` then advance ``a``.
+    """
+    if scores[a] == scores[b]:
+        return None
+    return a if scores[a] > scores[b] else b
+
+
 class ScoreJudge:
-    """Prefers the candidate with the higher score; ties go to ``a``, the higher seed's side.
+    """Prefers the candidate with the higher score (:func:`score_winner`); a tie has no
+    preference, and the bracket advances ``a``, the higher seed's side.
 
     Args:
         scores: candidate id -> score (for example R(s), or the agent's shaped reward).
@@ -36,7 +50,8 @@ class ScoreJudge:
         self.scores = {int(k): float(v) for k, v in scores.items()}
 
     def __call__(self, a: Candidate, b: Candidate) -> int:
-        return b.id if self.scores[b.id] > self.scores[a.id] else a.id
+        winner = score_winner(self.scores, a.id, b.id)
+        return a.id if winner is None else winner
 
 
 def play(

@@ -9,8 +9,9 @@ from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from app.services.comparison import CheckpointView, highlights, verdict
+from app.services.comparison import CheckpointView, highlights, score_column, verdict
 from engine.conformance import Conformance
+from engine.judges import LEGACY_JUDGES
 
 #: An ``acv.tree/1`` document (see ``engine.treefile``), passed on as stored.
 TreeJson = dict[str, Any]
@@ -98,6 +99,9 @@ class CandidateRowOut(BaseModel):
     shaped: float
     value: float
     behaviour: float
+    env_return: float | None = Field(
+        None, description="The return judge's score (none in reports from before that judge)."
+    )
     score: float = Field(description="The selected judge's score of this candidate.")
 
 
@@ -127,6 +131,7 @@ class AdvisorsOut(BaseModel):
 
     @classmethod
     def of(cls, view: CheckpointView, judge: str) -> AdvisorsOut:
+        judge = LEGACY_JUDGES.get(judge, judge)
         return cls(
             checkpoint=view.step,
             judge=judge,
@@ -158,6 +163,7 @@ class CheckpointReportOut(BaseModel):
 
     @classmethod
     def of(cls, view: CheckpointView, judge: str, whose: str) -> CheckpointReportOut:
+        judge = LEGACY_JUDGES.get(judge, judge)
         m = view.of(judge)
         human, agent = highlights(m)
         return cls(
@@ -185,6 +191,5 @@ class CheckpointReportOut(BaseModel):
 
 
 def _score(row: dict[str, Any], judge: str) -> float:
-    """The judge's score of a candidate: its column (``shaped``, ``shaping``, ``value``,
-    ``behaviour``)."""
-    return float(row[judge])
+    """The judge's score of a candidate: its column (:func:`score_column`)."""
+    return float(row[score_column(judge)])

@@ -16,7 +16,8 @@ RunStatus = Literal[RUN_STATUSES]  # type: ignore[valid-type]
 Algo = Literal[ALGOS]  # type: ignore[valid-type]
 Teacher = Literal[RUN_TEACHERS]  # type: ignore[valid-type]
 AdviceMode = Literal[ADVICE_MODES]  # type: ignore[valid-type]
-Judge = Literal["shaped", "shaping", "value", "behaviour"]
+#: engine.judges.JUDGES, and ``value``, the old name of ``shaped-value`` (still accepted).
+Judge = Literal["return", "behaviour", "shaped", "shaping", "shaped-value", "value"]
 DbInt = Annotated[JsonInt, Field(ge=1, le=2**31 - 1)]
 #: Participants one pooled run may name.
 MAX_POOL = 1000

@@ -2,8 +2,10 @@
 
 A run is queued by ``POST /api/runs`` (202) and executed by a worker (:mod:`app.jobs`).
 ``checkpoint`` query parameters default to the latest checkpoint; ``judge`` picks how the
-agent scores states (``shaped`` R + z F, ``shaping`` z F, ``value`` the shaped critic,
-``behaviour`` how near its own rollouts come to each state: a revealed-preference tree). What
+agent scores states: ``return`` what its policy earns from each state and ``behaviour`` how
+near its own rollouts come to each state (a revealed-preference tree), both provisional; the
+diagnostics ``shaped`` R + z F, ``shaping`` z F and ``shaped-value`` the shaped critic
+(``value``, its old name, is still accepted). What
 is shown of a checkpoint is read from its artefact, which the run's executor stores; until
 then these endpoints answer 202 ``{"status": "pending"}``.
 """
@@ -30,6 +32,7 @@ from app.jobs.settings import JobSettings
 from app.models import Run
 from app.services import comparison, run_report, runs, studies
 from app.services.figures import FORMATS
+from engine.judges import DEFAULT_JUDGE
 from engine.treefile import tree_to_json
 
 router = APIRouter(prefix="/runs", tags=["runs"])
@@ -147,7 +150,7 @@ def agent_tree(
     root: RunsRootDep,
     _: ResearcherDep,
     checkpoint: Step = None,
-    judge: JudgeQuery = "shaped",
+    judge: JudgeQuery = DEFAULT_JUDGE,
 ) -> TreeJson:
     """The Agent Preference Tree at a checkpoint: the advice bracket replayed with the agent
     as the judge (``acv.tree/1``); 202 while the checkpoint is being judged."""
@@ -162,7 +165,7 @@ def conformance(
     root: RunsRootDep,
     _: ResearcherDep,
     checkpoint: Step = None,
-    judge: JudgeQuery = "shaped",
+    judge: JudgeQuery = DEFAULT_JUDGE,
 ) -> ConformanceOut:
     """The conformance metrics at a checkpoint, exactly as ``acv compare --json`` prints."""
     view = load_view(session, run_id, root, checkpoint)[1]
@@ -176,7 +179,7 @@ def checkpoint_report(
     root: RunsRootDep,
     _: ResearcherDep,
     checkpoint: Step = None,
-    judge: JudgeQuery = "shaped",
+    judge: JudgeQuery = DEFAULT_JUDGE,
 ) -> CheckpointReportOut:
     """What the compare page shows of a checkpoint: the verdict, the states to highlight,
     every judge's agreement side by side, and the per-candidate table."""
@@ -190,7 +193,7 @@ def conformance_curve(
     session: SessionDep,
     root: RunsRootDep,
     _: ResearcherDep,
-    judge: JudgeQuery = "shaped",
+    judge: JudgeQuery = DEFAULT_JUDGE,
 ) -> list[CurvePointOut]:
     """The conformance metrics at every judged checkpoint (``{"checkpoint": step, ...}``)."""
     run, out = _load(session, run_id, root)
@@ -212,7 +215,7 @@ def conformance_csv(
     root: RunsRootDep,
     _: ResearcherDep,
     checkpoint: Step = None,
-    judge: JudgeQuery = "shaped",
+    judge: JudgeQuery = DEFAULT_JUDGE,
 ) -> Response:
     """The metrics as CSV: one row per judged checkpoint, or only ``checkpoint``'s."""
     run, out = _load(session, run_id, root)
@@ -244,7 +247,7 @@ def tree_image(
     root: RunsRootDep,
     _: ResearcherDep,
     checkpoint: Step = None,
-    judge: JudgeQuery = "shaped",
+    judge: JudgeQuery = DEFAULT_JUDGE,
 ) -> Response:
     """A tree as SVG or PNG with thumbnails; the rejected advice is drawn in red."""
     run = runs.get_run(session, run_id=run_id)
@@ -271,7 +274,7 @@ def report(
     root: RunsRootDep,
     _: ResearcherDep,
     checkpoint: Step = None,
-    judge: JudgeQuery = "shaped",
+    judge: JudgeQuery = DEFAULT_JUDGE,
     download: bool = False,
 ) -> HTMLResponse:
     """A self-contained HTML report (both trees, the rejected advice as image pairs, the

@@ -10,11 +10,11 @@ from tqdm import tqdm
 
 from app.cli.root import cli, fail
 from engine.envs import DEFAULT_ENV_ID
+from engine.judges import DEFAULT_JUDGE, JUDGES, LEGACY_JUDGES
 from engine.rl.config import ALGOS, TrainConfig
 from engine.treefile import TreeDocument, dump_tree, load_tree
 
 # torch, TensorBoard and matplotlib load inside the commands: `acv` starts fast for the others.
-JUDGES = ("shaped", "shaping", "value", "behaviour")  # engine.rl.agent_judge.JUDGES
 
 Opt = typer.Option
 
@@ -137,7 +137,7 @@ def agent_tree_cmd(
     run: Annotated[Path, Opt(help="Training run directory.")],
     out: Annotated[Path, Opt(help="Where to write the Agent Preference Tree (acv.tree/1).")],
     checkpoint: Annotated[int | None, Opt(help="Checkpoint timesteps (default: the last).")] = None,
-    judge: Annotated[str, Opt(help=f"Agent judge: {', '.join(JUDGES)}.")] = "shaped",
+    judge: Annotated[str, Opt(help=f"Agent judge: {', '.join(JUDGES)}.")] = DEFAULT_JUDGE,
     advice: Annotated[
         Path | None, Opt(help="Tree whose bracket to replay (default: the run's advice.json).")
     ] = None,
@@ -146,19 +146,32 @@ def agent_tree_cmd(
     ] = 10,
     max_steps: Annotated[int, Opt(help="behaviour judge: env steps at most.")] = 5000,
     rollout_seed: Annotated[int, Opt(help="behaviour judge: seed of the first reset.")] = 0,
+    burn_in: Annotated[
+        int, Opt(help="behaviour judge: steps after each reset whose states are dropped.")
+    ] = 50,
+    return_rollouts: Annotated[int, Opt(help="return judge: rollouts per candidate (>= 5).")] = 5,
+    horizon: Annotated[int, Opt(help="return judge: env steps per rollout at most.")] = 100,
 ) -> None:
     """Replay the advice tree's bracket judged by the agent; `acv compare` reads the result.
 
-    Judges: shaped (R + z F), shaping (z F), value (the shaped critic V) and behaviour (a
-    revealed-preference tree: which candidates the agent's own rollouts stay near)."""
+    Judges: return (the env return its policy earns from each state) and behaviour (a
+    revealed-preference tree: which candidates its own rollouts stay near), both provisional;
+    diagnostics, "is your advice still in its reward?": shaped (R + z F), shaping (z F) and
+    shaped-value (the shaped critic V; formerly value)."""
     from engine.rl.agent_judge import agent_tree
     from engine.rl.behaviour import RolloutOptions
+    from engine.rl.returns import ReturnOptions
 
-    if judge not in JUDGES:
+    if LEGACY_JUDGES.get(judge, judge) not in JUDGES:
         fail(f"unknown judge {judge!r}: expected one of {', '.join(JUDGES)}")
-    rollouts = RolloutOptions(episodes, max_steps, rollout_seed)
+    rollouts = RolloutOptions(episodes, max_steps, rollout_seed, burn_in)
     doc = agent_tree(
-        run, checkpoint, judge, load_tree(advice) if advice is not None else None, rollouts=rollouts
+        run,
+        checkpoint,
+        judge,
+        load_tree(advice) if advice is not None else None,
+        rollouts=rollouts,
+        returns=ReturnOptions(rollouts=return_rollouts, horizon=horizon),
     )
     dump_tree(doc, out)
     typer.echo(f"wrote {out}: judge {doc.judge}, champion {doc.tree.root}")

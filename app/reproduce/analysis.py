@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from engine.envs import env_model
+from engine.judges import current_keys
 from engine.rl.logger import read_metrics
 from engine.teachers import standing_score
 from engine.treefile import TreeDocument, tree_from_json
@@ -84,7 +85,7 @@ def checkpoint_point(step: int, report: dict[str, Any], classes: dict[int, str])
         classes: the bracket's posture classes.
     """
     judges = {}
-    for name, result in report["judges"].items():
+    for name, result in current_keys(report["judges"]).items():
         c, tree = result["conformance"], tree_from_json(result["tree"])
         judges[name] = {
             "n_agree": c["n_agree"],

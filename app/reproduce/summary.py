@@ -16,8 +16,9 @@ from app.reproduce.checkpoints import BRACKETS, arm_reports, seed_statistics
 from app.reproduce.plan import Arm, ReproduceConfig, arm_seeds, run_path
 from engine.treefile import TreeDocument
 
-#: The agent's judges (:data:`engine.rl.agent_judge.JUDGES`, which loads torch).
-JUDGES: tuple[str, ...] = ("shaped", "shaping", "value", "behaviour")
+#: The agent's judges summarised (of :data:`engine.judges.JUDGES`): those that every cached
+#: report of a reproduction has (``return`` came later; ``value`` reads as ``shaped-value``).
+JUDGES: tuple[str, ...] = ("shaped", "shaping", "shaped-value", "behaviour")
 #: Per-judge numbers summarised over seeds.
 JUDGE_KEYS: tuple[str, ...] = ("match_agreement", "contested_agreement", "bent_share")
 

@@ -22,6 +22,7 @@ from app.services import artefacts
 from app.services.errors import PendingError
 from engine.conformance import Conformance
 from engine.errors import InputError
+from engine.judges import LEGACY_JUDGES, current_keys
 from engine.treefile import TreeDocument, tree_from_json
 
 #: Columns of the conformance CSV exports (one row per checkpoint).
@@ -45,6 +46,17 @@ _EPISODE_KEYS = ("episode_returns", "episode_shaped_returns")
 _REWARD_JUDGE, _BEHAVIOUR_JUDGE = "shaped", "behaviour"
 
 
+#: The candidate column that holds a judge's score, where it is not the judge's own name.
+_SCORE_COLUMN = {"shaped-value": "value", "return": "env_return"}
+
+
+def score_column(judge: str) -> str:
+    """The :class:`Candidate` field holding ``judge``'s score (``value`` for ``shaped-value``,
+    ``env_return`` for ``return``; else the judge's name)."""
+    judge = LEGACY_JUDGES.get(judge, judge)
+    return _SCORE_COLUMN.get(judge, judge)
+
+
 @dataclass(frozen=True)
 class Candidate:
     """One candidate at a checkpoint (the columns of :class:`engine.rl.report.CandidateRow`)."""
@@ -57,6 +69,7 @@ class Candidate:
     shaped: float
     value: float
     behaviour: float
+    env_return: float | None = None
 
 
 @dataclass(frozen=True)
@@ -76,6 +89,7 @@ class CheckpointView:
         Raises:
             InputError: the artefact has no tree for this judge.
         """
+        judge = LEGACY_JUDGES.get(judge, judge)
         if judge not in self.trees:
             raise InputError(
                 f"checkpoint {self.step} has no tree for judge {judge!r}; it has: "
@@ -86,12 +100,13 @@ class CheckpointView:
     def of(self, judge: str) -> Conformance:
         """The judge's conformance to the advice tree."""
         self.tree(judge)
-        return self.conformance[judge]
+        return self.conformance[LEGACY_JUDGES.get(judge, judge)]
 
     def advisors_of(self, judge: str) -> list[tuple[int, Conformance]]:
         """Pooled advice: (participant id, the judge's conformance to their tree), by id;
         empty for other runs."""
         self.tree(judge)
+        judge = LEGACY_JUDGES.get(judge, judge)
         return [(pid, by[judge]) for pid, by in sorted(self.advisors.items())]
 
 
@@ -120,14 +135,16 @@ def pick_checkpoint(out: Path, step: int | None) -> int:
 
 def view_of(step: int, body: dict[str, Any]) -> CheckpointView:
     """A stored ``acv.checkpoint/1`` document as a :class:`CheckpointView`."""
-    judges = body.get("judges") or {}
+    judges = current_keys(body.get("judges") or {})
     return CheckpointView(
         step=step,
         trees={j: tree_from_json(v["tree"]) for j, v in judges.items()},
         conformance={j: Conformance.from_json(v["conformance"]) for j, v in judges.items()},
         candidates=[Candidate(**row) for row in body.get("candidates") or []],
         advisors={
-            int(a["participant_id"]): {j: Conformance.from_json(c) for j, c in a["judges"].items()}
+            int(a["participant_id"]): {
+                j: Conformance.from_json(c) for j, c in current_keys(a["judges"]).items()
+            }
             for a in body.get(artefacts.ADVISORS) or []
         },
     )

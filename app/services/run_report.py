@@ -111,6 +111,7 @@ def report_context(
         "advice": advice_label(run),
         "step": step,
         "judge": judge,
+        "score_column": comparison.score_column(judge),
         "metrics": metrics,
         "verdict": comparison.verdict(view, judge, whose(run)),
         "who": who(run),

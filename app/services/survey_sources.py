@@ -20,6 +20,7 @@ from app.services.errors import ConflictError, NotFoundError
 from app.services.trees import participant_tree
 from engine.conformance import compare
 from engine.errors import InputError
+from engine.judges import LEGACY_JUDGES, current_keys
 from engine.treefile import TreeDocument, tree_from_json, tree_to_json
 
 SourceKind = Literal["participant", "run", "upload"]
@@ -89,7 +90,8 @@ def _run(session: Session, run_id: int | None, step: int | None, judge: str | No
         )
     if not judged(artefact.payload):
         raise InputError(artefact.payload[FAILURE])
-    judges = artefact.payload.get("judges") or {}
+    judges = current_keys(artefact.payload.get("judges") or {})
+    judge = LEGACY_JUDGES.get(judge, judge)
     if judge not in judges:
         raise InputError(
             f"run {run_id} at checkpoint {step} has no tree for judge {judge!r}; "
@@ -166,7 +168,7 @@ def source_menus(session: Session) -> dict[str, list[dict[str, Any]]]:
                 "run_id": rid,
                 "checkpoint": step,
                 "algo": algo,
-                "judges": sorted((payload or {}).get("judges") or {}),
+                "judges": sorted(current_keys((payload or {}).get("judges") or {})),
             }
             for rid, step, payload, algo in rows
             if judged(payload)

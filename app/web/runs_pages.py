@@ -30,6 +30,7 @@ from app.web.csrf import CsrfChecked, FormFields
 from app.web.guards import ResearcherPage
 from app.web.rendering import PageRoute, redirect, render, thumb_template
 from engine.errors import InputError
+from engine.judges import DEFAULT_JUDGE
 from engine.rl.config import ADVICE_MODES, ALGOS
 
 router = APIRouter(route_class=PageRoute, include_in_schema=False, dependencies=[ResearcherPage])
@@ -52,10 +53,15 @@ POOL_ALL, POOL_CHOSEN, POOL_FIELD = "pool:all", "pool:chosen", "pool_"
 _POOL_BOX = re.compile(r"pool_\d{1,10}")
 _DB_ID = TypeAdapter(DbId)
 JUDGE_LABELS = (
-    ("shaped", "its shaped reward R + z F"),
-    ("shaping", "the advice part z F"),
-    ("value", "its shaped critic V"),
-    ("behaviour", "its behaviour: a revealed-preference tree of the postures it actually adopts"),
+    ("return", "the return it earns from each state (provisional)"),
+    (
+        "behaviour",
+        "its behaviour: a revealed-preference tree of the postures it actually adopts "
+        "(provisional)",
+    ),
+    ("shaped", "diagnostic, is your advice still in its reward? R + z F"),
+    ("shaping", "diagnostic, is your advice still in its reward? the advice part z F"),
+    ("shaped-value", "diagnostic, is your advice still in its reward? its shaped critic V"),
 )
 
 
@@ -242,7 +248,7 @@ def compare_page(
     session: SessionDep,
     root: RunsRootDep,
     checkpoint: Annotated[int | None, Query(ge=0)] = None,
-    judge: Judge = "shaped",
+    judge: Judge = DEFAULT_JUDGE,
 ) -> HTMLResponse:
     """Human and Agent Preference Tree side by side, the rejected advice, the metrics with a
     verdict, a checkpoint selector and the conformance curve."""

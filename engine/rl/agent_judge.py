@@ -4,11 +4,16 @@
 Tree's bracket gets a score from the agent, and the same bracket (same candidates, same first
 round) is played again with the higher score winning each match. Judges:
 
-- ``shaped`` (default): g(s) = R(s) + z_phi(s) F(s), the agent's shaped reward;
-- ``shaping``: z_phi(s) F(s), the part of it that comes from the advice;
-- ``value``: the shaped critic V(s);
-- ``behaviour``: what the agent does: its mean occupancy near s over deterministic rollouts
-  (:mod:`engine.rl.behaviour`), a *revealed-preference* tree.
+- ``return`` (a default verdict judge, provisional until validated on known answers): the
+  environment return the agent's deterministic policy earns from s (:mod:`engine.rl.returns`);
+- ``behaviour`` (the other default, provisional): what the agent does: its mean occupancy near
+  s over deterministic rollouts after a burn-in (:mod:`engine.rl.behaviour`), a
+  *revealed-preference* tree;
+- ``shaped``: g(s) = R(s) + z_phi(s) F(s), the agent's shaped reward, and ``shaping``:
+  z_phi(s) F(s), the part of it that comes from the advice. Diagnostics ("is your advice
+  still in its reward?"): they restate the advice and never lead a verdict;
+- ``shaped-value``: the shaped critic V(s) (it learns R + z F, so it too partly restates the
+  advice; stored reports from before the rename call it ``value``).
 
 R(s) is the reward the agent gets in s: the candidate's stored env reward minus the control
 cost of the policy's mean action there (the stored reward has no action, so no control cost).
@@ -23,7 +28,6 @@ runs z = 1.
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -33,69 +37,22 @@ import torch
 from engine.envs import make_env, restore
 from engine.errors import InputError
 from engine.gym_types import box
+from engine.judges import JUDGES as JUDGES
+from engine.judges import judge_name
 from engine.pipeline import replay
 from engine.rewards import control_cost
-from engine.rl.behaviour import (
-    RolloutOptions,
-    cached_visited_states,
-    occupancy_scores,
-    visited_states,
-)
-from engine.rl.checkpoint import find_checkpoint, load_checkpoint
+from engine.rl.behaviour import RolloutOptions, occupancy_scores, visited_states
+from engine.rl.checkpoint import find_checkpoint
 from engine.rl.config import TrainConfig
-from engine.rl.inference import NumpyAgent
-from engine.rl.networks import Agent
-from engine.rl.normalize import ObsNormalizer
+from engine.rl.judge_cache import cached_array
+from engine.rl.returns import ReturnOptions, return_scores
 from engine.rl.runner import advice_reward, load_run_advice, load_run_pool, pool_reward
 from engine.rl.shaping import AdviceFn, EnvRewardAdvice
+from engine.rl.trained import TrainedAgent as TrainedAgent
+from engine.rl.trained import deterministic_policy as deterministic_policy
+from engine.rl.trained import load_agent as load_agent
 from engine.tournament import ScoreJudge
 from engine.treefile import TreeDocument
-
-JUDGES: tuple[str, ...] = ("shaped", "shaping", "value", "behaviour")
-
-
-@dataclass(frozen=True)
-class TrainedAgent:
-    """The networks and normaliser of one checkpoint.
-
-    Attributes:
-        config: the run's configuration.
-        agent: actor, critics and z_phi, in eval mode.
-        obs_norm: the observation normaliser at that checkpoint.
-        timesteps: env steps trained.
-    """
-
-    config: TrainConfig
-    agent: Agent
-    obs_norm: ObsNormalizer
-    timesteps: int
-
-
-def load_agent(path: Path) -> TrainedAgent:
-    """Rebuild the agent of a checkpoint file.
-
-    Raises:
-        InputError: the file is not an ACV checkpoint or its networks do not fit its config.
-    """
-    state = load_checkpoint(path)
-    try:
-        cfg = TrainConfig.from_json(state["config"])
-        agent = Agent(
-            int(state["obs_dim"]),
-            int(state["act_dim"]),
-            cfg.hidden,
-            cfg.algo,
-            cfg.z_max,
-            cfg.z_init,
-        )
-        agent.load_state_dict(state["agent"])
-        obs_norm = ObsNormalizer((int(state["obs_dim"]),), enabled=cfg.norm_obs)
-        obs_norm.load_state_dict(state["obs_norm"])
-    except (KeyError, TypeError, ValueError, RuntimeError) as exc:
-        if isinstance(exc, InputError):
-            raise
-        raise InputError(f"{path} is a damaged checkpoint ({type(exc).__name__}: {exc})") from exc
-    return TrainedAgent(cfg, agent.eval(), obs_norm, int(state["timesteps"]))
 
 
 @dataclass(frozen=True)
@@ -173,32 +130,62 @@ def _advice_values(
     return cfg.advice_scale * np.asarray(raw, dtype=np.float64)
 
 
+def term_scores(terms: CandidateTerms, judge: str, doc: TreeDocument) -> dict[int, float]:
+    """The scores of a judge of reward terms (``shaped``, ``shaping``, ``shaped-value``)."""
+    values = {"shaped": terms.shaped, "shaping": terms.shaping, "shaped-value": terms.value}
+    return {c.id: float(v) for c, v in zip(doc.candidates, values[judge], strict=True)}
+
+
+def judge_reward(trained: TrainedAgent, doc: TreeDocument) -> dict[int, float]:
+    """The R that the judges use, per candidate id: the stored ``env_reward`` minus the control
+    cost of the policy's mean action there (the R of :class:`CandidateTerms`). Conformance and
+    the verdict take it as their R map, so that contested matches, the reference and the
+    judges all read one R."""
+    reward = candidate_terms(trained, doc).reward
+    return {c.id: float(r) for c, r in zip(doc.candidates, reward, strict=True)}
+
+
 def agent_scores(
     trained: TrainedAgent,
     doc: TreeDocument,
-    judge: str = "shaped",
+    judge: str = "return",
     advice: AdviceFn | None = None,
     *,
     run_dir: Path | None = None,
     rollouts: RolloutOptions = RolloutOptions(),
+    returns: ReturnOptions = ReturnOptions(),
 ) -> dict[int, float]:
     """The agent's score of every candidate of ``doc`` under ``judge``.
 
     Args:
         trained: the checkpoint's networks.
         doc: the tree whose candidates are scored.
-        judge: one of :data:`JUDGES`.
+        judge: one of :data:`JUDGES` (or a legacy name, :data:`LEGACY_JUDGES`).
         advice: the F the agent trained with (see :func:`candidate_terms`).
-        run_dir: where the behaviour judge caches its rollouts (no cache when None).
+        run_dir: where the simulating judges cache their rollouts (no cache when None).
         rollouts: the behaviour judge's rollouts.
+        returns: the return judge's rollouts.
     """
-    if judge not in JUDGES:
-        raise InputError(f"unknown judge {judge!r}: expected one of {', '.join(JUDGES)}")
+    judge = judge_name(judge)
+    _check_env(trained, doc)
     if judge == "behaviour":
         return behaviour_scores(trained, doc, run_dir=run_dir, rollouts=rollouts)
-    terms = candidate_terms(trained, doc, advice)
-    values = {"shaped": terms.shaped, "shaping": terms.shaping, "value": terms.value}[judge]
-    return {c.id: float(v) for c, v in zip(doc.candidates, values, strict=True)}
+    if judge == "return":
+        return return_scores(
+            deterministic_policy(trained),
+            doc,
+            returns,
+            run_dir=run_dir,
+            checkpoint_digest=trained.digest,
+        )
+    return term_scores(candidate_terms(trained, doc, advice), judge, doc)
+
+
+def _check_env(trained: TrainedAgent, doc: TreeDocument) -> None:
+    if doc.env_id != trained.config.env_id:
+        raise InputError(
+            f"the tree is for {doc.env_id}, but the agent was trained on {trained.config.env_id}"
+        )
 
 
 def behaviour_scores(
@@ -208,31 +195,15 @@ def behaviour_scores(
     run_dir: Path | None = None,
     rollouts: RolloutOptions = RolloutOptions(),
 ) -> dict[int, float]:
-    """The behaviour judge's scores: occupancy of the policy's rollouts near each candidate."""
-    if doc.env_id != trained.config.env_id:
-        raise InputError(
-            f"the tree is for {doc.env_id}, but the agent was trained on {trained.config.env_id}"
-        )
-    visited = cached_visited_states(
-        run_dir,
-        trained.timesteps,
+    """The behaviour judge's scores: occupancy of the policy's rollouts near each candidate
+    (cached by the checkpoint's content hash)."""
+    _check_env(trained, doc)
+    visited = cached_array(
+        run_dir if trained.digest else None,
+        f"behaviour.{trained.digest[:16]}.{rollouts.key}",
         lambda: visited_states(deterministic_policy(trained), doc.env_id, rollouts),
-        rollouts,
     )
     return occupancy_scores(visited, doc)
-
-
-def deterministic_policy(trained: TrainedAgent) -> Callable[[np.ndarray], np.ndarray]:
-    """The checkpoint's policy without exploration noise: observation -> action mean (to be
-    clipped by the env's action space, as training does)."""
-    net = NumpyAgent(trained.agent)
-
-    def act(obs: np.ndarray) -> np.ndarray:
-        x = trained.obs_norm(np.asarray(obs, dtype=np.float64)[None])
-        action: np.ndarray = net.mean(x, net.z(x))[0]
-        return action
-
-    return act
 
 
 @torch.no_grad()
@@ -245,10 +216,11 @@ def candidate_z(trained: TrainedAgent, doc: TreeDocument) -> dict[int, float]:
 def agent_tree(
     run_dir: Path,
     step: int | None = None,
-    judge: str = "shaped",
+    judge: str = "return",
     advice: TreeDocument | None = None,
     *,
     rollouts: RolloutOptions = RolloutOptions(),
+    returns: ReturnOptions = ReturnOptions(),
 ) -> TreeDocument:
     """The Agent Preference Tree of a run's checkpoint over the advice tree's bracket.
 
@@ -259,22 +231,25 @@ def agent_tree(
         advice: the tree whose bracket is replayed; by default the run's ``advice.json``.
             The judge's F is always the run's own (see the module docstring).
         rollouts: the behaviour judge's rollouts.
+        returns: the return judge's rollouts.
 
     Raises:
         InputError: no advice tree, no such checkpoint, a damaged checkpoint, another env.
     """
+    judge = judge_name(judge)
     own, doc = _advice_trees(run_dir, advice)  # before the checkpoint: the clearer error
     trained = load_agent(find_checkpoint(run_dir, step))
-    return _judged(trained, doc, own, judge, run_dir, rollouts)
+    return _judged(trained, doc, own, judge, run_dir, rollouts, returns)
 
 
 def trained_agent_tree(
-    trained: TrainedAgent, run_dir: Path, judge: str = "shaped", advice: TreeDocument | None = None
+    trained: TrainedAgent, run_dir: Path, judge: str = "return", advice: TreeDocument | None = None
 ) -> TreeDocument:
     """:func:`agent_tree` for a checkpoint already loaded from ``run_dir`` (callers that also
     need its z or scores load it once)."""
+    judge = judge_name(judge)
     own, doc = _advice_trees(run_dir, advice)
-    return _judged(trained, doc, own, judge, run_dir, RolloutOptions())
+    return _judged(trained, doc, own, judge, run_dir, RolloutOptions(), ReturnOptions())
 
 
 def _advice_trees(
@@ -306,6 +281,7 @@ def _judged(
     judge: str,
     run_dir: Path | None,
     rollouts: RolloutOptions,
+    returns: ReturnOptions,
 ) -> TreeDocument:
     """``doc``'s bracket replayed with the agent's scores (F from its own advice)."""
     scores = agent_scores(
@@ -315,6 +291,7 @@ def _judged(
         run_advice_fn(trained, own, run_dir),
         run_dir=run_dir,
         rollouts=rollouts,
+        returns=returns,
     )
     return replay_as(trained, doc, judge, scores)
 

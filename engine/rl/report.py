@@ -3,8 +3,9 @@
 :func:`checkpoint_report` loads a checkpoint once and gives, for every judge of
 :data:`engine.rl.agent_judge.JUDGES`, the Agent Preference Tree over the advice bracket and its
 conformance to the advice tree, plus the per-candidate table that explains them (R, F, z, z F,
-V and the behaviour score). The executor stores :meth:`CheckpointReport.to_json` for the web
-tier, which then only reads.
+V, the behaviour score and the return). The executor stores :meth:`CheckpointReport.to_json`
+for the web tier, which then only reads. Reports stored before ``value`` was renamed
+``shaped-value`` read with the new name.
 """
 
 from __future__ import annotations
@@ -16,8 +17,8 @@ from typing import Any
 
 from engine.conformance import Conformance, compare
 from engine.errors import InputError
+from engine.judges import JUDGES, LEGACY_JUDGES
 from engine.rl.agent_judge import (
-    JUDGES,
     CandidateTerms,
     TrainedAgent,
     agent_scores,
@@ -25,9 +26,11 @@ from engine.rl.agent_judge import (
     load_agent,
     replay_as,
     run_advice_fn,
+    term_scores,
 )
 from engine.rl.behaviour import RolloutOptions
 from engine.rl.checkpoint import find_checkpoint
+from engine.rl.returns import ReturnOptions
 from engine.rl.runner import load_run_advice
 from engine.treefile import TreeDocument, tree_from_json, tree_to_json
 
@@ -46,8 +49,10 @@ class CandidateRow:
         z: the shaping weight z_phi(s) (0 for ``ppo``, 1 for ``ppo-shaped``).
         shaping: ``z * advice``, the ``shaping`` judge's score.
         shaped: ``reward + shaping``, the ``shaped`` judge's score.
-        value: V(s) of the shaped critic, the ``value`` judge's score.
+        value: V(s) of the shaped critic, the ``shaped-value`` judge's score.
         behaviour: the agent's mean occupancy near s, the ``behaviour`` judge's score.
+        env_return: the mean return-to-go of the agent's policy from s, the ``return``
+            judge's score (None in reports stored before that judge).
     """
 
     id: int
@@ -58,6 +63,7 @@ class CandidateRow:
     shaped: float
     value: float
     behaviour: float
+    env_return: float | None = None
 
 
 @dataclass(frozen=True)
@@ -104,12 +110,12 @@ class CheckpointReport:
         """
         if not isinstance(obj, dict) or obj.get("schema") != SCHEMA:
             raise InputError(f"not an {SCHEMA} document")
-        judges = {
-            name: JudgeResult(
+        judges = {}
+        for stored, r in obj["judges"].items():
+            name = LEGACY_JUDGES.get(stored, stored)
+            judges[name] = JudgeResult(
                 name, tree_from_json(r["tree"]), Conformance.from_json(r["conformance"])
             )
-            for name, r in obj["judges"].items()
-        }
         return cls(int(obj["step"]), judges, [CandidateRow(**row) for row in obj["candidates"]])
 
 
@@ -119,6 +125,7 @@ def checkpoint_report(
     advice: TreeDocument | None = None,
     *,
     rollouts: RolloutOptions = RolloutOptions(),
+    returns: ReturnOptions = ReturnOptions(),
 ) -> CheckpointReport:
     """Every judge's tree and conformance, and the per-candidate table, at one checkpoint.
 
@@ -128,6 +135,7 @@ def checkpoint_report(
         advice: the tree to replay and compare with; by default the run's ``advice.json``
             (a ``ppo`` run has none: pass the bracket it is to be judged on).
         rollouts: the behaviour judge's rollouts.
+        returns: the return judge's rollouts.
 
     Raises:
         InputError: no advice tree, no such checkpoint, a damaged checkpoint, another env.
@@ -137,7 +145,7 @@ def checkpoint_report(
     if doc is None:
         raise InputError(f"{run_dir} was trained without advice: pass the tree to compare with")
     trained = load_agent(find_checkpoint(run_dir, step))
-    return trained_report(trained, doc, own, run_dir=run_dir, rollouts=rollouts)
+    return trained_report(trained, doc, own, run_dir=run_dir, rollouts=rollouts, returns=returns)
 
 
 def members_conformance(
@@ -164,28 +172,34 @@ def trained_report(
     *,
     run_dir: Path | None = None,
     rollouts: RolloutOptions = RolloutOptions(),
+    returns: ReturnOptions = ReturnOptions(),
 ) -> CheckpointReport:
     """:func:`checkpoint_report` for a checkpoint already loaded (F from ``own``, the run's
     advice tree, when it has one)."""
     f = run_advice_fn(trained, own, run_dir)
     terms = candidate_terms(trained, doc, f)
-    behaviour = agent_scores(trained, doc, "behaviour", f, run_dir=run_dir, rollouts=rollouts)
-    scores = {judge: _scores(terms, judge, doc) for judge in JUDGES if judge != "behaviour"}
-    scores["behaviour"] = behaviour
+    scores = {
+        judge: agent_scores(
+            trained, doc, judge, f, run_dir=run_dir, rollouts=rollouts, returns=returns
+        )
+        if judge in ("behaviour", "return")
+        else term_scores(terms, judge, doc)
+        for judge in JUDGES
+    }
     judges = {}
     for judge in JUDGES:
         tree = replay_as(trained, doc, judge, scores[judge])
         judges[judge] = JudgeResult(judge, tree, compare(doc, tree))
-    return CheckpointReport(trained.timesteps, judges, _rows(terms, doc, behaviour))
-
-
-def _scores(terms: CandidateTerms, judge: str, doc: TreeDocument) -> dict[int, float]:
-    values = {"shaped": terms.shaped, "shaping": terms.shaping, "value": terms.value}[judge]
-    return {c.id: float(v) for c, v in zip(doc.candidates, values, strict=True)}
+    return CheckpointReport(
+        trained.timesteps, judges, _rows(terms, doc, scores["behaviour"], scores["return"])
+    )
 
 
 def _rows(
-    terms: CandidateTerms, doc: TreeDocument, behaviour: dict[int, float]
+    terms: CandidateTerms,
+    doc: TreeDocument,
+    behaviour: dict[int, float],
+    env_return: dict[int, float],
 ) -> list[CandidateRow]:
     return [
         CandidateRow(
@@ -197,6 +211,7 @@ def _rows(
             float(terms.shaped[i]),
             float(terms.value[i]),
             behaviour[c.id],
+            env_return[c.id],
         )
         for i, c in enumerate(doc.candidates)
     ]

@@ -121,7 +121,8 @@
       row("pooled verdict", report.conformance, null));
   }
 
-  const COLUMNS = ["id", "reward", "advice", "z", "shaping", "score", "value", "behaviour"];
+  const COLUMNS = ["id", "reward", "advice", "z", "shaping", "score", "value", "behaviour",
+    "env_return"];
   function showCandidates(table, report, urls, open) {
     const key = table.dataset.sortKey || "id";
     const sign = table.dataset.sortDir === "desc" ? -1 : 1;
@@ -133,7 +134,8 @@
       link.textContent = `#${c.id}`;
       link.addEventListener("click", (e) => { e.preventDefault(); open(urls.full(c.id), `#${c.id}`); });
       cell(row, link);
-      for (const col of COLUMNS.slice(1)) cell(row, c[col].toFixed(3));
+      // env_return is null in reports stored before the return judge
+      for (const col of COLUMNS.slice(1)) cell(row, c[col] === null ? "–" : c[col].toFixed(3));
       return row;
     }));
     for (const th of table.querySelectorAll("th[data-sort]")) {

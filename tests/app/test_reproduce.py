@@ -82,7 +82,7 @@ def test_writes_figures_summary_and_readme(results: Path, summary: dict) -> None
 
 def test_every_arm_with_its_seeds_and_every_judge(summary: dict) -> None:
     assert list(summary["arms"]) == [arm.name for arm in ARMS]
-    assert JUDGES == ENGINE_JUDGES
+    assert set(JUDGES) == set(ENGINE_JUDGES) - {"return"}  # cached reports may predate it
     for arm in ARMS:
         entry = summary["arms"][arm.name]
         assert [s["seed"] for s in entry["seeds"]] == ([0, 1] if arm.core else [0])
@@ -90,10 +90,10 @@ def test_every_arm_with_its_seeds_and_every_judge(summary: dict) -> None:
             assert seed["timesteps"] == 256
             for bracket in ("main", "agent"):
                 assert [p["step"] for p in seed[bracket]] == [128, 256]
-                assert set(seed[bracket][-1]["judges"]) == set(JUDGES)
+                assert set(seed[bracket][-1]["judges"]) == set(ENGINE_JUDGES)
         final = entry["final"]["main"]["behaviour"]
         assert final["match_agreement"]["n"] == len(entry["seeds"])
-        assert len(entry["curve"]["agent"]["value"]) == 2
+        assert len(entry["curve"]["agent"]["shaped-value"]) == 2
     arms = summary["arms"]
     assert arms["ppo"]["seeds"][0]["z_mean_final"] == 0.0
     assert arms["control"]["seeds"][0]["z_mean_final"] == 1.0

@@ -114,7 +114,7 @@ def test_agent_tree_and_conformance_equal_the_engines(
     latest = api(client, f"/api/runs/{run_id}/agent-tree")
     assert latest == api(client, f"/api/runs/{run_id}/agent-tree?checkpoint=1024")
     agent = tree_from_json(latest)  # a valid acv.tree/1 document over the same bracket
-    assert agent.judge == "agent:shaped@1024"
+    assert agent.judge == "agent:return@1024"  # the default judge
     expected = compare(tree_from_json(human), agent).to_json()
     assert api(client, f"/api/runs/{run_id}/conformance") == expected
     curve = api(client, f"/api/runs/{run_id}/conformance-curve")
@@ -124,12 +124,17 @@ def test_agent_tree_and_conformance_equal_the_engines(
         assert {k: v for k, v in row.items() if k != "checkpoint"} == at
 
 
-@pytest.mark.parametrize("judge", ["shaping", "value", "behaviour"])
+@pytest.mark.parametrize("judge", ["return", "shaping", "shaped-value", "behaviour"])
 def test_other_judges_name_themselves(
     client: TestClient, runs: dict[str, dict], judge: str
 ) -> None:
     doc = api(client, f"/api/runs/{runs['em']['id']}/agent-tree?checkpoint=512&judge={judge}")
     assert doc["judge"] == f"agent:{judge}@512"
+
+
+def test_value_is_still_read_as_shaped_value(client: TestClient, runs: dict[str, dict]) -> None:
+    doc = api(client, f"/api/runs/{runs['em']['id']}/agent-tree?checkpoint=512&judge=value")
+    assert doc["judge"] == "agent:shaped-value@512"
 
 
 def test_ppo_baseline_is_compared_with_the_same_advice(
@@ -321,7 +326,7 @@ def test_checkpoint_report_carries_verdict_highlights_judges_and_candidates(
     run_id = runs["em"]["id"]
     body = api(client, f"/api/runs/{run_id}/checkpoint-report?checkpoint=768&judge=value")
     m = api(client, f"/api/runs/{run_id}/conformance?checkpoint=768&judge=value")
-    assert body["conformance"] == m and body["judge"] == "value"
+    assert body["conformance"] == m and body["judge"] == "shaped-value"  # value: the old name
     assert body["highlights"]["agent"] == sorted({r["human_winner"] for r in m["rejected"]})
     assert [j["judge"] for j in body["judges"]] == list(JUDGES)
     contested = m["contested"]

@@ -12,6 +12,7 @@ from typing import Any
 import pytest
 from fastapi.testclient import TestClient
 
+from engine.judges import DIAGNOSTIC_JUDGES, JUDGES, VERDICT_JUDGES
 from tests.app.conftest import ADMIN, new_study
 from tests.app.runs_support import (
     ENDLESS,
@@ -150,12 +151,24 @@ def test_the_compare_page_offers_every_judge_and_its_tables(
 ) -> None:
     html = page.get(f"/runs/{launched}/compare?judge=behaviour").text
     box = html.split('id="judge"')[1].split("</select>")[0]
-    judges = re.findall(r'<option value="(\w+)" ?(selected)?>([^<]*)</option>', box)
-    assert [j for j, _, _ in judges] == ["shaped", "shaping", "value", "behaviour"]
-    assert judges[3][1] == "selected" and "revealed-preference" in judges[3][2]
+    judges = re.findall(r'<option value="([\w-]+)" ?(selected)?>([^<]*)</option>', box)
+    assert [j for j, _, _ in judges] == list(JUDGES)
+    assert judges[1][1] == "selected" and "revealed-preference" in judges[1][2]
+    assert all("provisional" in label for j, _, label in judges if j in VERDICT_JUDGES)
+    assert all("diagnostic" in label for j, _, label in judges if j in DIAGNOSTIC_JUDGES)
     assert 'id="judges-body"' in html and 'id="candidates"' in html
     sortable = re.findall(r'<th scope="col" data-sort="(\w+)">', html)
-    assert sortable == ["id", "reward", "advice", "z", "shaping", "score", "value", "behaviour"]
+    assert sortable == [
+        "id",
+        "reward",
+        "advice",
+        "z",
+        "shaping",
+        "score",
+        "value",
+        "behaviour",
+        "env_return",
+    ]
     assert audit(html) == []
 
 

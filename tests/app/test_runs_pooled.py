@@ -111,7 +111,7 @@ def test_the_advisors_endpoint_and_the_checkpoint_report(
 ) -> None:
     run_id = pooled["id"]
     got = api(client, f"/api/runs/{run_id}/advisors?judge=value&checkpoint=128")
-    assert got["checkpoint"] == 128 and got["judge"] == "value"
+    assert got["checkpoint"] == 128 and got["judge"] == "shaped-value"  # value: the old name
     assert [a["participant_id"] for a in got["advisors"]] == people[1:]
     assert got["pooled"] == api(
         client, f"/api/runs/{run_id}/conformance?judge=value&checkpoint=128"

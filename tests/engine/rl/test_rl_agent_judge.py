@@ -19,6 +19,7 @@ from engine.rl.agent_judge import (
     agent_tree,
     candidate_terms,
     candidate_z,
+    judge_reward,
     load_agent,
 )
 from engine.rl.checkpoint import find_checkpoint
@@ -93,10 +94,32 @@ def test_the_judges_r_is_the_reward_the_agent_gets(run: Path, good_tree: TreeDoc
     np.testing.assert_allclose(reward, stored - cost, rtol=1e-9)
 
 
+def test_judge_reward_is_the_r_of_the_judges(run: Path, good_tree: TreeDocument) -> None:
+    trained = load_agent(find_checkpoint(run, 256))
+    reward = judge_reward(trained, good_tree)
+    terms = candidate_terms(trained, good_tree).reward
+    assert list(reward) == [c.id for c in good_tree.candidates]
+    np.testing.assert_array_equal(list(reward.values()), terms)
+    stored = np.array([c.env_reward for c in good_tree.candidates])
+    assert (np.array(list(reward.values())) < stored).all()  # minus a control cost
+
+
+def test_value_is_the_old_name_of_shaped_value(run: Path) -> None:
+    old, new = agent_tree(run, judge="value"), agent_tree(run, judge="shaped-value")
+    assert old.judge == new.judge == "agent:shaped-value@512"
+    assert tree_to_json(old) == tree_to_json(new)
+
+
+def test_the_return_judge_replays_with_the_policys_returns(run: Path) -> None:
+    doc = agent_tree(run, judge="return")
+    assert doc.scores is not None and len(set(doc.scores.values())) > 1
+    assert all(np.isfinite(v) for v in doc.scores.values())
+
+
 def test_a_good_advice_agent_reproduces_the_human_tree(run: Path, good_tree: TreeDocument) -> None:
     # Case 1 of the paper: the good teacher's winners have the higher R and, having won more
     # rounds, the higher T_r = F at the candidates; with z ~ 1, g = R + z F agrees everywhere
-    result = compare(good_tree, agent_tree(run))
+    result = compare(good_tree, agent_tree(run, judge="shaped"))
     assert result.match_agreement == 1.0 and result.tree_edit_distance == 0.0
 
 

@@ -66,7 +66,7 @@ def test_train_then_agent_tree_then_compare_then_plot(
         "--checkpoint",
         "128",
         "--judge",
-        "value",
+        "shaped-value",
         "--out",
         str(agent),
     )
@@ -136,6 +136,30 @@ def test_reward_advice_and_the_behaviour_judge_from_the_cli(
         str(agent),
     )
     assert code == 2 and "episodes >= 1" in err
+    for flag, value, message in (
+        ("--burn-in", "-1", "burn_in >= 0"),
+        ("--return-rollouts", "4", "rollouts >= 5"),
+        ("--judge", "vibes", "unknown judge"),
+    ):
+        code, err = acv(
+            monkeypatch, capsys, "agent-tree", "--run", str(run), flag, value, "--out", str(agent)
+        )
+        assert code == 2 and message in err, err
+    code, err = acv(
+        monkeypatch,
+        capsys,
+        "agent-tree",
+        "--run",
+        str(run),
+        "--return-rollouts",
+        "5",
+        "--horizon",
+        "20",
+        "--out",
+        str(agent),
+    )
+    assert code == 0, err
+    assert json.loads(agent.read_text())["judge"] == "agent:return@256"  # the default judge
 
 
 def test_resume_continues_a_run_and_refuses_other_options(

@@ -10,9 +10,10 @@ import pytest
 from engine.errors import InputError
 from engine.pipeline import run_tournament
 from engine.rl.agent_judge import JUDGES, agent_tree, candidate_terms, load_agent
-from engine.rl.behaviour import ROLLOUT_DIR, RolloutOptions, occupancy_scores
+from engine.rl.behaviour import RolloutOptions, occupancy_scores
 from engine.rl.checkpoint import find_checkpoint
 from engine.rl.config import TrainConfig
+from engine.rl.judge_cache import ROLLOUT_DIR, file_digest
 from engine.rl.logger import read_metrics
 from engine.rl.report import CheckpointReport, checkpoint_report
 from engine.rl.runner import train
@@ -29,7 +30,7 @@ SMALL = dict(
     update_epochs=2,
     checkpoint_every=256,
 )
-FEW = RolloutOptions(episodes=3, max_steps=300)
+FEW = RolloutOptions(episodes=3, max_steps=300, burn_in=5)
 
 
 @pytest.fixture(scope="module")
@@ -62,7 +63,8 @@ def test_behaviour_scores_read_the_visited_states(standing: TreeDocument) -> Non
 
 def test_the_behaviour_judge_is_deterministic_and_cached(run: Path) -> None:
     first = agent_tree(run, 512, "behaviour", rollouts=FEW)
-    cache = list((run / ROLLOUT_DIR).glob("step_512.*.npy"))
+    digest = file_digest(find_checkpoint(run, 512))[:16]
+    cache = list((run / ROLLOUT_DIR).glob(f"behaviour.{digest}.*.npy"))
     assert len(cache) == 1
     again = agent_tree(run, 512, "behaviour", rollouts=FEW)
     assert tree_to_json(again) == tree_to_json(first)
@@ -72,7 +74,8 @@ def test_the_behaviour_judge_is_deterministic_and_cached(run: Path) -> None:
 
 def test_the_behaviour_judge_reads_its_rollouts(run: Path, standing: TreeDocument) -> None:
     agent_tree(run, 256, "behaviour", rollouts=FEW)
-    cache = next((run / ROLLOUT_DIR).glob("step_256.*.npy"))
+    digest = file_digest(find_checkpoint(run, 256))[:16]
+    cache = next((run / ROLLOUT_DIR).glob(f"behaviour.{digest}.*.npy"))
     np.save(cache, np.repeat(standing.candidates[2].qpos[None], 4, axis=0))  # other states
     doc = agent_tree(run, 256, "behaviour", rollouts=FEW)
     assert doc.tree.root == 2 and doc.scores[2] == pytest.approx(1.0)
@@ -105,8 +108,9 @@ def test_the_report_holds_every_judge_and_the_table(run: Path, standing: TreeDoc
     assert sorted(rows) == [c.id for c in standing.candidates]
     for judge, column in (
         ("shaped", "shaped"),
-        ("value", "value"),
+        ("shaped-value", "value"),
         ("behaviour", "behaviour"),
+        ("return", "env_return"),
         ("shaping", "shaping"),
     ):
         scores = report.judges[judge].tree.scores
@@ -123,6 +127,18 @@ def test_the_report_round_trips_through_json(run: Path) -> None:
     assert CheckpointReport.from_json(obj).to_json() == obj
     with pytest.raises(InputError, match="acv.checkpoint/1"):
         CheckpointReport.from_json({"schema": "other"})
+
+
+def test_a_report_stored_before_the_rename_reads_value_as_shaped_value(run: Path) -> None:
+    obj = checkpoint_report(run, 256, rollouts=FEW).to_json()
+    obj["judges"] = {("value" if k == "shaped-value" else k): v for k, v in obj["judges"].items()}
+    obj["judges"] = {k: v for k, v in obj["judges"].items() if k != "return"}
+    for row in obj["candidates"]:
+        del row["env_return"]
+    old = CheckpointReport.from_json(obj)
+    assert "shaped-value" in old.judges and "value" not in old.judges
+    assert old.judges["shaped-value"].judge == "shaped-value"
+    assert all(row.env_return is None for row in old.candidates)
 
 
 def test_a_run_without_advice_needs_the_tree_to_compare_with(
