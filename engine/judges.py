@@ -44,3 +44,14 @@ def judge_name(judge: str) -> str:
 def current_keys(by_judge: dict[str, T]) -> dict[str, T]:
     """A stored ``{judge: ...}`` map with legacy names replaced by the current ones."""
     return {LEGACY_JUDGES.get(k, k): v for k, v in by_judge.items()}
+
+
+#: The column of a checkpoint report's per-candidate table (``engine.rl.report.CandidateRow``)
+#: that holds each judge's score.
+JUDGE_COLUMNS: dict[str, str] = {
+    "return": "env_return",
+    "behaviour": "behaviour",
+    "shaped": "shaped",
+    "shaping": "shaping",
+    "shaped-value": "value",
+}

@@ -14,7 +14,7 @@ from fastapi import APIRouter, Query, Response
 from pydantic import BaseModel, ConfigDict, Field
 
 from app.api.deps import DbId, ResearcherDep, SessionDep
-from app.api.run_schemas import RunCreate
+from app.api.run_schemas import Judge, RunCreate
 from app.api.schemas import JsonInt, ProgressOut, UtcDatetime
 from app.models import Experiment
 from app.services import experiments
@@ -27,10 +27,9 @@ from app.services.experiments import (
     PILOT_SEED_BASE,
     ExperimentSpec,
 )
+from engine.judges import DEFAULT_JUDGE
 
 router = APIRouter(prefix="/experiments", tags=["experiments"])
-#: The judges a verdict may read (the runs' per-candidate table has a column for each).
-VerdictJudge = Literal["behaviour", "shaped", "shaping", "value"]
 PENDING: dict[int | str, dict[str, Any]] = {
     202: {"description": 'Not enough runs judged yet: {"status": "pending"}; ask again.'}
 }
@@ -140,7 +139,7 @@ def experiment_verdict(
     session: SessionDep,
     response: Response,
     _: ResearcherDep,
-    judge: Annotated[VerdictJudge, Query(description="How the runs score states.")] = "behaviour",
+    judge: Annotated[Judge, Query(description="How the runs score states.")] = DEFAULT_JUDGE,
     step: Annotated[int | None, Query(ge=0, description="Checkpoint (default: latest).")] = None,
 ) -> VerdictOut | dict[str, str]:
     """Advised runs against the matched baseline at one checkpoint step, for one judge."""

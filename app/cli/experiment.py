@@ -13,6 +13,7 @@ from app.cli.root import cli, fail
 from app.cli.serve import cli_runtime
 from app.services import experiments
 from app.services.experiments import DEFAULT_PILOT_SEEDS, DEFAULT_SEEDS, ExperimentSpec
+from engine.judges import DEFAULT_JUDGE
 
 Opt = typer.Option
 experiment_cli = typer.Typer(help="Experiments: k seeds with a matched baseline.")
@@ -70,7 +71,7 @@ def list_(study: Annotated[int | None, Opt(help="Only this study's.")] = None) -
 @experiment_cli.command("verdict")
 def verdict(
     experiment: Annotated[int, typer.Argument(help="The experiment's id.")],
-    judge: Annotated[str, Opt(help="How the runs score states.")] = "behaviour",
+    judge: Annotated[str, Opt(help="How the runs score states.")] = DEFAULT_JUDGE,
     step: Annotated[int | None, Opt(help="Checkpoint (default: latest judged).")] = None,
     as_json: Annotated[bool, Opt("--json", help="Print JSON instead of the sentence.")] = False,
 ) -> None:

@@ -25,6 +25,7 @@ from app.services import artefacts, runs
 from app.services.errors import NotFoundError
 from app.services.studies import get_ready_study
 from engine.errors import InputError
+from engine.judges import JUDGE_COLUMNS, judge_name
 from engine.treefile import TreeDocument, tree_from_json
 from engine.verdict import Verdict, VerdictInputs, advice_scores, bracket_pairs, verdict
 
@@ -240,12 +241,18 @@ def _verdict_step(judged: dict[str, dict[int, dict[int, list[dict[str, Any]]]]])
 
 
 def _scores(tables: list[list[dict[str, Any]]], judge: str) -> np.ndarray:
-    """The judge's score per run and candidate, shape ``(runs, N)``."""
-    column = judge.replace("-", "_")
-    try:
-        return np.array([[row[column] for row in sorted(t, key=lambda r: r["id"])] for t in tables])
-    except KeyError:
-        raise InputError(f"the runs' checkpoints have no {judge!r} scores") from None
+    """The judge's score per run and candidate, shape ``(runs, N)``.
+
+    Raises:
+        InputError: not a judge, or checkpoints judged without it (before it existed).
+    """
+    column = JUDGE_COLUMNS[judge_name(judge)]
+    scores = [[row.get(column) for row in sorted(t, key=lambda r: r["id"])] for t in tables]
+    if any(s is None for run in scores for s in run):
+        raise InputError(
+            f"these runs' checkpoints were judged without the {judge!r} judge: choose another"
+        )
+    return np.array(scores, dtype=float)
 
 
 def _advice_of(session: Session, experiment: Experiment) -> TreeDocument:

@@ -12,20 +12,15 @@ from fastapi import APIRouter, Query, Request
 from fastapi.responses import HTMLResponse
 
 from app.api.deps import DbId, SessionDep
-from app.api.experiments import VerdictJudge
+from app.api.run_schemas import Judge
 from app.services import experiments, runs, studies
 from app.web.guards import ResearcherPage
 from app.web.rendering import PageRoute, render
+from app.web.runs_pages import JUDGE_LABELS
+from engine.errors import InputError
+from engine.judges import DEFAULT_JUDGE, judge_name
 
 router = APIRouter(route_class=PageRoute, include_in_schema=False, dependencies=[ResearcherPage])
-
-#: The judges a verdict may read, as the selector names them (the default first).
-VERDICT_JUDGES = (
-    ("behaviour", "its behaviour: which advised postures its own rollouts come near"),
-    ("value", "its shaped critic V (reads the advice too: a diagnostic)"),
-    ("shaped", "its shaped reward R + z F: is your advice still in its reward? (diagnostic)"),
-    ("shaping", "the advice part z F (diagnostic)"),
-)
 
 
 @router.get("/experiments/{experiment_id}")
@@ -33,11 +28,16 @@ def experiment_page(
     experiment_id: DbId,
     request: Request,
     session: SessionDep,
-    judge: Annotated[VerdictJudge, Query()] = "behaviour",
+    judge: Annotated[Judge, Query()] = DEFAULT_JUDGE,
 ) -> HTMLResponse:
     experiment = experiments.get_experiment(session, experiment_id=experiment_id)
     members = experiments.members(session, experiment_id=experiment_id)
     advised = next(run for role, run in members if role == "advised")
+    try:
+        found = experiments.experiment_verdict(session, experiment_id=experiment_id, judge=judge)
+        problem = None
+    except InputError as exc:  # checkpoints judged before this judge existed
+        found, problem = None, str(exc)
     return render(
         request,
         "experiment.html",
@@ -47,10 +47,9 @@ def experiment_page(
             "members": members,
             "advice": runs.advice_label(advised),
             "algo": advised.algo,
-            "judge": judge,
-            "judges": VERDICT_JUDGES,
-            "found": experiments.experiment_verdict(
-                session, experiment_id=experiment_id, judge=judge
-            ),
+            "judge": judge_name(judge),
+            "judges": JUDGE_LABELS,
+            "found": found,
+            "problem": problem,
         },
     )

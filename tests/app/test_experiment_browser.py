@@ -71,7 +71,7 @@ def test_the_verdict_arrives_on_the_experiment_page(server, browser: Browser) ->
     context, page = new_page(browser, errors, viewport=DESKTOP)
     page.goto(f"{base}/login#token={ADMIN_TOKEN}")
     page.wait_for_url(f"{base}/studies")
-    page.goto(f"{base}/experiments/{experiment['id']}")
+    page.goto(f"{base}/experiments/{experiment['id']}?judge=behaviour")
     expect(page.locator("#experiment-runs tbody tr")).to_have_count(11)
     expect(page.locator("#verdict")).to_have_attribute("data-outcome", "pending")
     assert_accessible(page, "experiment page, nothing judged yet")
