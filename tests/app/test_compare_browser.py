@@ -25,6 +25,7 @@ import pytest
 from playwright.sync_api import Browser, Page, expect, sync_playwright
 
 from engine.envs import env_model
+from engine.judges import JUDGES
 from engine.teachers import standing_score
 from tests.support.a11y import assert_accessible
 from tests.support.browser import SETTLE_TIMEOUT_MS  # noqa: F401 (sets expect's timeout)
@@ -156,10 +157,11 @@ def test_comparison_page_shows_both_trees_and_the_rejected_advice(
             rf"^{lead} Overall it kept {metrics['n_agree']} of {N_CANDIDATES - 1} of your choices"
         )
     )
-    expect(p.locator("#judges-body tr")).to_have_count(4)  # every judge, side by side
-    for judge in ("shaped", "shaping", "value", "behaviour"):
+    expect(p.locator("#judges-body tr")).to_have_count(len(JUDGES))  # every judge, side by side
+    for judge in JUDGES:
         expect(p.locator(f"#judges-body tr[data-judge='{judge}']")).to_have_count(1)
-    expect(p.locator("#judges-body tr[data-judge='shaped'] td").nth(1)).to_have_text(
+    # the page judges by return by default, as the fixture's conformance does
+    expect(p.locator("#judges-body tr[data-judge='return'] td").nth(1)).to_have_text(
         f"{metrics['n_agree']} / {N_CANDIDATES - 1}"
     )
     expect(p.locator("#candidates tbody tr")).to_have_count(N_CANDIDATES)
@@ -185,7 +187,7 @@ def test_comparison_page_shows_both_trees_and_the_rejected_advice(
         len({r["b"] if r["human_winner"] == r["a"] else r["a"] for r in metrics["rejected"]})
     )
     # The curve is computed over every checkpoint: slow on a loaded machine, so wait for it.
-    expect(p.locator("#compare")).to_have_attribute("data-curve-judge", "shaped", timeout=120_000)
+    expect(p.locator("#compare")).to_have_attribute("data-curve-judge", "return", timeout=120_000)
     expect(p.locator("#chart-curve svg circle.dot")).to_have_count(2 * 4)  # 4 checkpoints
     assert_accessible(p, "comparison page")
     SCREENS.mkdir(parents=True, exist_ok=True)
@@ -193,16 +195,16 @@ def test_comparison_page_shows_both_trees_and_the_rejected_advice(
 
     p.locator("#checkpoint").fill("0")  # the slider: the first checkpoint
     p.locator("#checkpoint").dispatch_event("change")
-    expect(p.locator("#compare")).to_have_attribute("data-loaded", "1024:shaped")
+    expect(p.locator("#compare")).to_have_attribute("data-loaded", "1024:return")
     expect(p.locator("#agent-title")).to_have_text("(step 1024)")
     expect(p.locator("#exports a[data-export='report.html']")).to_have_attribute(
-        "href", f"/api/runs/{run_id}/report.html?judge=shaped&checkpoint=1024"
+        "href", f"/api/runs/{run_id}/report.html?judge=return&checkpoint=1024"
     )
 
-    p.select_option("#judge", "value")  # the shaped critic judges: other picks, same page
-    expect(p.locator("#compare")).to_have_attribute("data-loaded", "1024:value")
+    p.select_option("#judge", "shaped-value")  # the shaped critic: other picks, same page
+    expect(p.locator("#compare")).to_have_attribute("data-loaded", "1024:shaped-value")
     rejected = httpx.get(
-        f"{server}/api/runs/{run_id}/conformance?checkpoint=1024&judge=value",
+        f"{server}/api/runs/{run_id}/conformance?checkpoint=1024&judge=shaped-value",
         headers=ADMIN,
         timeout=60,
     ).json()["rejected"]
@@ -216,7 +218,7 @@ def test_comparison_page_shows_both_trees_and_the_rejected_advice(
             "src", re.compile(rf"/candidates/{r['human_winner']}/image\?size=thumb$")
         )
         expect(pair).to_contain_text(f"Round {r['round']}: you preferred #{r['human_winner']}")
-    expect(p.locator("#compare")).to_have_attribute("data-curve-judge", "value")
+    expect(p.locator("#compare")).to_have_attribute("data-curve-judge", "shaped-value")
     p.screenshot(path=SCREENS / "compare-value.png", full_page=True)
     assert errors == []
 

@@ -122,41 +122,19 @@ def test_reward_advice_and_the_behaviour_judge_from_the_cli(
         main()
     printed = json.loads(capsys.readouterr().out)
     assert {"contested", "reference_agreement"} <= set(printed)
-    code, err = acv(
-        monkeypatch,
-        capsys,
-        "agent-tree",
-        "--run",
-        str(run),
-        "--judge",
-        "behaviour",
-        "--episodes",
-        "0",
-        "--out",
-        str(agent),
-    )
-    assert code == 2 and "episodes >= 1" in err
-    for flag, value, message in (
-        ("--burn-in", "-1", "burn_in >= 0"),
-        ("--return-rollouts", "4", "rollouts >= 5"),
-        ("--judge", "vibes", "unknown judge"),
+    for options, message in (
+        (["--judge", "behaviour", "--episodes", "0"], "episodes >= 1"),
+        (["--burn-in", "-1"], "burn_in >= 0"),
+        (["--return-rollouts", "4"], "rollouts >= 5"),
+        (["--judge", "vibes"], "unknown judge"),
     ):
         code, err = acv(
-            monkeypatch, capsys, "agent-tree", "--run", str(run), flag, value, "--out", str(agent)
+            monkeypatch, capsys, "agent-tree", "--run", str(run), *options, "--out", str(agent)
         )
         assert code == 2 and message in err, err
+    tiny_return = ["--return-rollouts", "5", "--horizon", "20"]
     code, err = acv(
-        monkeypatch,
-        capsys,
-        "agent-tree",
-        "--run",
-        str(run),
-        "--return-rollouts",
-        "5",
-        "--horizon",
-        "20",
-        "--out",
-        str(agent),
+        monkeypatch, capsys, "agent-tree", "--run", str(run), *tiny_return, "--out", str(agent)
     )
     assert code == 0, err
     assert json.loads(agent.read_text())["judge"] == "agent:return@256"  # the default judge
