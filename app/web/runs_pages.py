@@ -310,7 +310,7 @@ def _latest(session: Session, run: Run, root: Any) -> dict[str, Any]:
         curve = comparison.conformance_curve(
             session, run_id=run.id, out=run_dir(root, run.id), judge="shaped"
         )
-    except PendingError:
+    except (PendingError, InputError):  # not judged yet, or never by this judge: no metrics
         curve = []
     steps = [step for step, _ in curve]
     metrics = curve[-1][1] if curve else None
