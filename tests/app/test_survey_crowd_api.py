@@ -16,7 +16,13 @@ from fastapi.testclient import TestClient
 from app.services.survey_respond import RESPONDENT_COOKIE
 from app.web.ratelimit import LoginLimiter
 from tests.app.conftest import ADMIN
-from tests.app.surveys_support import Respondent, finished, invite, paper_answers, paper_body
+from tests.app.surveys_support import (
+    Respondent,
+    invite,
+    participant_trees,
+    paper_answers,
+    paper_body,
+)
 from tests.support.web import audit, browser, csrf_token, logged_in
 
 SETTINGS = {"enabled": True, "max_participants": 50}
@@ -32,10 +38,7 @@ def fresh_join_limit(client: TestClient) -> None:
 @pytest.fixture(scope="module")
 def trees(client: TestClient, study: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
     """Two finished participants' trees, for the surveys' stimuli."""
-    return tuple(  # type: ignore[return-value]
-        {"kind": "participant", "participant_id": finished(client, study["id"], side)}
-        for side in ("a", "b")
-    )
+    return participant_trees(client, study["id"])  # type: ignore[return-value]
 
 
 @pytest.fixture
