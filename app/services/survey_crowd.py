@@ -50,7 +50,7 @@ def configure(session: Session, *, survey_id: int, options: LinkOptions) -> Surv
 
 
 def open_link(session: Session, *, slug: str) -> SurveyCrowdSettings:
-    """The enabled open link ``slug``; :class:`NotFoundError` if none or closed."""
+    """The open link ``slug``, open or closed; :class:`NotFoundError` if none."""
     return open_links.find(session, SurveyCrowdSettings, slug=slug, what="survey")
 
 
@@ -62,23 +62,35 @@ def external_ids(link: SurveyCrowdSettings, query: dict[str, str]) -> dict[str, 
 def returning(
     session: Session, *, link: SurveyCrowdSettings, ids: dict[str, str], token: str | None
 ) -> SurveyRespondent | None:
-    """The respondent this visitor already is: by the first external id, or else by the
-    respondent cookie the browser holds for this survey; ``None`` for a new visitor."""
-    key = ids.get(link.external_params[0])
-    if key is not None:
-        return session.scalar(
+    """The respondent this visitor already is (:func:`open_links.returning`): by the
+    respondent cookie the browser holds for this survey, or by the first external id with the
+    per-attempt ids; ``None`` for a new visitor.
+
+    Raises:
+        AlreadyTookPartError: the external id joined before, from another browser.
+    """
+    return open_links.returning(
+        link.external_params,
+        ids,
+        by_external_id=lambda key: session.scalar(
             select(SurveyRespondent).where(
                 SurveyRespondent.survey_id == link.survey_id, SurveyRespondent.external_id == key
             )
-        )
-    if token:
-        try:
-            person = respondent_by_token(session, token=token)
-        except AuthError:
-            return None
-        if person.survey_id == link.survey_id:
-            return person
-    return None
+        ),
+        by_cookie=_by_cookie(session, link, token),
+    )
+
+
+def _by_cookie(
+    session: Session, link: SurveyCrowdSettings, token: str | None
+) -> SurveyRespondent | None:
+    if not token:
+        return None
+    try:
+        person = respondent_by_token(session, token=token)
+    except AuthError:
+        return None
+    return person if person.survey_id == link.survey_id else None
 
 
 def join(session: Session, *, link: SurveyCrowdSettings, ids: dict[str, str]) -> SurveyRespondent:
@@ -86,7 +98,9 @@ def join(session: Session, *, link: SurveyCrowdSettings, ids: dict[str, str]) ->
 
     Raises:
         SurveyFullError: the link has its largest number of respondents already.
+        LinkClosedError: the researcher closed the link.
     """
+    open_links.check_open(link, what="survey")
     person = SurveyRespondent(
         survey_id=link.survey_id,
         token=new_token(),
@@ -133,9 +147,7 @@ def completed(session: Session, *, survey_id: int) -> int:
 def completion(session: Session, *, respondent: SurveyRespondent) -> SurveyCrowdSettings | None:
     """The link whose completion code and redirect a finished open-link respondent gets;
     ``None`` before they finish, or for an invited respondent."""
-    if not respondent.via_link or respondent.finished_at is None:
-        return None
-    return crowd_settings(session, survey_id=respondent.survey_id)
+    return open_links.completion(session, SurveyCrowdSettings, respondent.survey_id, respondent)
 
 
 def open_path(slug: str) -> str:

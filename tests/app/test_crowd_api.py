@@ -185,7 +185,7 @@ def test_consent_post_needs_the_csrf_token(client, make_study) -> None:
 def test_closed_unknown_and_overlong_links(client, make_study) -> None:
     study = make_study()
     link = configure(client, study["id"], enabled=False)
-    assert visit(client, link)[1].status_code == 404
+    assert visit(client, link)[1].status_code == 410
     assert visitor(client).get("/s/no-such-link").status_code == 404
     configure(client, study["id"])
     response = visit(client, link, "?PROLIFIC_PID=" + "x" * 201)[1]

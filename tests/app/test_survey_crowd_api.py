@@ -224,7 +224,7 @@ def test_returning_browser_without_ids_keeps_its_respondent(client, survey) -> N
 
 def test_closed_unknown_and_overlong_links(client, survey) -> None:
     link = configure(client, survey["id"], enabled=False)
-    assert visit(client, link)[1].status_code == 404
+    assert visit(client, link)[1].status_code == 410
     assert browser(client).get("/q/no-such-link").status_code == 404
     assert browser(client).get("/q/" + "x" * 100).status_code == 404
     configure(client, survey["id"])
