@@ -55,10 +55,13 @@ class LinkClosedError(ServiceError):
     before go on (their cookie resumes them, their token still works)."""
 
     status_code = 410
+    title = "This link is closed"
 
 
 class AlreadyTookPartError(ConflictError):
     """An external id that joined before, from a browser that is not theirs (409)."""
+
+    title = "This id has already taken part"
 
 
 @dataclass(frozen=True)

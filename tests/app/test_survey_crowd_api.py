@@ -19,9 +19,9 @@ from tests.app.conftest import ADMIN
 from tests.app.surveys_support import (
     Respondent,
     invite,
-    participant_trees,
     paper_answers,
     paper_body,
+    participant_trees,
 )
 from tests.support.web import audit, browser, csrf_token, logged_in
 
@@ -132,7 +132,8 @@ def test_same_prolific_pid_resumes_one_respondent(client, survey) -> None:
     person = joined(client, first, response)
     screen = person.screen()
     assert person.answer(screen["position"], paper_answers(screen)).status_code == 201
-    second, again = visit(client, link, "?PROLIFIC_PID=abc123&SESSION_ID=x2")
+    assert visit(client, link, "?PROLIFIC_PID=abc123&SESSION_ID=x2")[1].status_code == 409
+    second, again = visit(client, link, PID)  # the platform's link again: same attempt
     assert again.status_code == 303 and again.headers["location"] == "/survey"
     assert second.cookies[RESPONDENT_COOKIE] == person.token
     [row] = respondents(client, survey["id"])
@@ -153,7 +154,9 @@ def test_same_prolific_pid_resumes_one_respondent(client, survey) -> None:
 def test_same_pid_at_once_gives_one_respondent(client, survey) -> None:
     link = configure(client, survey["id"])
     with ThreadPoolExecutor(6) as pool:
-        answers = list(pool.map(lambda _: visit(client, link, "?PROLIFIC_PID=twin"), range(6)))
+        answers = list(
+            pool.map(lambda _: visit(client, link, PID.replace("abc123", "twin")), range(6))
+        )
     assert all(r.status_code == 303 for _, r in answers)
     assert len({page.cookies[RESPONDENT_COOKIE] for page, _ in answers}) == 1
     assert len(respondents(client, survey["id"])) == 1
