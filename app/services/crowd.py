@@ -12,7 +12,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from sqlalchemy import select
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
@@ -20,7 +19,6 @@ from app.db import writing
 from app.models import CrowdSettings, Participant
 from app.services import open_links
 from app.services.auth import new_token, participant_by_token
-from app.services.errors import AuthError
 from app.services.open_links import (
     DEFAULT_EXTERNAL_PARAMS,
     MAX_PARTICIPANTS,
@@ -101,25 +99,15 @@ def returning(
         AlreadyTookPartError: the external id joined before, from another browser.
     """
     return open_links.returning(
-        link.external_params,
-        ids,
-        by_external_id=lambda key: session.scalar(
-            select(Participant).where(
-                Participant.study_id == link.study_id, Participant.external_id == key
-            )
-        ),
-        by_cookie=_by_cookie(session, link, token),
+        session,
+        Participant,
+        owner="study_id",
+        owner_id=link.study_id,
+        params=link.external_params,
+        ids=ids,
+        token=token,
+        by_token=participant_by_token,
     )
-
-
-def _by_cookie(session: Session, link: CrowdSettings, token: str | None) -> Participant | None:
-    if not token:  # looked up by its hash and compared in constant time, as invite links are
-        return None
-    try:
-        person = participant_by_token(session, token=token)
-    except AuthError:
-        return None
-    return person if person.study_id == link.study_id else None
 
 
 def join(session: Session, *, link: CrowdSettings, ids: dict[str, str]) -> Participant:

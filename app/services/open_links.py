@@ -24,8 +24,8 @@ from sqlalchemy import ColumnElement, select, update
 from sqlalchemy.orm import Session
 
 from app.db import writing
-from app.models import CrowdSettings, SurveyCrowdSettings
-from app.services.errors import ConflictError, NotFoundError, ServiceError
+from app.models import CrowdSettings, Participant, SurveyCrowdSettings, SurveyRespondent
+from app.services.errors import AuthError, ConflictError, NotFoundError, ServiceError
 from app.services.studies import check_text
 from engine.errors import InputError
 
@@ -43,7 +43,7 @@ ALREADY_TOOK_PART = (
 )
 
 Link = TypeVar("Link", CrowdSettings, SurveyCrowdSettings)
-P = TypeVar("P", bound="Joiner")
+Person = TypeVar("Person", Participant, SurveyRespondent)
 
 
 class LinkFullError(ConflictError):
@@ -192,31 +192,46 @@ def completion(session: Session, model: type[Link], key: int, person: Joiner) ->
 
 
 def returning(
+    session: Session,
+    model: type[Person],
+    *,
+    owner: str,
+    owner_id: int,
     params: list[str],
     ids: dict[str, str],
-    *,
-    by_external_id: Callable[[str], P | None],
-    by_cookie: P | None,
-) -> P | None:
-    """The person this visitor already is, or ``None`` for a new one.
+    token: str | None,
+    by_token: Callable[..., Person],
+) -> Person | None:
+    """The person of ``model`` (whose ``owner`` column is ``owner_id``) this visitor already
+    is, or ``None`` for a new one.
 
-    Without an external id, the person whose cookie the browser holds. With one that joined
-    before, that person only in the browser that joined (its cookie), or where every other
-    external parameter (the platform's per-attempt ids, such as ``SESSION_ID``) was stored and
-    matches: an id alone is public enough (it is in every URL the platform makes) that it
-    must not hand over someone's session.
+    Without an external id, the person whose cookie ``token`` (checked by ``by_token``) the
+    browser holds. With one that joined before, that person only in the browser that joined
+    (its cookie), or where every other external parameter (the platform's per-attempt ids,
+    such as ``SESSION_ID``) was stored and matches: an id alone is public enough (it is in
+    every URL the platform makes) that it must not hand over someone's session.
 
     Raises:
         AlreadyTookPartError: the id joined before, and neither the cookie nor the
             per-attempt ids say this is the same person.
     """
+    cookie = None
+    if token:  # looked up by its hash and compared in constant time, as invite links are
+        try:
+            cookie = by_token(session, token=token)
+        except AuthError:
+            cookie = None
+        if cookie is not None and getattr(cookie, owner) != owner_id:
+            cookie = None
     key = ids.get(params[0])
     if key is None:
-        return by_cookie
-    known = by_external_id(key)
+        return cookie
+    known = session.scalar(
+        select(model).where(getattr(model, owner) == owner_id, model.external_id == key)
+    )
     if known is None:
         return None
-    if by_cookie is not None and by_cookie.id == known.id:
+    if cookie is not None and cookie.id == known.id:
         return known
     if _same_attempt(params[1:], ids, known.external_ids or {}):
         return known

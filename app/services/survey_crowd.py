@@ -17,7 +17,6 @@ from app.db import writing
 from app.models import SurveyCrowdSettings, SurveyRespondent
 from app.services import open_links
 from app.services.auth import new_token
-from app.services.errors import AuthError
 from app.services.open_links import LinkFullError, LinkOptions
 from app.services.survey_respond import respondent_by_token
 from app.services.surveys import get_survey
@@ -70,27 +69,15 @@ def returning(
         AlreadyTookPartError: the external id joined before, from another browser.
     """
     return open_links.returning(
-        link.external_params,
-        ids,
-        by_external_id=lambda key: session.scalar(
-            select(SurveyRespondent).where(
-                SurveyRespondent.survey_id == link.survey_id, SurveyRespondent.external_id == key
-            )
-        ),
-        by_cookie=_by_cookie(session, link, token),
+        session,
+        SurveyRespondent,
+        owner="survey_id",
+        owner_id=link.survey_id,
+        params=link.external_params,
+        ids=ids,
+        token=token,
+        by_token=respondent_by_token,
     )
-
-
-def _by_cookie(
-    session: Session, link: SurveyCrowdSettings, token: str | None
-) -> SurveyRespondent | None:
-    if not token:
-        return None
-    try:
-        person = respondent_by_token(session, token=token)
-    except AuthError:
-        return None
-    return person if person.survey_id == link.survey_id else None
 
 
 def join(session: Session, *, link: SurveyCrowdSettings, ids: dict[str, str]) -> SurveyRespondent:
