@@ -18,7 +18,7 @@ from playwright.sync_api import Browser, Page, Route, expect
 
 from tests.app.surveys_support import paper_body
 from tests.app.test_browser import ADMIN_TOKEN, browser, new_page, server  # noqa: F401
-from tests.app.test_crowd_browser import platform  # noqa: F401 (fixture)
+from tests.app.test_crowd_browser import platform, turned_away  # noqa: F401 (fixture)
 from tests.app.test_surveys_browser import READY, two_finished_participants
 from tests.support.a11y import assert_accessible
 
@@ -152,21 +152,7 @@ def test_open_link_consent_screens_and_completion(
     expect(n.locator("h1")).to_have_text("You declined")
     assert_accessible(n, "survey declined page")
 
-    _, t = new_page(browser, errors, viewport=DESKTOP)  # pw-1's id, in another browser
-    t.goto(f"{link}?PROLIFIC_PID=pw-1&STUDY_ID=st&SESSION_ID=another")
-    expect(t.locator("h1")).to_have_text("This id has already taken part")
-    assert_accessible(t, "survey already taken part page")
-    with httpx.Client(base_url=base, headers=ADMIN, timeout=60) as api:
-        closed = {"enabled": False, "max_participants": 2}
-        assert api.put(f"/api/surveys/{survey_id}/crowd", json=closed).status_code == 200
-    _, c = new_page(browser, errors, viewport=DESKTOP)
-    c.goto(f"{link}?PROLIFIC_PID=pw-5")
-    expect(c.locator("h1")).to_have_text("This link is closed")
-    expect(c.locator("p.error")).to_contain_text("not taking new people")
-    assert_accessible(c, "survey closed link page")
-    turned_away = [e for e in errors if "status of 409" in e or "status of 410" in e]
-    assert len(turned_away) == 2  # Chromium logs the two refusals' statuses; nothing else
-    errors[:] = [e for e in errors if e not in turned_away]
+    turned_away(browser, errors, link, f"{base}/api/surveys/{survey_id}/crowd")
 
     with httpx.Client(base_url=base, headers=ADMIN, timeout=60) as api:
         crowd: dict[str, Any] = api.get(f"/api/surveys/{survey_id}/crowd").json()

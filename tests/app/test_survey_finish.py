@@ -1,7 +1,7 @@
 """A survey respondent whose last screens are submitted at the same moment (two tabs, an API
 client) is marked finished, with the open link's completion code where one applies (issue 24,
-F2); and migration 0009 repairs the respondents an earlier version left stuck. On SQLite
-and PostgreSQL."""
+F2); migration 0009 repairs the respondents an earlier version left stuck, and 0010 marks
+which study participants came through an open link (F5). On SQLite and PostgreSQL."""
 
 from __future__ import annotations
 
@@ -151,3 +151,38 @@ def test_migration_0009_finishes_stuck_respondents_and_keeps_every_row(
     finished = {rid: at is not None for rid, at in rows}
     assert finished == {1: True, 2: False, 3: True, 4: False}
     assert rows[0][1] == last  # finished when they answered their last screen
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_migration_0010_marks_existing_crowd_participants(request, tmp_path, backend) -> None:
+    """Participants of a study with an open link keep getting its code (they may be crowd
+    workers part way through); those of a study without one never had a code to get."""
+    url = (
+        f"sqlite:///{tmp_path / 'old.sqlite3'}"
+        if backend == "sqlite"
+        else request.getfixturevalue("postgres").create_database()
+    )
+    upgrade(url, "0009")
+    engine = make_engine(url)
+    with engine.begin() as conn:
+        for statement in (
+            "INSERT INTO studies (id, name, env_id, n_candidates, p, seed, sampling, "
+            "instructions, status, created_at) VALUES (1, 's', 'Hopper-v5', 2, 0.9, 0, "
+            "'uniform', '', 'ready', CURRENT_TIMESTAMP), (2, 't', 'Hopper-v5', 2, 0.9, 0, "
+            "'uniform', '', 'ready', CURRENT_TIMESTAMP)",
+            "INSERT INTO crowd_settings (study_id, slug, enabled, max_participants, joined, "
+            "declines, external_params, consistency_check, speed_threshold_ms) VALUES "
+            "(1, 'slug', true, 5, 1, 0, '[\"PROLIFIC_PID\"]', false, 800)",
+            "INSERT INTO participants (id, study_id, token, token_hash, created_at) VALUES "
+            "(1, 1, 't1', 'h1', CURRENT_TIMESTAMP), (2, 2, 't2', 'h2', CURRENT_TIMESTAMP)",
+        ):
+            conn.execute(text(statement))
+    engine.dispose()
+    upgrade(url)
+    engine = make_engine(url)
+    try:
+        with engine.connect() as conn:
+            rows = conn.execute(text("SELECT id, via_link FROM participants ORDER BY id")).all()
+    finally:
+        engine.dispose()
+    assert [(pid, bool(via)) for pid, via in rows] == [(1, True), (2, False)]
