@@ -186,6 +186,8 @@ class Participant(Base):
     #: ``PROLIFIC_PID``): the same id coming back resumes this participant.
     external_id: Mapped[str | None] = mapped_column(String(200), default=None)
     external_ids: Mapped[dict | None] = mapped_column(JSON, default=None)
+    #: Whether they came through the study's open link (only they get its completion code).
+    via_link: Mapped[bool] = mapped_column(Boolean, default=False)
 
     @validates("token")
     def _hash_token(self, _key: str, token: str) -> str:

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from sqlalchemy import select
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
@@ -20,7 +19,6 @@ from app.db import writing
 from app.models import CrowdSettings, Participant
 from app.services import open_links
 from app.services.auth import new_token, participant_by_token
-from app.services.errors import AuthError
 from app.services.open_links import (
     DEFAULT_EXTERNAL_PARAMS,
     MAX_PARTICIPANTS,
@@ -77,10 +75,10 @@ def configure(session: Session, *, study_id: int, options: CrowdOptions) -> Crow
 
 
 def open_link(session: Session, *, slug: str) -> CrowdSettings:
-    """The enabled open link ``slug``.
+    """The open link ``slug``, open or closed (:func:`open_links.find`).
 
     Raises:
-        NotFoundError: no such link, or the researcher closed it.
+        NotFoundError: no such link.
     """
     return open_links.find(session, CrowdSettings, slug=slug, what="study")
 
@@ -93,23 +91,23 @@ def external_ids(link: CrowdSettings, query: dict[str, str]) -> dict[str, str]:
 def returning(
     session: Session, *, link: CrowdSettings, ids: dict[str, str], token: str | None
 ) -> Participant | None:
-    """The participant this visitor already is: by the first external id, or else by the
-    invite cookie the browser holds for this study; ``None`` for a new visitor."""
-    key = ids.get(link.external_params[0])
-    if key is not None:
-        return session.scalar(
-            select(Participant).where(
-                Participant.study_id == link.study_id, Participant.external_id == key
-            )
-        )
-    if token:  # looked up by its hash and compared in constant time, as invite links are
-        try:
-            person = participant_by_token(session, token=token)
-        except AuthError:
-            return None
-        if person.study_id == link.study_id:
-            return person
-    return None
+    """The participant this visitor already is (:func:`open_links.returning`): by the invite
+    cookie the browser holds for this study, or by the first external id with the per-attempt
+    ids; ``None`` for a new visitor.
+
+    Raises:
+        AlreadyTookPartError: the external id joined before, from another browser.
+    """
+    return open_links.returning(
+        session,
+        Participant,
+        owner="study_id",
+        owner_id=link.study_id,
+        params=link.external_params,
+        ids=ids,
+        token=token,
+        by_token=participant_by_token,
+    )
 
 
 def join(session: Session, *, link: CrowdSettings, ids: dict[str, str]) -> Participant:
@@ -117,11 +115,17 @@ def join(session: Session, *, link: CrowdSettings, ids: dict[str, str]) -> Parti
 
     Raises:
         StudyFullError: the link has its largest number of participants already.
+        LinkClosedError: the researcher closed the link.
     """
+    open_links.check_open(link, what="study")
     study = get_ready_study(session, study_id=link.study_id)
     key = ids.get(link.external_params[0])
     person = Participant(
-        study_id=study.id, token=new_token(), external_id=key, external_ids=ids or None
+        study_id=study.id,
+        token=new_token(),
+        external_id=key,
+        external_ids=ids or None,
+        via_link=True,
     )
     try:
         with writing(session):
@@ -141,6 +145,12 @@ def join(session: Session, *, link: CrowdSettings, ids: dict[str, str]) -> Parti
             raise
         return existing
     return person
+
+
+def completion(session: Session, *, participant: Participant) -> CrowdSettings | None:
+    """The link whose completion code and redirect a finished open-link participant gets;
+    ``None`` before they finish, or for an invited participant."""
+    return open_links.completion(session, CrowdSettings, participant.study_id, participant)
 
 
 def decline(session: Session, *, link: CrowdSettings) -> None:

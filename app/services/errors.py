@@ -7,6 +7,8 @@ class ServiceError(Exception):
     """Base class; ``status_code`` is the HTTP status the API answers with."""
 
     status_code = 400
+    #: The heading of the HTML page that shows it (``None``: the status's phrase).
+    title: str | None = None
 
     def __init__(self, detail: str):
         super().__init__(detail)

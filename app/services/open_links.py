@@ -13,17 +13,19 @@ from __future__ import annotations
 
 import re
 import secrets
+import unicodedata
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TypeVar
+from datetime import datetime
+from typing import Protocol, TypeVar
 from urllib.parse import urlsplit
 
 from sqlalchemy import ColumnElement, select, update
 from sqlalchemy.orm import Session
 
 from app.db import writing
-from app.models import CrowdSettings, SurveyCrowdSettings
-from app.services.errors import ConflictError, NotFoundError
+from app.models import CrowdSettings, Participant, SurveyCrowdSettings, SurveyRespondent
+from app.services.errors import AuthError, ConflictError, NotFoundError, ServiceError
 from app.services.studies import check_text
 from engine.errors import InputError
 
@@ -32,11 +34,34 @@ MAX_PARTICIPANTS = 100_000
 MAX_EXTERNAL_CHARS = 200
 _PARAM_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]{0,63}")
 
+#: Unicode categories an external id must not hold: control, format, line and paragraph
+#: separators, and lone surrogates (bytes that were not UTF-8, see :func:`external_ids`).
+_UNPRINTABLE = frozenset({"Cc", "Cf", "Zl", "Zp", "Cs"})
+ALREADY_TOOK_PART = (
+    "This id has already taken part, from another browser. If it is yours, go back to the "
+    "browser you started in, or open the link from your study platform again."
+)
+
 Link = TypeVar("Link", CrowdSettings, SurveyCrowdSettings)
+Person = TypeVar("Person", Participant, SurveyRespondent)
 
 
 class LinkFullError(ConflictError):
     """The open link reached its largest number of people."""
+
+
+class LinkClosedError(ServiceError):
+    """The researcher closed the open link: it takes no new people (410); those who joined
+    before go on (their cookie resumes them, their token still works)."""
+
+    status_code = 410
+    title = "This link is closed"
+
+
+class AlreadyTookPartError(ConflictError):
+    """An external id that joined before, from a browser that is not theirs (409)."""
+
+    title = "This id has already taken part"
 
 
 @dataclass(frozen=True)
@@ -95,31 +120,132 @@ def save(
 
 
 def find(session: Session, model: type[Link], *, slug: str, what: str) -> Link:
-    """The enabled open link ``slug`` of ``model``'s table.
+    """The open link ``slug`` of ``model``'s table, open or closed (a closed one still
+    resumes the people who joined; :func:`check_open` turns new ones away).
 
     Raises:
-        NotFoundError: no such link, or the researcher closed it.
+        NotFoundError: no such link.
     """
     row = session.scalar(select(model).where(model.slug == slug)) if len(slug) <= 64 else None
-    if row is None or not row.enabled:
-        raise NotFoundError(f"This {what} link is not open. Check the link, or ask the researcher.")
+    if row is None:
+        raise NotFoundError(f"There is no such {what} link. Check the link, or ask the researcher.")
     return row
+
+
+def check_open(link: CrowdSettings | SurveyCrowdSettings, *, what: str) -> None:
+    """Refuse a new person on a closed link, as Prolific does with a paused or completed study:
+    closing stops new people joining, and those already in can finish.
+
+    Raises:
+        LinkClosedError: the researcher closed the link.
+    """
+    if not link.enabled:
+        raise LinkClosedError(
+            f"This {what} is closed: it is not taking new people. If you already started, "
+            "open the link in the browser you started in."
+        )
 
 
 def external_ids(params: list[str], query: dict[str, str]) -> dict[str, str]:
     """The parameters ``params`` found in ``query`` (trimmed, at most 200 characters).
 
     Raises:
-        InputError: a value is too long or holds control characters.
+        InputError: a value is too long, or holds a control or format character, a line or
+            paragraph separator, or a lone surrogate (a query decoded with
+            ``surrogateescape``, whose bytes were not UTF-8).
     """
     found = {}
     for name in params:
-        value = query.get(name, "").strip()
-        if len(value) > MAX_EXTERNAL_CHARS or any(ord(c) < 32 for c in value):
-            raise InputError(f"{name} must be at most {MAX_EXTERNAL_CHARS} printable characters")
+        raw = query.get(name, "")
+        value = raw.strip(" ")  # before any other strip: str.strip() drops U+0085 and U+2028
+        if len(value) > MAX_EXTERNAL_CHARS or any(
+            unicodedata.category(c) in _UNPRINTABLE for c in raw
+        ):
+            raise InputError(
+                f"{name} must be at most {MAX_EXTERNAL_CHARS} printable characters of UTF-8"
+            )
         if value:
             found[name] = value
     return found
+
+
+class Joiner(Protocol):
+    """A person an open link may have brought in: a study participant or a survey respondent."""
+
+    @property
+    def id(self) -> int: ...
+    @property
+    def via_link(self) -> bool: ...
+    @property
+    def finished_at(self) -> datetime | None: ...
+    @property
+    def external_ids(self) -> dict | None: ...
+
+
+def completion(session: Session, model: type[Link], key: int, person: Joiner) -> Link | None:
+    """The open link (of ``model``, primary key ``key``) whose completion code and redirect
+    ``person`` gets: only someone who came through that link, once they finish. An invited
+    person never gets them (the code is what a crowd platform pays against)."""
+    if not person.via_link or person.finished_at is None:
+        return None
+    return session.get(model, key)
+
+
+def returning(
+    session: Session,
+    model: type[Person],
+    *,
+    owner: str,
+    owner_id: int,
+    params: list[str],
+    ids: dict[str, str],
+    token: str | None,
+    by_token: Callable[..., Person],
+) -> Person | None:
+    """The person of ``model`` (whose ``owner`` column is ``owner_id``) this visitor already
+    is, or ``None`` for a new one.
+
+    Without an external id, the person whose cookie ``token`` (checked by ``by_token``) the
+    browser holds. With one that joined before, that person only in the browser that joined
+    (its cookie), or where every other external parameter (the platform's per-attempt ids,
+    such as ``SESSION_ID``) was stored and matches: an id alone is public enough (it is in
+    every URL the platform makes) that it must not hand over someone's session.
+
+    Raises:
+        AlreadyTookPartError: the id joined before, and neither the cookie nor the
+            per-attempt ids say this is the same person.
+    """
+    cookie = None
+    if token:  # looked up by its hash and compared in constant time, as invite links are
+        try:
+            cookie = by_token(session, token=token)
+        except AuthError:
+            cookie = None
+        if cookie is not None and getattr(cookie, owner) != owner_id:
+            cookie = None
+    key = ids.get(params[0])
+    if key is None:
+        return cookie
+    known = session.scalar(
+        select(model).where(getattr(model, owner) == owner_id, model.external_id == key)
+    )
+    if known is None:
+        return None
+    if cookie is not None and cookie.id == known.id:
+        return known
+    if _same_attempt(params[1:], ids, known.external_ids or {}):
+        return known
+    raise AlreadyTookPartError(ALREADY_TOOK_PART)
+
+
+def _same_attempt(params: list[str], ids: dict[str, str], stored: dict[str, str]) -> bool:
+    """Every per-attempt id was stored at the first visit and comes back the same."""
+    return bool(params) and all(
+        p in stored
+        and p in ids
+        and secrets.compare_digest(ids[p].encode(), str(stored[p]).encode())
+        for p in params
+    )
 
 
 def is_full(link: CrowdSettings | SurveyCrowdSettings) -> bool:

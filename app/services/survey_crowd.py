@@ -17,7 +17,6 @@ from app.db import writing
 from app.models import SurveyCrowdSettings, SurveyRespondent
 from app.services import open_links
 from app.services.auth import new_token
-from app.services.errors import AuthError
 from app.services.open_links import LinkFullError, LinkOptions
 from app.services.survey_respond import respondent_by_token
 from app.services.surveys import get_survey
@@ -50,7 +49,7 @@ def configure(session: Session, *, survey_id: int, options: LinkOptions) -> Surv
 
 
 def open_link(session: Session, *, slug: str) -> SurveyCrowdSettings:
-    """The enabled open link ``slug``; :class:`NotFoundError` if none or closed."""
+    """The open link ``slug``, open or closed; :class:`NotFoundError` if none."""
     return open_links.find(session, SurveyCrowdSettings, slug=slug, what="survey")
 
 
@@ -62,23 +61,23 @@ def external_ids(link: SurveyCrowdSettings, query: dict[str, str]) -> dict[str, 
 def returning(
     session: Session, *, link: SurveyCrowdSettings, ids: dict[str, str], token: str | None
 ) -> SurveyRespondent | None:
-    """The respondent this visitor already is: by the first external id, or else by the
-    respondent cookie the browser holds for this survey; ``None`` for a new visitor."""
-    key = ids.get(link.external_params[0])
-    if key is not None:
-        return session.scalar(
-            select(SurveyRespondent).where(
-                SurveyRespondent.survey_id == link.survey_id, SurveyRespondent.external_id == key
-            )
-        )
-    if token:
-        try:
-            person = respondent_by_token(session, token=token)
-        except AuthError:
-            return None
-        if person.survey_id == link.survey_id:
-            return person
-    return None
+    """The respondent this visitor already is (:func:`open_links.returning`): by the
+    respondent cookie the browser holds for this survey, or by the first external id with the
+    per-attempt ids; ``None`` for a new visitor.
+
+    Raises:
+        AlreadyTookPartError: the external id joined before, from another browser.
+    """
+    return open_links.returning(
+        session,
+        SurveyRespondent,
+        owner="survey_id",
+        owner_id=link.survey_id,
+        params=link.external_params,
+        ids=ids,
+        token=token,
+        by_token=respondent_by_token,
+    )
 
 
 def join(session: Session, *, link: SurveyCrowdSettings, ids: dict[str, str]) -> SurveyRespondent:
@@ -86,7 +85,9 @@ def join(session: Session, *, link: SurveyCrowdSettings, ids: dict[str, str]) ->
 
     Raises:
         SurveyFullError: the link has its largest number of respondents already.
+        LinkClosedError: the researcher closed the link.
     """
+    open_links.check_open(link, what="survey")
     person = SurveyRespondent(
         survey_id=link.survey_id,
         token=new_token(),
@@ -133,9 +134,7 @@ def completed(session: Session, *, survey_id: int) -> int:
 def completion(session: Session, *, respondent: SurveyRespondent) -> SurveyCrowdSettings | None:
     """The link whose completion code and redirect a finished open-link respondent gets;
     ``None`` before they finish, or for an invited respondent."""
-    if not respondent.via_link or respondent.finished_at is None:
-        return None
-    return crowd_settings(session, survey_id=respondent.survey_id)
+    return open_links.completion(session, SurveyCrowdSettings, respondent.survey_id, respondent)
 
 
 def open_path(slug: str) -> str:

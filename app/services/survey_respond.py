@@ -289,13 +289,7 @@ def submit(
     if screen.answered_at is not None:
         return _same_as_stored(session, screen, answers)
     try:
-        _store(
-            session,
-            screen,
-            answers,
-            screen_ms,
-            finished=all(s.answered_at is not None for s in plan if s.position != position),
-        )
+        _store(session, screen, answers, screen_ms)
     except IntegrityError:  # a concurrent submit of the same screen won
         return _same_as_stored(session, screen, answers)
     return True
@@ -306,11 +300,13 @@ def _store(
     screen: SurveyScreen,
     answers: dict[str, AnswerIn],
     screen_ms: int,
-    *,
-    finished: bool,
 ) -> None:
+    """Store one screen's answers and, if no screen is left unanswered, mark the respondent
+    finished: decided inside the write transaction from what is stored, so two screens
+    submitted at once cannot both see the other one unanswered."""
     now = utcnow()
     with writing(session):
+        _lock_respondent(session, screen.respondent_id)
         session.add_all(
             SurveyAnswer(
                 respondent_id=screen.respondent_id,
@@ -330,12 +326,30 @@ def _store(
             )
             .values(answered_at=now, screen_ms=screen_ms)
         )
-        if finished:
+        left = session.scalar(
+            select(func.count(SurveyScreen.position)).where(
+                SurveyScreen.respondent_id == screen.respondent_id,
+                SurveyScreen.answered_at.is_(None),
+            )
+        )
+        if left == 0:
             session.execute(
                 update(SurveyRespondent)
-                .where(SurveyRespondent.id == screen.respondent_id)
+                .where(
+                    SurveyRespondent.id == screen.respondent_id,
+                    SurveyRespondent.finished_at.is_(None),
+                )
                 .values(finished_at=now)
             )
+
+
+def _lock_respondent(session: Session, respondent_id: int) -> None:
+    """Hold the respondent's row until the transaction ends, so the submits of one respondent
+    take turns: on PostgreSQL (READ COMMITTED) the second then counts the first's committed
+    screen; on SQLite the engine's single writer lock already serialises them."""
+    session.execute(
+        select(SurveyRespondent.id).where(SurveyRespondent.id == respondent_id).with_for_update()
+    )
 
 
 def _same_as_stored(session: Session, screen: SurveyScreen, answers: dict[str, AnswerIn]) -> bool:

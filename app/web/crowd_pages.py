@@ -10,7 +10,7 @@ from sqlalchemy.orm import Session
 from app.api.deps import SessionDep
 from app.models import CrowdSettings
 from app.services import auth, crowd, crowd_check, participants, studies
-from app.services.open_links import is_full
+from app.services.open_links import check_open, is_full
 from app.web import open_links
 from app.web.csrf import CsrfChecked, FormFields
 from app.web.guards import PageParticipant
@@ -42,10 +42,12 @@ def _enter(
 def open_link(slug: str, request: Request, session: SessionDep) -> Response:
     """The consent page, or straight on to the instructions; "full" past the maximum."""
     link = crowd.open_link(session, slug=slug)
-    ids = crowd.external_ids(link, dict(request.query_params))
+    ids = crowd.external_ids(link, open_links.query(request))
     returning = crowd.returning(
         session, link=link, ids=ids, token=request.cookies.get(auth.PARTICIPANT_COOKIE)
     )
+    if returning is None:
+        check_open(link, what="study")
     if returning is None and is_full(link):
         return _full(request, session, link)
     if returning is None and link.consent_text:

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from typing import Any, TypeVar
+from urllib.parse import parse_qsl
 
 from fastapi import Request, Response
 from pydantic import BaseModel, ValidationError
@@ -43,6 +44,14 @@ def admit(request: Request, join: Callable[[], T]) -> T:
     person = join()
     limiter.failed(address)  # counts a join
     return person
+
+
+def query(request: Request) -> dict[str, str]:
+    """The query's parameters (the last of a repeated name), bytes that are not UTF-8 kept as
+    lone surrogates, so :func:`app.services.open_links.external_ids` refuses them: decoded
+    with replacement characters, as Starlette does, distinct raw ids would collide."""
+    raw = request.scope["query_string"].decode("utf-8", "surrogateescape")
+    return dict(parse_qsl(raw, keep_blank_values=True, errors="surrogateescape"))
 
 
 def message(request: Request, name: str, title: str, text: str, status_code: int = 200) -> Response:

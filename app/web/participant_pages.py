@@ -82,5 +82,5 @@ def thanks(request: Request, session: SessionDep, person: PageParticipant) -> Re
         raise RedirectTo(LABEL)
     if crowd_check.pending_pair(session, participant=person) is not None:
         raise RedirectTo("/participate/check")
-    context["crowd"] = crowd.crowd_settings(session, study_id=person.study_id)
+    context["crowd"] = crowd.completion(session, participant=person)
     return render(request, "thanks.html", context)

@@ -105,10 +105,13 @@ class RedirectTo(Exception):  # noqa: N818 (a control-flow signal, not an error)
         self.url = url
 
 
-def error_page(request: Request, status_code: int, message: str) -> HTMLResponse:
-    """An HTML error page (pages never answer with the API's JSON errors)."""
+def error_page(
+    request: Request, status_code: int, message: str, title: str | None = None
+) -> HTMLResponse:
+    """An HTML error page (pages never answer with the API's JSON errors), headed ``title``
+    or else the status's phrase."""
     try:
-        title = HTTPStatus(status_code).phrase
+        title = title or HTTPStatus(status_code).phrase
     except ValueError:
         title = "Error"
     return render(
@@ -121,7 +124,7 @@ def error_page(request: Request, status_code: int, message: str) -> HTMLResponse
 
 def _page_error(request: Request, exc: Exception) -> HTMLResponse:
     if isinstance(exc, ServiceError):
-        return error_page(request, exc.status_code, exc.detail)
+        return error_page(request, exc.status_code, exc.detail, exc.title)
     if isinstance(exc, InputError):
         return error_page(request, 422, str(exc))
     return error_page(request, 404, "There is no such page.")  # malformed path parameter

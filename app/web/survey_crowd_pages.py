@@ -17,7 +17,7 @@ from app.api.deps import DbId, SessionDep
 from app.api.surveys import RespondentCookie
 from app.models import SurveyCrowdSettings
 from app.services import survey_crowd, survey_respond, surveys
-from app.services.open_links import LinkOptions, is_full
+from app.services.open_links import LinkOptions, check_open, is_full
 from app.web import open_links
 from app.web.csrf import CsrfChecked, FormFields
 from app.web.guards import ResearcherPage
@@ -67,8 +67,10 @@ def open_link(
 ) -> Response:
     """The consent page, or straight on to the survey; "full" past the maximum."""
     link = survey_crowd.open_link(session, slug=slug)
-    ids = survey_crowd.external_ids(link, dict(request.query_params))
+    ids = survey_crowd.external_ids(link, open_links.query(request))
     returning = survey_crowd.returning(session, link=link, ids=ids, token=cookie)
+    if returning is None:
+        check_open(link, what="survey")
     if returning is None and is_full(link):
         return _full(request, session, link)
     if returning is None and link.consent_text:

@@ -20,6 +20,15 @@ def finished(client: TestClient, study_id: int, side: str = "a") -> int:
     return body["id"]
 
 
+def participant_trees(client: TestClient, study_id: int) -> tuple[dict[str, Any], ...]:
+    """Two finished participants' trees (one always picks side a, one side b), as the
+    stimulus sources of a survey body."""
+    return tuple(
+        {"kind": "participant", "participant_id": finished(client, study_id, side)}
+        for side in ("a", "b")
+    )
+
+
 def tree_json(client: TestClient, participant_id: int) -> dict[str, Any]:
     response = client.get(f"/api/participants/{participant_id}/tree", headers=ADMIN)
     assert response.status_code == 200, response.text

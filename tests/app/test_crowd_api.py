@@ -105,7 +105,8 @@ def test_same_prolific_pid_resumes_one_participant(client, make_study) -> None:
     first, response = visit(client, link, query)
     player = joined_player(client, first, response)
     player.label(player.next_match()["match_id"], player.next_match()["left"])
-    second, again = visit(client, link, "?PROLIFIC_PID=abc123&SESSION_ID=x2")
+    assert visit(client, link, "?PROLIFIC_PID=abc123&SESSION_ID=x2")[1].status_code == 409
+    second, again = visit(client, link, query)  # the platform's link again: same attempt
     assert again.status_code == 303 and again.headers["location"] == "/participate/label"
     assert second.cookies[PARTICIPANT_COOKIE] == player.token
     people = participants_of(client, study["id"])
@@ -121,7 +122,12 @@ def test_same_pid_at_once_gives_one_participant(client, make_study) -> None:
     study = make_study()
     link = configure(client, study["id"])
     with ThreadPoolExecutor(6) as pool:
-        answers = list(pool.map(lambda _: visit(client, link, "?PROLIFIC_PID=twin"), range(6)))
+        answers = list(
+            pool.map(
+                lambda _: visit(client, link, "?PROLIFIC_PID=twin&STUDY_ID=s&SESSION_ID=t"),
+                range(6),
+            )
+        )
     tokens = {browser.cookies[PARTICIPANT_COOKIE] for browser, r in answers if r.status_code == 303}
     assert len(tokens) == 1 and all(r.status_code == 303 for _, r in answers)
     assert len(participants_of(client, study["id"])) == 1
@@ -185,7 +191,7 @@ def test_consent_post_needs_the_csrf_token(client, make_study) -> None:
 def test_closed_unknown_and_overlong_links(client, make_study) -> None:
     study = make_study()
     link = configure(client, study["id"], enabled=False)
-    assert visit(client, link)[1].status_code == 404
+    assert visit(client, link)[1].status_code == 410
     assert visitor(client).get("/s/no-such-link").status_code == 404
     configure(client, study["id"])
     response = visit(client, link, "?PROLIFIC_PID=" + "x" * 201)[1]

@@ -152,6 +152,8 @@ def test_open_link_consent_bracket_check_and_completion(
     expect(f.locator("h1")).to_have_text("This study is full")
     assert_accessible(f, "study full page")
 
+    turned_away(browser, errors, link, f"{base}/api/studies/{study_id}/crowd")
+
     with httpx.Client(base_url=base, headers=ADMIN, timeout=60) as api:
         rows = api.get(f"/api/studies/{study_id}/export/labels.jsonl").text.splitlines()
         quality = api.get(f"/api/studies/{study_id}/quality").json()
@@ -164,6 +166,26 @@ def test_open_link_consent_bracket_check_and_completion(
     first_round = [json.loads(r) for r in rows if '"round": 1' in r]
     assert check in [(r["right"], r["left"]) for r in first_round]  # sides swapped
     assert errors == []
+
+
+def turned_away(browser: Browser, errors: list[str], link: str, settings_url: str) -> None:
+    """pw-1's id in another browser gets "already taken part"; once the researcher closes
+    the link (``settings_url``), a new visitor gets "closed": both pages pass axe."""
+    _, taken = new_page(browser, errors, viewport=DESKTOP)
+    taken.goto(f"{link}?PROLIFIC_PID=pw-1&STUDY_ID=st&SESSION_ID=another")
+    expect(taken.locator("h1")).to_have_text("This id has already taken part")
+    assert_accessible(taken, "already taken part page")
+    with httpx.Client(headers=ADMIN, timeout=60) as api:
+        closed = {"enabled": False, "max_participants": 5}
+        assert api.put(settings_url, json=closed).status_code == 200
+    _, new = new_page(browser, errors, viewport=DESKTOP)
+    new.goto(f"{link}?PROLIFIC_PID=pw-5")
+    expect(new.locator("h1")).to_have_text("This link is closed")
+    expect(new.locator("p.error")).to_contain_text("not taking new people")
+    assert_accessible(new, "closed link page")
+    refusals = [e for e in errors if "status of 409" in e or "status of 410" in e]
+    assert len(refusals) == 2  # Chromium logs the two refusals' statuses; nothing else
+    errors[:] = [e for e in errors if e not in refusals]
 
 
 def _play_api(base: str, link: str, pid: str, pick) -> None:

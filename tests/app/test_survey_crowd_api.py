@@ -16,7 +16,13 @@ from fastapi.testclient import TestClient
 from app.services.survey_respond import RESPONDENT_COOKIE
 from app.web.ratelimit import LoginLimiter
 from tests.app.conftest import ADMIN
-from tests.app.surveys_support import Respondent, finished, invite, paper_answers, paper_body
+from tests.app.surveys_support import (
+    Respondent,
+    invite,
+    paper_answers,
+    paper_body,
+    participant_trees,
+)
 from tests.support.web import audit, browser, csrf_token, logged_in
 
 SETTINGS = {"enabled": True, "max_participants": 50}
@@ -32,10 +38,7 @@ def fresh_join_limit(client: TestClient) -> None:
 @pytest.fixture(scope="module")
 def trees(client: TestClient, study: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
     """Two finished participants' trees, for the surveys' stimuli."""
-    return tuple(  # type: ignore[return-value]
-        {"kind": "participant", "participant_id": finished(client, study["id"], side)}
-        for side in ("a", "b")
-    )
+    return participant_trees(client, study["id"])  # type: ignore[return-value]
 
 
 @pytest.fixture
@@ -129,7 +132,8 @@ def test_same_prolific_pid_resumes_one_respondent(client, survey) -> None:
     person = joined(client, first, response)
     screen = person.screen()
     assert person.answer(screen["position"], paper_answers(screen)).status_code == 201
-    second, again = visit(client, link, "?PROLIFIC_PID=abc123&SESSION_ID=x2")
+    assert visit(client, link, "?PROLIFIC_PID=abc123&SESSION_ID=x2")[1].status_code == 409
+    second, again = visit(client, link, PID)  # the platform's link again: same attempt
     assert again.status_code == 303 and again.headers["location"] == "/survey"
     assert second.cookies[RESPONDENT_COOKIE] == person.token
     [row] = respondents(client, survey["id"])
@@ -150,7 +154,9 @@ def test_same_prolific_pid_resumes_one_respondent(client, survey) -> None:
 def test_same_pid_at_once_gives_one_respondent(client, survey) -> None:
     link = configure(client, survey["id"])
     with ThreadPoolExecutor(6) as pool:
-        answers = list(pool.map(lambda _: visit(client, link, "?PROLIFIC_PID=twin"), range(6)))
+        answers = list(
+            pool.map(lambda _: visit(client, link, PID.replace("abc123", "twin")), range(6))
+        )
     assert all(r.status_code == 303 for _, r in answers)
     assert len({page.cookies[RESPONDENT_COOKIE] for page, _ in answers}) == 1
     assert len(respondents(client, survey["id"])) == 1
@@ -221,7 +227,7 @@ def test_returning_browser_without_ids_keeps_its_respondent(client, survey) -> N
 
 def test_closed_unknown_and_overlong_links(client, survey) -> None:
     link = configure(client, survey["id"], enabled=False)
-    assert visit(client, link)[1].status_code == 404
+    assert visit(client, link)[1].status_code == 410
     assert browser(client).get("/q/no-such-link").status_code == 404
     assert browser(client).get("/q/" + "x" * 100).status_code == 404
     configure(client, survey["id"])

@@ -18,7 +18,7 @@ from playwright.sync_api import Browser, Page, Route, expect
 
 from tests.app.surveys_support import paper_body
 from tests.app.test_browser import ADMIN_TOKEN, browser, new_page, server  # noqa: F401
-from tests.app.test_crowd_browser import platform  # noqa: F401 (fixture)
+from tests.app.test_crowd_browser import platform, turned_away  # noqa: F401 (fixture)
 from tests.app.test_surveys_browser import READY, two_finished_participants
 from tests.support.a11y import assert_accessible
 
@@ -151,6 +151,8 @@ def test_open_link_consent_screens_and_completion(
     n.click("#decline")
     expect(n.locator("h1")).to_have_text("You declined")
     assert_accessible(n, "survey declined page")
+
+    turned_away(browser, errors, link, f"{base}/api/surveys/{survey_id}/crowd")
 
     with httpx.Client(base_url=base, headers=ADMIN, timeout=60) as api:
         crowd: dict[str, Any] = api.get(f"/api/surveys/{survey_id}/crowd").json()
