@@ -18,11 +18,12 @@ from typing import Any
 
 from sqlalchemy.orm import Session
 
+from app.models import CheckpointArtefact
 from app.services import artefacts
 from app.services.errors import PendingError
 from engine.conformance import Conformance
 from engine.errors import InputError
-from engine.judges import LEGACY_JUDGES, current_keys
+from engine.judges import DEFAULT_JUDGE, JUDGES, LEGACY_JUDGES, current_keys
 from engine.treefile import TreeDocument, tree_from_json
 
 #: Columns of the conformance CSV exports (one row per checkpoint).
@@ -131,6 +132,16 @@ def pick_checkpoint(out: Path, step: int | None) -> int:
             f"the run has no checkpoint at step {step}; it has {', '.join(map(str, steps))}"
         )
     return step
+
+
+def shown_judge(session: Session, *, run_id: int, step: int | None) -> str:
+    """The judge a page shows when none is asked for: the default one, unless the checkpoint
+    was judged before it existed (then the first of :data:`JUDGES` that it has)."""
+    row = None if step is None else session.get(CheckpointArtefact, (run_id, step))
+    if row is None or not artefacts.judged(row.payload):
+        return DEFAULT_JUDGE
+    stored = current_keys(row.payload.get("judges") or {})
+    return next((j for j in (DEFAULT_JUDGE, *JUDGES) if j in stored), DEFAULT_JUDGE)
 
 
 def view_of(step: int, body: dict[str, Any]) -> CheckpointView:

@@ -30,7 +30,7 @@ from app.web.csrf import CsrfChecked, FormFields
 from app.web.guards import ResearcherPage
 from app.web.rendering import PageRoute, redirect, render, thumb_template
 from engine.errors import InputError
-from engine.judges import DEFAULT_JUDGE
+from engine.judges import judge_name
 from engine.rl.config import ADVICE_MODES, ALGOS
 
 router = APIRouter(route_class=PageRoute, include_in_schema=False, dependencies=[ResearcherPage])
@@ -248,13 +248,15 @@ def compare_page(
     session: SessionDep,
     root: RunsRootDep,
     checkpoint: Annotated[int | None, Query(ge=0)] = None,
-    judge: Judge = DEFAULT_JUDGE,
+    judge: Judge | None = None,
 ) -> HTMLResponse:
     """Human and Agent Preference Tree side by side, the rejected advice, the metrics with a
     verdict, a checkpoint selector and the conformance curve."""
     run = runs.get_run(session, run_id=run_id)
     runs.advice_of(run)  # 409 page for a run without advice
     steps = comparison.checkpoints(run_dir(root, run_id))
+    selected = checkpoint if checkpoint in steps else (steps[-1] if steps else None)
+    shown = judge or comparison.shown_judge(session, run_id=run_id, step=selected)
     return render(
         request,
         "compare.html",
@@ -264,12 +266,12 @@ def compare_page(
             "checkpoints": steps,
             "who": run_report.who(run),
             "whose": run_report.whose(run),
-            "selected": checkpoint if checkpoint in steps else (steps[-1] if steps else None),
+            "selected": selected,
             "experiment_ids": experiments.experiments_of_run(session, run_id=run_id),
             "thumb_template": thumb_template(run.study_id),
             "image_template": thumb_template(run.study_id).removesuffix("?size=thumb"),
             "others": len(runs.same_advice_runs(session, run=run)),
-            "judge": judge,
+            "judge": judge_name(shown),
             "judges": JUDGE_LABELS,
         },
     )

@@ -19,7 +19,7 @@ from typer.testing import CliRunner
 
 from app.cli.root import cli
 from app.models import Run
-from app.services import artefacts
+from app.services import artefacts, comparison
 from tests.app.conftest import ADMIN, new_study
 from tests.app.runs_support import TINY, run_app
 from tests.support.artefacts import report_body
@@ -298,3 +298,18 @@ def test_a_study_says_whether_its_bracket_can_tell(client, study) -> None:
             client.get(f"/api/studies/{study['id']}/power?seeds={bad}", headers=ADMIN).status_code
             == 422
         )
+
+
+def test_a_page_shows_a_judge_the_checkpoint_has(client, study) -> None:
+    """A checkpoint judged before the return judge existed is shown by the first judge it has
+    (the compare page's default), not refused."""
+    experiment = _create(client, study_id=study["id"], teacher="good", seeds=2, **BODY)
+    run_id = experiment["runs"][0]["id"]
+    old = report_body(STEP, np.zeros(8)) | {"judges": {"value": {}, "behaviour": {}}}
+    with client.app.state.runtime.sessions() as session:
+        assert comparison.shown_judge(session, run_id=run_id, step=STEP) == "return"  # none yet
+        artefacts.store(session, run_id=run_id, step=STEP, body=old)
+        assert comparison.shown_judge(session, run_id=run_id, step=STEP) == "behaviour"
+        new = report_body(2 * STEP, np.zeros(8)) | {"judges": {"return": {}, "behaviour": {}}}
+        artefacts.store(session, run_id=run_id, step=2 * STEP, body=new)
+        assert comparison.shown_judge(session, run_id=run_id, step=2 * STEP) == "return"
