@@ -1,9 +1,10 @@
 """Conformance metrics between a Human and an Agent Preference Tree over the same bracket.
 
 - match agreement: the share of the human's matches in which the agent's judge picks the same
-  winner, with a Wilson 95% interval. The agent's pick is its own result where it played the
-  same pair in the same round, else the higher of its recorded judge scores, else the one it
-  ranks higher (more rounds won); an unresolved tie counts as not agreeing.
+  winner, with a Wilson 95% interval. The agent's pick is the higher of its recorded judge
+  scores when its judge scores (a tie is no preference); else its own result where it played
+  the same pair in the same round, else the one it ranks higher (more rounds won). A tie
+  counts as not agreeing.
 - Kendall tau-b between the candidates' heights (rounds won) in the two trees.
 - normalised tree edit distance: Zhang-Shasha distance (zss) with unit costs and children in
   canonical order, divided by ``n_human + n_agent`` so that it lies in [0, 1].
@@ -15,8 +16,10 @@
 - reference agreement: the match agreement that an R-only judge scores against the human,
   that is, what ignoring the advice would score.
 
-Ties in R are handled one way in both (:func:`r_winner`): R has no preference, so a tied match
-is neither contested nor one that the R-only judge agrees with.
+Ties are handled one way everywhere, by :func:`engine.tournament.score_winner` (which
+:class:`engine.tournament.ScoreJudge` uses too): equal scores express no preference, so a
+match tied in R is neither contested nor one that the R-only judge agrees with, and a match
+the agent's scores tie is one it does not keep.
 """
 
 from __future__ import annotations
@@ -31,6 +34,7 @@ from scipy.stats import binomtest, kendalltau
 
 from engine.errors import InputError
 from engine.preference_tree import PreferenceTree
+from engine.tournament import score_winner
 from engine.treefile import TreeDocument
 
 
@@ -145,16 +149,9 @@ def stored_reward(doc: TreeDocument) -> dict[int, float]:
     return {c.id: c.env_reward for c in doc.candidates}
 
 
-def r_winner(reward: Mapping[int, float], a: int, b: int) -> int | None:
-    """The candidate of ``a`` vs ``b`` with the strictly higher R; None on a tie."""
-    if reward[a] == reward[b]:
-        return None
-    return a if reward[a] > reward[b] else b
-
-
 def contested_match(reward: Mapping[int, float], a: int, b: int, winner: int) -> bool:
     """Whether ``winner`` of ``a`` vs ``b`` has the strictly lower R (a tie is not contested)."""
-    r_pick = r_winner(reward, a, b)
+    r_pick = score_winner(reward, a, b)
     return r_pick is not None and r_pick != winner
 
 
@@ -177,7 +174,7 @@ def reference_agreement(human: TreeDocument, reward: Mapping[int, float] | None 
         reward: candidate id -> R; the stored ``env_reward`` when None.
     """
     reward = stored_reward(human) if reward is None else reward
-    agree = sum(r_winner(reward, m.a, m.b) == w for m, w in human.matches)
+    agree = sum(score_winner(reward, m.a, m.b) == w for m, w in human.matches)
     return agree / len(human.matches)
 
 
@@ -201,11 +198,11 @@ def check_same_bracket(human: TreeDocument, agent: TreeDocument) -> None:
 
 def agent_pick(agent: TreeDocument, rnd: int, a: int, b: int) -> int | None:
     """The agent's choice between ``a`` and ``b`` (see the module docstring)."""
+    if agent.scores is not None:  # a judge that scores: a tie is no preference (score_winner)
+        return score_winner(agent.scores, a, b)
     for m, winner in agent.matches:
         if m.round == rnd and {m.a, m.b} == {a, b}:
             return winner
-    if agent.scores is not None and agent.scores[a] != agent.scores[b]:
-        return a if agent.scores[a] > agent.scores[b] else b
     ha, hb = agent.tree.nodes[a].height, agent.tree.nodes[b].height
     return None if ha == hb else (a if ha > hb else b)
 

@@ -9,14 +9,13 @@ import pytest
 from engine.conformance import (
     compare,
     contested_match,
-    r_winner,
     reference_agreement,
     stored_reward,
     tree_edit_distance,
 )
 from engine.errors import InputError
 from engine.pipeline import replay
-from engine.tournament import ScoreJudge
+from engine.tournament import ScoreJudge, score_winner
 from tests.engine.conftest import r_judged_doc
 
 
@@ -83,7 +82,7 @@ def test_a_tie_in_r_is_neither_contested_nor_an_r_agreement() -> None:
     reward = stored_reward(human)
     loser = m.b if winner == m.a else m.a
     reward[loser] = reward[winner]  # R has no preference in this match (the loser plays no other)
-    assert r_winner(reward, m.a, m.b) is None
+    assert score_winner(reward, m.a, m.b) is None
     assert not contested_match(reward, m.a, m.b, winner)
     c = compare(human, human, reward)
     assert c.contested.n == 0
