@@ -9,8 +9,6 @@ is not stored yet raises :class:`app.services.errors.PendingError` (HTTP 202).
 
 from __future__ import annotations
 
-import csv
-import io
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -18,7 +16,7 @@ from typing import Any
 
 from sqlalchemy.orm import Session
 
-from app.services import artefacts
+from app.services import artefacts, csv_export
 from app.services.errors import PendingError
 from engine.conformance import Conformance
 from engine.errors import InputError
@@ -222,29 +220,26 @@ def highlights(m: Conformance) -> tuple[frozenset[int], frozenset[int]]:
 
 def csv_text(rows: list[tuple[int, Conformance]]) -> str:
     """Conformance metrics (one per checkpoint) as CSV with :data:`CSV_COLUMNS`."""
-    out = io.StringIO()
-    writer = csv.writer(out, lineterminator="\n")
-    writer.writerow(CSV_COLUMNS)
-    for step, m in rows:
-        low, high = m.match_agreement_ci
-        writer.writerow(
-            (
-                step,
-                m.n_matches,
-                m.n_agree,
-                m.match_agreement,
-                low,
-                high,
-                m.kendall_tau_b,
-                m.tree_edit_distance,
-                m.same_champion,
-                len(m.rejected),
-                m.contested.n,
-                m.contested.kept,
-                m.reference_agreement,
-            )
-        )
-    return out.getvalue()
+    return csv_export.csv_text(CSV_COLUMNS, (_csv_row(step, m) for step, m in rows))
+
+
+def _csv_row(step: int, m: Conformance) -> tuple[object, ...]:
+    low, high = m.match_agreement_ci
+    return (
+        step,
+        m.n_matches,
+        m.n_agree,
+        m.match_agreement,
+        low,
+        high,
+        m.kendall_tau_b,
+        m.tree_edit_distance,
+        m.same_champion,
+        len(m.rejected),
+        m.contested.n,
+        m.contested.kept,
+        m.reference_agreement,
+    )
 
 
 def metrics_rows(out: Path, after: int = -1) -> list[dict[str, Any]]:
