@@ -148,6 +148,27 @@ def test_unusable_trees_are_refused(client, trees, tree2, status, words) -> None
     assert words in response.json()["detail"]
 
 
+@pytest.mark.parametrize("token", ["NaN", "Infinity", "-Infinity", "1e999"])
+@pytest.mark.parametrize("where", ["env_reward", "score", "r_b", "r_e"])
+def test_uploads_with_non_finite_numbers_are_422(client, trees, where: str, token: str) -> None:
+    doc = copy.deepcopy(trees["bent_doc"])
+    if where == "env_reward":
+        doc["candidates"][0]["env_reward"] = "@NUMBER@"
+    elif where == "score":
+        for c in doc["candidates"]:
+            c["score"] = 1.0
+        doc["candidates"][1]["score"] = "@NUMBER@"
+    else:
+        doc["tree_reward"][where] = "@NUMBER@"
+    body = paper_body(trees["human"], {"kind": "upload", "doc": doc})
+    text = json.dumps(body).replace('"@NUMBER@"', token)  # JSON text as a client may send it
+    response = client.post(
+        "/api/surveys", content=text, headers=ADMIN | {"Content-Type": "application/json"}
+    )
+    assert response.status_code == 422, response.text
+    assert "must be a finite number" in response.json()["detail"]
+
+
 def test_semantic_errors_name_the_problem(client, trees, invite) -> None:
     unknown_judge = trees["agent"] | {"judge": "value"}
     response = client.post(
