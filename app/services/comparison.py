@@ -17,7 +17,7 @@ from typing import Any
 from sqlalchemy.orm import Session
 
 from app.services import artefacts, csv_export
-from app.services.errors import PendingError
+from app.services.errors import ConflictError, PendingError
 from engine.conformance import Conformance
 from engine.errors import InputError
 from engine.treefile import TreeDocument, tree_from_json
@@ -102,11 +102,12 @@ def pick_checkpoint(out: Path, step: int | None) -> int:
     """``step`` if the run has it, else (for None) its latest checkpoint.
 
     Raises:
-        InputError: no checkpoint yet, or none at ``step``.
+        ConflictError: no checkpoint yet (a state the run will leave, not bad input).
+        InputError: no checkpoint at ``step``.
     """
     steps = checkpoints(out)
     if not steps:
-        raise InputError("the run has no checkpoint yet")
+        raise ConflictError("the run has no checkpoint yet")
     if step is None:
         return steps[-1]
     if step not in steps:
