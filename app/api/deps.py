@@ -42,6 +42,11 @@ _invite_bearer = HTTPBearer(
     auto_error=False, scheme_name="InviteToken", description="A participant's invite token."
 )
 _Credentials = HTTPAuthorizationCredentials | None
+#: The bearer token, documented in OpenAPI as the researcher's scheme.
+AdminCredentials = Annotated[_Credentials, Depends(_admin_bearer)]
+#: The same bearer token, documented as a participant's scheme: an operation that takes both
+#: depends on both, so its OpenAPI ``security`` lists both (as alternatives).
+InviteCredentials = Annotated[_Credentials, Depends(_invite_bearer)]
 
 #: Requests holding a database session at once: below the pool's capacity
 #: (:data:`app.db.POOL_CAPACITY`), leaving connections for background jobs.
@@ -204,7 +209,8 @@ def get_viewer(
     request: Request,
     runtime: RuntimeDep,
     session: SessionDep,
-    credentials: Annotated[_Credentials, Depends(_admin_bearer)],
+    credentials: AdminCredentials,
+    _as_invite: InviteCredentials,
     researcher_cookie: Annotated[str | None, Cookie(alias=auth.RESEARCHER_COOKIE)] = None,
     participant_cookie: Annotated[str | None, Cookie(alias=auth.PARTICIPANT_COOKIE)] = None,
 ) -> Viewer:

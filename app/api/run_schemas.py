@@ -34,6 +34,7 @@ class RunCreate(BaseModel):
     participant_id: JsonInt | None = Field(None, ge=1, le=2**31 - 1)
     participant_ids: list[DbInt] | None = Field(
         None,
+        min_length=2,
         max_length=MAX_POOL,
         description="Pooled advice: two or more distinct finished participants of the study.",
     )

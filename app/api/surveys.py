@@ -13,6 +13,7 @@ from fastapi.responses import FileResponse
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 
 from app.api.deps import (
+    AdminCredentials,
     CandidateId,
     DbId,
     ResearcherDep,
@@ -43,6 +44,7 @@ _bearer = HTTPBearer(
 )
 Credentials = Annotated[HTTPAuthorizationCredentials | None, Depends(_bearer)]
 RespondentCookie = Annotated[str | None, Cookie(alias=survey_respond.RESPONDENT_COOKIE)]
+ResearcherCookie = Annotated[str | None, Cookie(alias=auth.RESEARCHER_COOKIE)]
 
 
 def require_respondent(
@@ -262,16 +264,18 @@ def thumbnail(
     survey_id: DbId,
     study_id: DbId,
     candidate_id: CandidateId,
-    request: Request,
     session: SessionDep,
     settings: SettingsDep,
     runtime: RuntimeDep,
     credentials: Credentials,
+    _as_admin: AdminCredentials,
     cookie: RespondentCookie = None,
+    researcher_cookie: ResearcherCookie = None,
 ) -> FileResponse:
     """A candidate's thumbnail, for the researcher and the survey's respondents, when one of
     the survey's trees is drawn over that study's candidates."""
-    _check_viewer(request, session, runtime, survey_id, credentials, cookie)
+    bearer = credentials.credentials if credentials is not None else None
+    _check_viewer(session, runtime, survey_id, bearer, (researcher_cookie, cookie))
     if study_id not in _studies_of(session, survey_id):
         raise NotFoundError(f"survey {survey_id} shows no tree of study {study_id}")
     cand = studies.get_candidate(session, study_id=study_id, candidate_id=candidate_id)
@@ -284,22 +288,23 @@ def thumbnail(
 
 
 def _check_viewer(
-    request: Request,
     session: SessionDep,
     runtime: RuntimeDep,
     survey_id: int,
-    credentials: HTTPAuthorizationCredentials | None,
-    cookie: str | None,
+    bearer: str | None,
+    cookies: tuple[str | None, str | None],
 ) -> None:
-    bearer = credentials.credentials if credentials is not None else None
+    """The researcher (by ``bearer`` or the first cookie), or a respondent of the survey
+    (by ``bearer`` or the second cookie), or :class:`AuthError`."""
+    researcher_cookie, respondent_cookie = cookies
     if auth.is_researcher(
         admin_token=runtime.admin_token,
         bearer=bearer,
-        cookie=request.cookies.get(auth.RESEARCHER_COOKIE),
+        cookie=researcher_cookie,
         max_age_s=runtime.settings.session_max_age_s,
     ):
         return
-    person = survey_respond.respondent_by_token(session, token=bearer or cookie)
+    person = survey_respond.respondent_by_token(session, token=bearer or respondent_cookie)
     if person.survey_id != survey_id:
         raise AuthError("this invite is for another survey")
 

@@ -14,7 +14,7 @@ from typing import Any
 import pytest
 from fastapi.testclient import TestClient
 
-from tests.app.conftest import ADMIN
+from tests.app.conftest import ADMIN, Player
 from tests.app.surveys_support import (
     finished,
     invite,
@@ -390,3 +390,35 @@ def test_free_text_answers_cannot_run_as_spreadsheet_formulas(client, trees) -> 
     assert json.loads(jsonl)["value"] == formula  # JSONL keeps the answer as given
     results = client.get(f"/api/surveys/{survey['id']}/results", headers=ADMIN).json()
     assert results["without_exclusions"][0]["texts"] == [formula]
+
+
+def test_security_entries_list_every_scheme_that_works(client, trees) -> None:
+    """The participant tree, candidate image and survey thumbnail operations document as
+    OpenAPI ``security`` exactly the bearer schemes whose tokens they accept."""
+    survey = create(client, paper_body(trees["human"], trees["agent"]))
+    [respondent] = invite(client, survey["id"])
+    body = client.post(f"/api/studies/{trees['study']}/participants", headers=ADMIN).json()
+    Player(client, body["id"], body["token"], body["invite_url"]).play()
+    tokens = {
+        "AdminToken": ADMIN["Authorization"],
+        "InviteToken": f"Bearer {body['token']}",
+        "SurveyInviteToken": respondent.headers["Authorization"],
+    }
+    operations = {
+        "/api/participants/{participant_id}/tree": f"/api/participants/{body['id']}/tree",
+        "/api/studies/{study_id}/candidates/{candidate_id}/image": (
+            f"/api/studies/{trees['study']}/candidates/0/image"
+        ),
+        "/api/surveys/{survey_id}/studies/{study_id}/candidates/{candidate_id}/thumb": (
+            f"/api/surveys/{survey['id']}/studies/{trees['study']}/candidates/0/thumb"
+        ),
+    }
+    paths = client.app.openapi()["paths"]
+    for template, url in operations.items():
+        documented = {name for entry in paths[template]["get"]["security"] for name in entry}
+        works = {
+            scheme
+            for scheme, token in tokens.items()
+            if client.get(url, headers={"Authorization": token}).status_code == 200
+        }
+        assert documented == works, template
