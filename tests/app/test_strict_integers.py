@@ -2,8 +2,9 @@
 
 The fields are found in the OpenAPI schema (nested objects, arrays, maps and tagged unions
 included), so a new body is covered without editing this file. Each gets ``true``,
-``false``, ``1.5`` and ``"1"``; the answer must be a 422 whose JSON names the field (lax
-parsing would read ``true`` as 1 and ``"1"`` as 1, and ``1.5`` as 1 after rounding).
+``false``, ``3.0``, ``1.0``, ``1.5`` and ``"1"``; the answer must be a 422 whose JSON names
+the field (lax parsing would read ``true`` as 1, ``"1"`` and ``1.0`` as 1, and ``1.5`` as 1
+after rounding).
 """
 
 from __future__ import annotations
@@ -23,7 +24,9 @@ from tests.app.conftest import ADMIN
 from tests.app.surveys_support import finished, paper_body
 from tests.app.surveys_support import invite as invite_respondents
 
-BAD_INTEGERS = (True, False, 1.5, "1")
+#: The house rule: a JSON ``false`` is not an integer, nor is ``3.0`` (a float that happens
+#: to be whole), nor the text ``"1"``.
+BAD_INTEGERS = (True, False, 3.0, 1.0, 1.5, "1")
 #: Refs nested deeper than this are free-form documents (``doc``), not body fields.
 MAX_DEPTH = 8
 
