@@ -19,6 +19,7 @@ from starlette.middleware.gzip import GZipMiddleware
 from uvicorn.middleware.proxy_headers import ProxyHeadersMiddleware
 
 from app.api import api_router, errors, health
+from app.api.credentials_first import CredentialsFirst
 from app.api.docs import docs_router
 from app.jobs.worker import start_app_worker
 from app.middleware import BodySizeLimit, SecurityHeaders
@@ -83,6 +84,9 @@ def create_app(
         shared=runtime.settings.data_dir / OPEN_LINK_JOINS if processes > 1 else None,
     )
     install_access_log_filter()  # invite tokens in /p/<token> paths
+    # Credentials are checked before the body is parsed; an oversized one is refused first,
+    # by its declared length, unread.
+    app.add_middleware(CredentialsFirst)
     app.add_middleware(BodySizeLimit)
     app.add_middleware(SecurityHeaders)  # 413 answers get the headers too
     if runtime.settings.trusted_proxies:

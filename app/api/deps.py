@@ -177,6 +177,17 @@ async def require_researcher(
 ResearcherDep = Annotated[Viewer, Depends(require_researcher)]
 
 
+async def researcher_gate(request: Request) -> None:
+    """:func:`require_researcher`, on a request whose body is not read yet
+    (:mod:`app.api.credentials_first`)."""
+    await require_researcher(
+        request,
+        request.app.state.runtime,
+        await _admin_bearer(request),
+        request.cookies.get(auth.RESEARCHER_COOKIE),
+    )
+
+
 async def invite_token(
     request: Request,
     credentials: Annotated[_Credentials, Depends(_invite_bearer)],
@@ -203,6 +214,23 @@ def require_participant(session: SessionDep, token: InviteTokenDep) -> auth.Part
 
 
 ParticipantDep = Annotated[auth.ParticipantRef, Depends(require_participant)]
+
+
+async def participant_gate(request: Request) -> None:
+    """:func:`require_participant`, on a request whose body is not read yet
+    (:mod:`app.api.credentials_first`); a token this process knows needs no thread hop,
+    which keeps the labelling hot path as it was."""
+    token = await invite_token(
+        request, await _invite_bearer(request), request.cookies.get(auth.PARTICIPANT_COOKIE)
+    )
+    runtime: Runtime = request.app.state.runtime
+    if not auth.known_participant(runtime.engine, token=token):
+        await anyio.to_thread.run_sync(_check_participant, runtime, token)
+
+
+def _check_participant(runtime: Runtime, token: str | None) -> None:
+    with runtime.engine.connect() as conn:
+        auth.participant_ref_by_token(conn, token=token)
 
 
 def get_viewer(

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from typing import Annotated, Any
 
+import anyio.to_thread
 from fastapi import APIRouter, Cookie, Depends, Request, Response
 from fastapi.responses import FileResponse
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
@@ -30,6 +31,7 @@ from app.api.survey_schemas import (
     SurveyOut,
 )
 from app.models import Survey, SurveyRespondent
+from app.runtime import Runtime
 from app.services import auth, studies, survey_crowd, survey_respond, survey_results, surveys
 from app.services.errors import AuthError, NotFoundError
 from app.services.images import MEDIA_TYPE, image_file
@@ -60,6 +62,20 @@ def require_respondent(
 
 
 RespondentDep = Annotated[SurveyRespondent, Depends(require_respondent)]
+
+
+async def respondent_gate(request: Request) -> None:
+    """:func:`require_respondent`, on a request whose body is not read yet
+    (:mod:`app.api.credentials_first`): a query in a worker thread, once per screen."""
+    credentials = await _bearer(request)
+    cookie = request.cookies.get(survey_respond.RESPONDENT_COOKIE)
+    runtime: Runtime = request.app.state.runtime
+
+    def check() -> None:
+        with runtime.sessions() as session:
+            require_respondent(request, session, credentials, cookie)
+
+    await anyio.to_thread.run_sync(check)
 
 
 def survey_out(survey: Survey, stimuli: list[dict[str, Any]] | None = None) -> SurveyOut:
