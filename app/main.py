@@ -16,8 +16,10 @@ import anyio.to_thread
 from fastapi import FastAPI
 from fastapi.staticfiles import StaticFiles
 from starlette.middleware.gzip import GZipMiddleware
+from uvicorn.middleware.proxy_headers import ProxyHeadersMiddleware
 
 from app.api import api_router, errors, health
+from app.api.credentials_first import CredentialsFirst
 from app.api.docs import docs_router
 from app.jobs.worker import start_app_worker
 from app.middleware import BodySizeLimit, SecurityHeaders
@@ -82,8 +84,16 @@ def create_app(
         shared=runtime.settings.data_dir / OPEN_LINK_JOINS if processes > 1 else None,
     )
     install_access_log_filter()  # invite tokens in /p/<token> paths
+    # Credentials are checked before the body is parsed; an oversized one is refused first,
+    # by its declared length, unread.
+    app.add_middleware(CredentialsFirst)
     app.add_middleware(BodySizeLimit)
-    app.add_middleware(SecurityHeaders)  # outermost: 413 answers get the headers too
+    app.add_middleware(SecurityHeaders)  # 413 answers get the headers too
+    if runtime.settings.trusted_proxies:
+        # Outermost: the client address every limit is keyed by is the forwarded one, and
+        # only from the named proxies. The servers we start leave the headers alone
+        # (``proxy_headers=False``): uvicorn's default trusts 127.0.0.1.
+        app.add_middleware(ProxyHeadersMiddleware, trusted_hosts=runtime.settings.trusted_proxies)
     errors.install(app)
     app.include_router(health.router)
     app.include_router(docs_router(openapi_url=openapi_url, title=f"{app.title} API"))

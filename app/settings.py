@@ -15,13 +15,18 @@
 - ``ACV_THREADS`` (default 8): worker threads for request handlers in one server process.
 - ``ACV_MIN_FREE_MB`` (default 64): the server refuses to start with less free space in the
   data dir (see :mod:`app.preflight`).
+- ``ACV_FORWARDED_ALLOW_IPS`` (default empty): the reverse proxies, comma-separated
+  addresses or networks (``10.0.0.0/8``), whose ``X-Forwarded-For`` and
+  ``X-Forwarded-Proto`` the app believes. Empty: no one's; the client address is the TCP
+  peer's, so a client cannot choose the address its joins and failed logins are counted by.
 """
 
 from __future__ import annotations
 
+import ipaddress
 from pathlib import Path
 
-from pydantic import AliasChoices, Field, SecretStr
+from pydantic import AliasChoices, Field, SecretStr, field_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
 SQLITE_FILE = "acv.sqlite3"
@@ -41,6 +46,24 @@ class Settings(BaseSettings):
     threads: int = Field(default=8, ge=1, le=256)
     min_free_mb: int = Field(default=64, ge=0)
     session_hours: float = Field(default=12.0, gt=0, le=24 * 90)
+    forwarded_allow_ips: str = ""
+
+    @field_validator("forwarded_allow_ips")
+    @classmethod
+    def _proxy_addresses(cls, value: str) -> str:
+        """Every entry an IP address or network: uvicorn would take a typo as a host name
+        that never matches, and the proxy would silently stay untrusted."""
+        for entry in _entries(value):
+            try:
+                ipaddress.ip_network(entry, strict=False)
+            except ValueError:
+                raise ValueError(f"not an IP address or network: {entry!r}") from None
+        return value
+
+    @property
+    def trusted_proxies(self) -> list[str]:
+        """The addresses and networks of ``ACV_FORWARDED_ALLOW_IPS`` (empty: none)."""
+        return _entries(self.forwarded_allow_ips)
 
     @property
     def session_max_age_s(self) -> int:
@@ -56,6 +79,10 @@ class Settings(BaseSettings):
     def images_dir(self) -> Path:
         """Where rendered candidate images are stored (a content-addressed cache)."""
         return self.data_dir / "images"
+
+
+def _entries(value: str) -> list[str]:
+    return [e.strip() for e in value.split(",") if e.strip()]
 
 
 def normalise_url(url: str) -> str:

@@ -180,8 +180,8 @@ def _parse(obj: dict[str, Any]) -> TreeDocument:
         candidates=cands,
         first_round=first_round,
         results=results,
-        r_b=float(tr["r_b"]),
-        r_e=float(tr["r_e"]),
+        r_b=_finite(tr["r_b"], "tree_reward.r_b"),
+        r_e=_finite(tr["r_e"], "tree_reward.r_e"),
         scores=scores,
     )
 
@@ -189,7 +189,12 @@ def _parse(obj: dict[str, Any]) -> TreeDocument:
 def _candidates(items: list[dict[str, Any]]) -> tuple[list[Candidate], dict[int, float] | None]:
     """The candidates, and their judge scores when every one has a ``score``."""
     cands = [
-        Candidate(int(c["id"]), _floats(c["qpos"]), _floats(c["qvel"]), float(c["env_reward"]))
+        Candidate(
+            int(c["id"]),
+            _floats(c["qpos"]),
+            _floats(c["qvel"]),
+            _finite(c["env_reward"], "env_reward"),
+        )
         for c in items
     ]
     if len(cands) < 2:  # one player means no match: nothing to compare or train on
@@ -197,15 +202,24 @@ def _candidates(items: list[dict[str, Any]]) -> tuple[list[Candidate], dict[int,
     if [c.id for c in cands] != list(range(len(cands))):
         raise InputError("candidate ids must be 0 .. N-1 in order")
     scores = (
-        {c.id: float(item["score"]) for c, item in zip(cands, items, strict=True)}
+        {c.id: _finite(item["score"], "score") for c, item in zip(cands, items, strict=True)}
         if all("score" in item for item in items)
         else None
     )
     return cands, scores
 
 
+def _finite(value: Any, name: str) -> float:
+    """``value`` as a float; :class:`InputError` if it is NaN or infinite (``1e999`` parses as
+    infinity), which JSON cannot carry back out and no reward or score can mean."""
+    number = float(value)
+    if not math.isfinite(number):
+        raise InputError(f"'{name}' must be a finite number, got {value!r}")
+    return number
+
+
 def _probability(value: Any) -> float:
-    p = float(value)
+    p = _finite(value, "p")
     if not 0.0 <= p <= 1.0:
         raise InputError(f"'p' must be in [0, 1], got {p}")
     return p

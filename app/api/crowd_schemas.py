@@ -8,7 +8,11 @@ from pydantic import BaseModel, ConfigDict, Field, StrictBool
 
 from app.api.schemas import JsonInt
 from app.services.crowd import DEFAULT_SPEED_THRESHOLD_MS
-from app.services.open_links import DEFAULT_EXTERNAL_PARAMS, MAX_PARTICIPANTS
+from app.services.open_links import (
+    DEFAULT_EXTERNAL_PARAMS,
+    MAX_PARTICIPANTS,
+    REDIRECT_URL_PATTERN,
+)
 
 ParamName = Annotated[str, Field(pattern=r"^[A-Za-z][A-Za-z0-9_]{0,63}$")]
 
@@ -30,7 +34,11 @@ class OpenLinkIn(BaseModel):
     consent_text: str | None = Field(None, min_length=1, max_length=20_000)
     completion_code: str | None = Field(None, min_length=1, max_length=100)
     redirect_url: str | None = Field(
-        None, min_length=1, max_length=500, description="An http(s) URL to send people to."
+        None,
+        min_length=1,
+        max_length=500,
+        pattern=REDIRECT_URL_PATTERN,
+        description="An http(s) URL to send people to.",
     )
 
 

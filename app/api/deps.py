@@ -42,6 +42,11 @@ _invite_bearer = HTTPBearer(
     auto_error=False, scheme_name="InviteToken", description="A participant's invite token."
 )
 _Credentials = HTTPAuthorizationCredentials | None
+#: The bearer token, documented in OpenAPI as the researcher's scheme.
+AdminCredentials = Annotated[_Credentials, Depends(_admin_bearer)]
+#: The same bearer token, documented as a participant's scheme: an operation that takes both
+#: depends on both, so its OpenAPI ``security`` lists both (as alternatives).
+InviteCredentials = Annotated[_Credentials, Depends(_invite_bearer)]
 
 #: Requests holding a database session at once: below the pool's capacity
 #: (:data:`app.db.POOL_CAPACITY`), leaving connections for background jobs.
@@ -172,6 +177,17 @@ async def require_researcher(
 ResearcherDep = Annotated[Viewer, Depends(require_researcher)]
 
 
+async def researcher_gate(request: Request) -> None:
+    """:func:`require_researcher`, on a request whose body is not read yet
+    (:mod:`app.api.credentials_first`)."""
+    await require_researcher(
+        request,
+        request.app.state.runtime,
+        await _admin_bearer(request),
+        request.cookies.get(auth.RESEARCHER_COOKIE),
+    )
+
+
 async def invite_token(
     request: Request,
     credentials: Annotated[_Credentials, Depends(_invite_bearer)],
@@ -200,11 +216,29 @@ def require_participant(session: SessionDep, token: InviteTokenDep) -> auth.Part
 ParticipantDep = Annotated[auth.ParticipantRef, Depends(require_participant)]
 
 
+async def participant_gate(request: Request) -> None:
+    """:func:`require_participant`, on a request whose body is not read yet
+    (:mod:`app.api.credentials_first`); a token this process knows needs no thread hop,
+    which keeps the labelling hot path as it was."""
+    token = await invite_token(
+        request, await _invite_bearer(request), request.cookies.get(auth.PARTICIPANT_COOKIE)
+    )
+    runtime: Runtime = request.app.state.runtime
+    if not auth.known_participant(runtime.engine, token=token):
+        await anyio.to_thread.run_sync(_check_participant, runtime, token)
+
+
+def _check_participant(runtime: Runtime, token: str | None) -> None:
+    with runtime.engine.connect() as conn:
+        auth.participant_ref_by_token(conn, token=token)
+
+
 def get_viewer(
     request: Request,
     runtime: RuntimeDep,
     session: SessionDep,
-    credentials: Annotated[_Credentials, Depends(_admin_bearer)],
+    credentials: AdminCredentials,
+    _as_invite: InviteCredentials,
     researcher_cookie: Annotated[str | None, Cookie(alias=auth.RESEARCHER_COOKIE)] = None,
     participant_cookie: Annotated[str | None, Cookie(alias=auth.PARTICIPANT_COOKIE)] = None,
 ) -> Viewer:

@@ -4,12 +4,10 @@ request was at fault, 503 when the database is unreachable, never a stack trace.
 from __future__ import annotations
 
 import logging
-import math
 from collections.abc import Awaitable, Callable
 from typing import Any, TypeVar, cast
 
 from fastapi import FastAPI, Request
-from fastapi.encoders import jsonable_encoder
 from fastapi.exception_handlers import http_exception_handler
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse, Response
@@ -20,6 +18,7 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.routing import Match
 from starlette.types import ExceptionHandler
 
+from app.api import bounded
 from app.services.errors import AuthError, PendingError, ServiceError, TooManyAttemptsError
 from engine.errors import InputError
 
@@ -60,20 +59,9 @@ RESPONSES: dict[int | str, dict[str, Any]] = {
 
 
 def _validation_error(_: Request, exc: RequestValidationError) -> JSONResponse:
-    """FastAPI's 422, made safe for inputs JSON cannot hold (NaN, Infinity, surrogates)."""
-    return JSONResponse({"detail": _json_safe(jsonable_encoder(exc.errors()))}, status_code=422)
-
-
-def _json_safe(value: Any) -> Any:
-    if isinstance(value, float) and not math.isfinite(value):
-        return repr(value)
-    if isinstance(value, str):  # lone surrogates ("\ud800" in JSON) cannot be UTF-8
-        return value.encode("utf-8", "replace").decode("utf-8")
-    if isinstance(value, dict):
-        return {k: _json_safe(v) for k, v in value.items()}
-    if isinstance(value, list):
-        return [_json_safe(v) for v in value]
-    return value
+    """FastAPI's 422, bounded (:mod:`app.api.bounded`): a deep or wide body gives a short
+    answer, never an echo of itself, and inputs JSON cannot hold (NaN, surrogates) are safe."""
+    return JSONResponse({"detail": bounded.errors(exc.errors())}, status_code=422)
 
 
 async def _http_error(request: Request, exc: StarletteHTTPException) -> Response:
@@ -93,7 +81,7 @@ async def _http_error(request: Request, exc: StarletteHTTPException) -> Response
 
 
 def _input_error(_: Request, exc: InputError) -> JSONResponse:
-    return JSONResponse({"detail": str(exc)}, status_code=422)
+    return JSONResponse({"detail": bounded.text(str(exc))}, status_code=422)
 
 
 def _service_error(_: Request, exc: ServiceError) -> JSONResponse:
@@ -106,16 +94,18 @@ def _service_error(_: Request, exc: ServiceError) -> JSONResponse:
             status_code=202,
             headers={"Retry-After": "2"},
         )
-    return JSONResponse({"detail": exc.detail}, status_code=exc.status_code, headers=headers)
+    return JSONResponse(
+        {"detail": bounded.text(exc.detail)}, status_code=exc.status_code, headers=headers
+    )
 
 
 def _unstorable(_: Request, exc: DataError) -> JSONResponse:
-    log.warning("refused value: %s", exc)
+    log.warning("refused value: %s", bounded.text(str(exc)))
     return JSONResponse({"detail": "a value in the request cannot be stored"}, status_code=422)
 
 
 def _database_down(_: Request, exc: OperationalError) -> JSONResponse:
-    log.error("database error: %s", exc)
+    log.error("database error: %s", bounded.text(str(exc)))
     return JSONResponse(
         {"detail": "the database is unavailable; try again"},
         status_code=503,

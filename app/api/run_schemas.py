@@ -21,6 +21,9 @@ Judge = Literal["return", "behaviour", "shaped", "shaping", "shaped-value", "val
 DbInt = Annotated[JsonInt, Field(ge=1, le=2**31 - 1)]
 #: Participants one pooled run may name.
 MAX_POOL = 1000
+#: A pool's participant ids: the schema documents the two or more that
+#: :func:`app.services.pools.pool_ids` enforces, with its message that names the count.
+PoolIds = Annotated[list[DbInt], Field(max_length=MAX_POOL, json_schema_extra={"minItems": 2})]
 
 
 class RunCreate(BaseModel):
@@ -33,9 +36,8 @@ class RunCreate(BaseModel):
 
     study_id: JsonInt = Field(ge=1, le=2**31 - 1)
     participant_id: JsonInt | None = Field(None, ge=1, le=2**31 - 1)
-    participant_ids: list[DbInt] | None = Field(
+    participant_ids: PoolIds | None = Field(
         None,
-        max_length=MAX_POOL,
         description="Pooled advice: two or more distinct finished participants of the study.",
     )
     all_participants: StrictBool = Field(

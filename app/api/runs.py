@@ -26,6 +26,7 @@ from app.api.compare_schemas import (
     TreeJson,
 )
 from app.api.deps import DbId, ResearcherDep, SessionDep, SettingsDep
+from app.api.errors import RESPONSES
 from app.api.run_schemas import CheckpointOut, Judge, RunCreate, RunCreated, RunOut
 from app.jobs.execute import run_dir
 from app.jobs.settings import JobSettings
@@ -40,8 +41,16 @@ Step = Annotated[int | None, Query(ge=0, description="Checkpoint timesteps (defa
 JudgeQuery = Annotated[Judge, Query(description="How the agent scores states.")]
 #: The report inlines its styles and images and runs nothing; nobody may frame it.
 #: The answer while a checkpoint's artefact is being computed by the run's executor.
+#: The answers of an operation on a run's checkpoint, besides those of every operation.
+NO_CHECKPOINT: dict[int | str, dict[str, Any]] = {
+    409: {
+        **RESPONSES[409],
+        "description": "The run has no checkpoint yet, or no advice to compare with.",
+    }
+}
 PENDING: dict[int | str, dict[str, Any]] = {
-    202: {"description": 'Not computed yet: {"status": "pending"}; ask again.'}
+    202: {"description": 'Not computed yet: {"status": "pending"}; ask again.'},
+    **NO_CHECKPOINT,
 }
 REPORT_CSP = (
     "default-src 'none'; img-src data:; style-src 'unsafe-inline'; base-uri 'none'; "
@@ -266,7 +275,7 @@ def tree_image(
     return _attachment(data, FORMATS[fmt], f"run-{run_id}-{which}-tree-{view.step}.{fmt}")
 
 
-@router.get("/{run_id}/report.html", response_class=HTMLResponse)
+@router.get("/{run_id}/report.html", response_class=HTMLResponse, responses=NO_CHECKPOINT)
 def report(
     run_id: DbId,
     session: SessionDep,

@@ -1,18 +1,19 @@
 """Bodies of the survey API (pydantic). Integers and booleans are strict: JSON ``true``,
-``1.5`` or ``"1"`` where an integer belongs (or ``1`` for a boolean) is a 422."""
+``3.0``, ``1.5`` or ``"1"`` where an integer belongs (or ``1`` for a boolean) is a 422."""
 
 from __future__ import annotations
 
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, StrictBool, StrictInt
+from pydantic import BaseModel, ConfigDict, Field, StrictBool
 
+from app.api.schemas import JsonInt
 from app.services import survey_respond, surveys
 from app.services.survey_sources import TreeSource
 from app.services.surveys import AttentionSpec, QuestionSpec, StimulusSpec
 
 _FORBID = ConfigDict(extra="forbid")
-Id = Annotated[StrictInt, Field(ge=1, le=2**31 - 1)]
+Id = Annotated[JsonInt, Field(ge=1, le=2**31 - 1)]
 Text = Annotated[str, Field(max_length=surveys.MAX_QUESTION_CHARS)]
 
 
@@ -30,7 +31,7 @@ class RunTree(BaseModel):
     model_config = _FORBID
     kind: Literal["run"]
     run_id: Id
-    checkpoint: Annotated[StrictInt, Field(ge=0, le=2**62)]
+    checkpoint: Annotated[JsonInt, Field(ge=0, le=2**62)]
     judge: str = Field(min_length=1, max_length=32)
 
 
@@ -104,7 +105,7 @@ class SurveyCreate(BaseModel):
     attention_check: AttentionIn | None = None
     highlights: StrictBool = False
     assignment: Literal["all", "round_robin"] = "all"
-    seed: Annotated[StrictInt, Field(ge=0, le=2**63 - 1)] | None = None
+    seed: Annotated[JsonInt, Field(ge=0, le=2**63 - 1)] | None = None
 
     def question_specs(self) -> list[QuestionSpec]:
         if self.template == "paper":
@@ -148,7 +149,7 @@ class SurveyOut(BaseModel):
 
 class RespondentsCreate(BaseModel):
     model_config = _FORBID
-    count: Annotated[StrictInt, Field(ge=1, le=survey_respond.MAX_BATCH)] = 1
+    count: Annotated[JsonInt, Field(ge=1, le=survey_respond.MAX_BATCH)] = 1
     name: str | None = Field(None, max_length=200)
 
 
@@ -166,7 +167,7 @@ class RespondentOut(BaseModel):
 class AnswerBody(BaseModel):
     model_config = _FORBID
     value: str = Field(max_length=survey_respond.MAX_TEXT_ANSWER_CHARS)
-    confidence: Annotated[StrictInt, Field(ge=1, le=5)] | None = None
+    confidence: Annotated[JsonInt, Field(ge=1, le=5)] | None = None
 
 
 class ScreenAnswers(BaseModel):
@@ -176,4 +177,4 @@ class ScreenAnswers(BaseModel):
     answers: dict[Annotated[str, Field(max_length=32)], AnswerBody] = Field(
         max_length=surveys.MAX_QUESTIONS
     )
-    screen_ms: Annotated[StrictInt, Field(ge=0, le=survey_respond.MAX_SCREEN_MS)]
+    screen_ms: Annotated[JsonInt, Field(ge=0, le=survey_respond.MAX_SCREEN_MS)]

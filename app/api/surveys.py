@@ -8,11 +8,13 @@ from __future__ import annotations
 
 from typing import Annotated, Any
 
+import anyio.to_thread
 from fastapi import APIRouter, Cookie, Depends, Request, Response
 from fastapi.responses import FileResponse
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 
 from app.api.deps import (
+    AdminCredentials,
     CandidateId,
     DbId,
     ResearcherDep,
@@ -29,6 +31,7 @@ from app.api.survey_schemas import (
     SurveyOut,
 )
 from app.models import Survey, SurveyRespondent
+from app.runtime import Runtime
 from app.services import auth, studies, survey_crowd, survey_respond, survey_results, surveys
 from app.services.errors import AuthError, NotFoundError
 from app.services.images import MEDIA_TYPE, image_file
@@ -43,6 +46,7 @@ _bearer = HTTPBearer(
 )
 Credentials = Annotated[HTTPAuthorizationCredentials | None, Depends(_bearer)]
 RespondentCookie = Annotated[str | None, Cookie(alias=survey_respond.RESPONDENT_COOKIE)]
+ResearcherCookie = Annotated[str | None, Cookie(alias=auth.RESEARCHER_COOKIE)]
 
 
 def require_respondent(
@@ -58,6 +62,20 @@ def require_respondent(
 
 
 RespondentDep = Annotated[SurveyRespondent, Depends(require_respondent)]
+
+
+async def respondent_gate(request: Request) -> None:
+    """:func:`require_respondent`, on a request whose body is not read yet
+    (:mod:`app.api.credentials_first`): a query in a worker thread, once per screen."""
+    credentials = await _bearer(request)
+    cookie = request.cookies.get(survey_respond.RESPONDENT_COOKIE)
+    runtime: Runtime = request.app.state.runtime
+
+    def check() -> None:
+        with runtime.sessions() as session:
+            require_respondent(request, session, credentials, cookie)
+
+    await anyio.to_thread.run_sync(check)
 
 
 def survey_out(survey: Survey, stimuli: list[dict[str, Any]] | None = None) -> SurveyOut:
@@ -262,16 +280,18 @@ def thumbnail(
     survey_id: DbId,
     study_id: DbId,
     candidate_id: CandidateId,
-    request: Request,
     session: SessionDep,
     settings: SettingsDep,
     runtime: RuntimeDep,
     credentials: Credentials,
+    _as_admin: AdminCredentials,
     cookie: RespondentCookie = None,
+    researcher_cookie: ResearcherCookie = None,
 ) -> FileResponse:
     """A candidate's thumbnail, for the researcher and the survey's respondents, when one of
     the survey's trees is drawn over that study's candidates."""
-    _check_viewer(request, session, runtime, survey_id, credentials, cookie)
+    bearer = credentials.credentials if credentials is not None else None
+    _check_viewer(session, runtime, survey_id, bearer, (researcher_cookie, cookie))
     if study_id not in _studies_of(session, survey_id):
         raise NotFoundError(f"survey {survey_id} shows no tree of study {study_id}")
     cand = studies.get_candidate(session, study_id=study_id, candidate_id=candidate_id)
@@ -284,22 +304,23 @@ def thumbnail(
 
 
 def _check_viewer(
-    request: Request,
     session: SessionDep,
     runtime: RuntimeDep,
     survey_id: int,
-    credentials: HTTPAuthorizationCredentials | None,
-    cookie: str | None,
+    bearer: str | None,
+    cookies: tuple[str | None, str | None],
 ) -> None:
-    bearer = credentials.credentials if credentials is not None else None
+    """The researcher (by ``bearer`` or the first cookie), or a respondent of the survey
+    (by ``bearer`` or the second cookie), or :class:`AuthError`."""
+    researcher_cookie, respondent_cookie = cookies
     if auth.is_researcher(
         admin_token=runtime.admin_token,
         bearer=bearer,
-        cookie=request.cookies.get(auth.RESEARCHER_COOKIE),
+        cookie=researcher_cookie,
         max_age_s=runtime.settings.session_max_age_s,
     ):
         return
-    person = survey_respond.respondent_by_token(session, token=bearer or cookie)
+    person = survey_respond.respondent_by_token(session, token=bearer or respondent_cookie)
     if person.survey_id != survey_id:
         raise AuthError("this invite is for another survey")
 

@@ -135,6 +135,9 @@ def serve(
         "access_log": access_log,
         "log_level": "info",
         "timeout_graceful_shutdown": 10,
+        # The app trusts forwarded headers itself, from ACV_FORWARDED_ALLOW_IPS only
+        # (app.main); uvicorn's own handling would believe any local client.
+        "proxy_headers": False,
         "log_config": log_config(workers),
     }
     if app is not None:

@@ -232,6 +232,15 @@ def participant_ref_by_token(db: Session | Connection, *, token: str | None) -> 
     return known
 
 
+def known_participant(engine: Engine, *, token: str | None) -> bool:
+    """Whether ``token`` is the invite token of a participant this process already looked
+    up (no query: the hot path checks a credential without a thread hop)."""
+    if not token or not _TOKEN_SHAPE.fullmatch(token):
+        return False
+    known = _known.get(engine, {}).get(token_digest(token))
+    return known is not None and secrets.compare_digest(token.encode(), known.token.encode())
+
+
 def set_researcher_cookie(
     response: Response, *, admin_token: str, max_age_s: int, secure: bool
 ) -> None:

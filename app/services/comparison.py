@@ -9,8 +9,6 @@ is not stored yet raises :class:`app.services.errors.PendingError` (HTTP 202).
 
 from __future__ import annotations
 
-import csv
-import io
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -19,8 +17,8 @@ from typing import Any
 from sqlalchemy.orm import Session
 
 from app.models import CheckpointArtefact
-from app.services import artefacts
-from app.services.errors import PendingError
+from app.services import artefacts, csv_export
+from app.services.errors import ConflictError, PendingError
 from engine.conformance import Conformance
 from engine.errors import InputError
 from engine.judges import DEFAULT_JUDGE, JUDGES, LEGACY_JUDGES, current_keys
@@ -120,11 +118,12 @@ def pick_checkpoint(out: Path, step: int | None) -> int:
     """``step`` if the run has it, else (for None) its latest checkpoint.
 
     Raises:
-        InputError: no checkpoint yet, or none at ``step``.
+        ConflictError: no checkpoint yet (a state the run will leave, not bad input).
+        InputError: no checkpoint at ``step``.
     """
     steps = checkpoints(out)
     if not steps:
-        raise InputError("the run has no checkpoint yet")
+        raise ConflictError("the run has no checkpoint yet")
     if step is None:
         return steps[-1]
     if step not in steps:
@@ -250,29 +249,26 @@ def highlights(m: Conformance) -> tuple[frozenset[int], frozenset[int]]:
 
 def csv_text(rows: list[tuple[int, Conformance]]) -> str:
     """Conformance metrics (one per checkpoint) as CSV with :data:`CSV_COLUMNS`."""
-    out = io.StringIO()
-    writer = csv.writer(out, lineterminator="\n")
-    writer.writerow(CSV_COLUMNS)
-    for step, m in rows:
-        low, high = m.match_agreement_ci
-        writer.writerow(
-            (
-                step,
-                m.n_matches,
-                m.n_agree,
-                m.match_agreement,
-                low,
-                high,
-                m.kendall_tau_b,
-                m.tree_edit_distance,
-                m.same_champion,
-                len(m.rejected),
-                m.contested.n,
-                m.contested.kept,
-                m.reference_agreement,
-            )
-        )
-    return out.getvalue()
+    return csv_export.csv_text(CSV_COLUMNS, (_csv_row(step, m) for step, m in rows))
+
+
+def _csv_row(step: int, m: Conformance) -> tuple[object, ...]:
+    low, high = m.match_agreement_ci
+    return (
+        step,
+        m.n_matches,
+        m.n_agree,
+        m.match_agreement,
+        low,
+        high,
+        m.kendall_tau_b,
+        m.tree_edit_distance,
+        m.same_champion,
+        len(m.rejected),
+        m.contested.n,
+        m.contested.kept,
+        m.reference_agreement,
+    )
 
 
 def metrics_rows(out: Path, after: int = -1) -> list[dict[str, Any]]:

@@ -10,7 +10,6 @@ on screen), so it is empty when no response time was stored. Quality flags
 
 from __future__ import annotations
 
-import csv
 import io
 import json
 from datetime import timedelta
@@ -20,6 +19,7 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from app.models import Label, Match, Participant, as_utc
+from app.services import csv_export
 from app.services.crowd_stats import quality
 from app.services.studies import get_study
 
@@ -100,18 +100,17 @@ def to_jsonl(rows: list[dict[str, Any]]) -> str:
 
 def to_csv(rows: list[dict[str, Any]]) -> str:
     """CSV with a header; ``external_ids`` as a JSON object, ``flags`` joined by ``;``."""
-    out = io.StringIO()
-    writer = csv.DictWriter(out, fieldnames=COLUMNS, lineterminator="\n")
-    writer.writeheader()
-    for r in rows:
-        writer.writerow(
+    return csv_export.csv_text(
+        COLUMNS,
+        (
             {
                 **r,
                 "external_ids": json.dumps(r["external_ids"], sort_keys=True),
                 "flags": ";".join(r["flags"]),
             }
-        )
-    return out.getvalue()
+            for r in rows
+        ),
+    )
 
 
 def to_parquet(rows: list[dict[str, Any]]) -> bytes:

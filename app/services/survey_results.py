@@ -6,8 +6,6 @@ exports with one row per answer (CSV, JSONL).
 
 from __future__ import annotations
 
-import csv
-import io
 import json
 from collections.abc import Iterable
 from dataclasses import dataclass
@@ -24,6 +22,7 @@ from app.models import (
     SurveyStimulus,
     as_utc,
 )
+from app.services import csv_export
 from app.services import survey_stats as stats
 from app.services.surveys import exclusion_text, get_survey, questions_for, stimuli_of
 
@@ -45,7 +44,6 @@ EXPORT_COLUMNS = (
     "excluded",
     "answered_at",
 )
-_FORMULA_STARTS = ("=", "+", "-", "@", "\t", "\r")
 
 
 @dataclass(frozen=True)
@@ -225,25 +223,16 @@ def export_records(session: Session, *, survey_id: int) -> list[dict[str, Any]]:
     return out
 
 
-def _cell(value: Any) -> Any:
-    """A free-text answer that a spreadsheet would run as a formula, quoted with ``'``."""
-    return f"'{value}" if isinstance(value, str) and value[:1] in _FORMULA_STARTS else value
-
-
 def export_csv(session: Session, *, survey_id: int) -> str:
-    """The records as CSV (a text answer starting with ``= + - @`` gets a leading ``'``;
-    ``external_ids`` is a JSON object)."""
-    out = io.StringIO()
-    writer = csv.DictWriter(out, fieldnames=EXPORT_COLUMNS, lineterminator="\n")
-    writer.writeheader()
-    writer.writerows(
-        {
-            k: _cell(json.dumps(v, sort_keys=True) if k == "external_ids" else v)
-            for k, v in record.items()
-        }
-        for record in export_records(session, survey_id=survey_id)
+    """The records as CSV (:func:`app.services.csv_export.csv_text`: a text answer that
+    would run as a formula gets a leading ``'``; ``external_ids`` is a JSON object)."""
+    return csv_export.csv_text(
+        EXPORT_COLUMNS,
+        (
+            {**record, "external_ids": json.dumps(record["external_ids"], sort_keys=True)}
+            for record in export_records(session, survey_id=survey_id)
+        ),
     )
-    return out.getvalue()
 
 
 def export_jsonl(session: Session, *, survey_id: int) -> str:

@@ -2,13 +2,11 @@
 
 from __future__ import annotations
 
-import csv
-import io
-
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from app.models import Label, Match, Participant, as_utc
+from app.services import csv_export
 from app.services.errors import ConflictError
 from app.services.labelling import results_of
 from app.services.participants import get_participant
@@ -91,9 +89,10 @@ def labels_csv(session: Session, *, study_id: int) -> str:
         .where(Participant.study_id == study_id)
         .order_by(Label.id)
     )
-    out = io.StringIO()
-    writer = csv.writer(out, lineterminator="\n")
-    writer.writerow(LABEL_COLUMNS)
-    for pid, mid, rnd, slot, a, b, winner, at, ms in rows:
-        writer.writerow((study_id, pid, mid, rnd, slot, a, b, winner, as_utc(at).isoformat(), ms))
-    return out.getvalue()
+    return csv_export.csv_text(
+        LABEL_COLUMNS,
+        (
+            (study_id, pid, mid, rnd, slot, a, b, winner, as_utc(at).isoformat(), ms)
+            for pid, mid, rnd, slot, a, b, winner, at, ms in rows
+        ),
+    )

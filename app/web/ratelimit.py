@@ -9,8 +9,9 @@ is a minute old. Successful logins are not counted.
 The counts live in this process's memory, or, with several web workers (``acv serve
 --workers N``), in a small SQLite file in the data dir that all of them share
 (:class:`SharedFailures`), so the limit holds for the server as a whole. Behind a reverse
-proxy every client shares the proxy's address unless uvicorn trusts its
-``X-Forwarded-For`` (``--proxy-headers --forwarded-allow-ips``).
+proxy every client shares the proxy's address unless the proxy is named in
+``ACV_FORWARDED_ALLOW_IPS`` (:mod:`app.settings`): only then is its ``X-Forwarded-For``
+believed.
 """
 
 from __future__ import annotations
@@ -124,7 +125,7 @@ class SharedFailures:
 
 
 def client_address(request: Request) -> str:
-    """The client's address as the server sees it (after uvicorn's proxy-header handling)."""
+    """The client's address: the TCP peer's, or the one a trusted proxy forwarded."""
     return request.client.host if request.client else "unknown"
 
 

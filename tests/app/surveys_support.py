@@ -127,3 +127,25 @@ def paper_answers(
     return {
         q["key"]: {"value": picks[q["key"]], "confidence": confidence} for q in screen["questions"]
     }
+
+
+def scheme_headers(client: TestClient, study_id: int) -> dict[str, dict[str, str]]:
+    """Headers per security scheme of the API: the researcher, a participant of the study,
+    and a respondent of a new survey over two of its finished participants."""
+    participant = client.post(f"/api/studies/{study_id}/participants", headers=ADMIN)
+    human, other = finished(client, study_id, "a"), finished(client, study_id, "b")
+    survey = client.post(
+        "/api/surveys",
+        headers=ADMIN,
+        json=paper_body(
+            {"kind": "participant", "participant_id": human},
+            {"kind": "participant", "participant_id": other},
+        ),
+    )
+    assert survey.status_code == 201, survey.text
+    [respondent] = invite(client, survey.json()["id"])
+    return {
+        "AdminToken": ADMIN,
+        "InviteToken": {"Authorization": f"Bearer {participant.json()['token']}"},
+        "SurveyInviteToken": respondent.headers,
+    }

@@ -311,11 +311,13 @@ def test_wrong_methods_are_405_with_every_allowed_method(
         lambda a: {"winner": a, "response_ms": False},
         lambda a: {"winner": a, "response_ms": "5"},
         lambda a: {"winner": a + 0.5},
+        lambda a: {"winner": float(a)},
+        lambda a: {"winner": a, "response_ms": 500.0},
     ],
 )
 def test_json_numbers_are_not_guessed_from_other_types(client, invite, body) -> None:
-    """``"3"`` or ``false`` where the schema says integer are refused, not coerced (lax
-    parsing would have stored these labels); ``3.0`` is an integer in JSON Schema."""
+    """``"3"``, ``false`` or ``3.0`` where the schema says integer are refused, not coerced
+    (lax parsing would have stored these labels): one rule for every integer field."""
     player = invite()
     match = player.next_match()
     response = client.post(
@@ -324,7 +326,7 @@ def test_json_numbers_are_not_guessed_from_other_types(client, invite, body) -> 
         json=body(match["a"]["candidate_id"]),
     )
     assert response.status_code == 422 and player.next_match() == match
-    whole = {"winner": float(match["a"]["candidate_id"])}
+    whole = {"winner": match["a"]["candidate_id"]}
     assert (
         client.post(
             f"/api/matches/{match['match_id']}/label", headers=player.headers, json=whole

@@ -142,3 +142,29 @@ def test_invalid_mujoco_gl_is_one_line_and_exit_2(trees: Path) -> None:
     assert r.returncode == 2
     assert r.stderr.startswith("acv: error: invalid MUJOCO_GL='foo'")
     assert len(r.stderr.strip().splitlines()) == 1 and "egl" in r.stderr
+
+
+def _set_number(doc: dict, where: str, token: str) -> str:
+    """The document as JSON text with the number at ``where`` written as ``token`` (``NaN``,
+    ``Infinity``, ``1e999``: Python's JSON reader takes all three)."""
+    doc = json.loads(json.dumps(doc))
+    if where == "env_reward":
+        doc["candidates"][1]["env_reward"] = "@NUMBER@"
+    elif where == "score":
+        for c in doc["candidates"]:
+            c.setdefault("score", 1.0)
+        doc["candidates"][0]["score"] = "@NUMBER@"
+    else:
+        doc["tree_reward"][where] = "@NUMBER@"
+    return json.dumps(doc).replace('"@NUMBER@"', token)
+
+
+@pytest.mark.parametrize("token", ["NaN", "Infinity", "-Infinity", "1e999"])
+@pytest.mark.parametrize("where", ["env_reward", "score", "r_b", "r_e"])
+def test_non_finite_numbers_in_a_tree_file_exit_2(trees: Path, where: str, token: str) -> None:
+    doc = json.loads((trees / "a.json").read_text())
+    (trees / "bad.json").write_text(_set_number(doc, where, token))
+    r = acv("compare", "a.json", "bad.json", cwd=trees)
+    assert r.returncode == 2, r.stdout
+    assert r.stderr.startswith("acv: error:") and len(r.stderr.strip().splitlines()) == 1
+    assert "must be a finite number" in r.stderr, r.stderr

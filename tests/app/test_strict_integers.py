@@ -2,8 +2,9 @@
 
 The fields are found in the OpenAPI schema (nested objects, arrays, maps and tagged unions
 included), so a new body is covered without editing this file. Each gets ``true``,
-``false``, ``1.5`` and ``"1"``; the answer must be a 422 whose JSON names the field (lax
-parsing would read ``true`` as 1 and ``"1"`` as 1, and ``1.5`` as 1 after rounding).
+``false``, ``3.0``, ``1.0``, ``1.5`` and ``"1"``; the answer must be a 422 whose JSON names
+the field (lax parsing would read ``true`` as 1, ``"1"`` and ``1.0`` as 1, and ``1.5`` as 1
+after rounding).
 """
 
 from __future__ import annotations
@@ -14,16 +15,14 @@ from dataclasses import dataclass
 from typing import Any
 
 import pytest
-from fastapi import FastAPI
 from fastapi.testclient import TestClient
 
-from app.api import api_router
-from app.api.errors import install
-from tests.app.conftest import ADMIN
-from tests.app.surveys_support import finished, paper_body
-from tests.app.surveys_support import invite as invite_respondents
+from tests.app.openapi_support import api_openapi, json_operations
+from tests.app.surveys_support import scheme_headers
 
-BAD_INTEGERS = (True, False, 1.5, "1")
+#: The house rule: a JSON ``false`` is not an integer, nor is ``3.0`` (a float that happens
+#: to be whole), nor the text ``"1"``.
+BAD_INTEGERS = (True, False, 3.0, 1.0, 1.5, "1")
 #: Refs nested deeper than this are free-form documents (``doc``), not body fields.
 MAX_DEPTH = 8
 
@@ -81,28 +80,16 @@ def discover(openapi: dict[str, Any]) -> list[IntegerField]:
     """Every integer field of every ``application/json`` request body of ``openapi``."""
     components = openapi.get("components", {}).get("schemas", {})
     found = []
-    for path, operations in openapi["paths"].items():
-        for method, operation in operations.items():
-            body = operation.get("requestBody", {}).get("content", {}).get("application/json")
-            if body is None:
-                continue
-            [scheme] = [name for requirement in operation["security"] for name in requirement]
-            found += [
-                IntegerField(method.upper(), path, names, build, scheme)
-                for names, build in _integer_fields(body["schema"], components)
-            ]
+    for op in json_operations(openapi):
+        [scheme] = op.schemes
+        found += [
+            IntegerField(op.method, op.path, names, build, scheme)
+            for names, build in _integer_fields(op.schema, components)
+        ]
     return found
 
 
-def _api_openapi() -> dict[str, Any]:
-    """The API's schema, built from its routers alone (collection needs no database)."""
-    app = FastAPI()
-    install(app)
-    app.include_router(api_router)
-    return app.openapi()
-
-
-FIELDS = discover(_api_openapi())
+FIELDS = discover(api_openapi())
 
 
 def test_the_discovered_fields_are_those_the_app_serves(client) -> None:
@@ -118,24 +105,7 @@ def test_the_discovered_fields_are_those_the_app_serves(client) -> None:
 
 @pytest.fixture(scope="module")
 def credentials(client: TestClient, study: dict[str, Any]) -> dict[str, dict[str, str]]:
-    """Headers per security scheme: the researcher, a participant, a survey respondent."""
-    participant = client.post(f"/api/studies/{study['id']}/participants", headers=ADMIN)
-    human, other = finished(client, study["id"], "a"), finished(client, study["id"], "b")
-    survey = client.post(
-        "/api/surveys",
-        headers=ADMIN,
-        json=paper_body(
-            {"kind": "participant", "participant_id": human},
-            {"kind": "participant", "participant_id": other},
-        ),
-    )
-    assert survey.status_code == 201, survey.text
-    [respondent] = invite_respondents(client, survey.json()["id"])
-    return {
-        "AdminToken": ADMIN,
-        "InviteToken": {"Authorization": f"Bearer {participant.json()['token']}"},
-        "SurveyInviteToken": respondent.headers,
-    }
+    return scheme_headers(client, study["id"])
 
 
 @pytest.mark.parametrize("bad", BAD_INTEGERS, ids=repr)

@@ -14,7 +14,7 @@ from typing import Any
 import pytest
 from fastapi.testclient import TestClient
 
-from tests.app.conftest import ADMIN
+from tests.app.conftest import ADMIN, Player
 from tests.app.surveys_support import (
     finished,
     invite,
@@ -147,6 +147,27 @@ def test_unusable_trees_are_refused(client, trees, tree2, status, words) -> None
     response = client.post("/api/surveys", json=paper_body(trees["human"], tree2), headers=ADMIN)
     assert response.status_code == status, response.text
     assert words in response.json()["detail"]
+
+
+@pytest.mark.parametrize("token", ["NaN", "Infinity", "-Infinity", "1e999"])
+@pytest.mark.parametrize("where", ["env_reward", "score", "r_b", "r_e"])
+def test_uploads_with_non_finite_numbers_are_422(client, trees, where: str, token: str) -> None:
+    doc = copy.deepcopy(trees["bent_doc"])
+    if where == "env_reward":
+        doc["candidates"][0]["env_reward"] = "@NUMBER@"
+    elif where == "score":
+        for c in doc["candidates"]:
+            c["score"] = 1.0
+        doc["candidates"][1]["score"] = "@NUMBER@"
+    else:
+        doc["tree_reward"][where] = "@NUMBER@"
+    body = paper_body(trees["human"], {"kind": "upload", "doc": doc})
+    text = json.dumps(body).replace('"@NUMBER@"', token)  # JSON text as a client may send it
+    response = client.post(
+        "/api/surveys", content=text, headers=ADMIN | {"Content-Type": "application/json"}
+    )
+    assert response.status_code == 422, response.text
+    assert "must be a finite number" in response.json()["detail"]
 
 
 def test_semantic_errors_name_the_problem(client, trees, invite) -> None:
@@ -398,3 +419,35 @@ def test_likert_answers_are_tested_against_the_neutral_value(client, trees) -> N
     assert leaning["p_value"] == pytest.approx(2 * 0.5**3)  # exact two-sided sign test
     page = logged_in(client).get(f"/surveys/{survey['id']}")
     assert "3 above, 0 below, 1 at the neutral 3" in page.text
+
+
+def test_security_entries_list_every_scheme_that_works(client, trees) -> None:
+    """The participant tree, candidate image and survey thumbnail operations document as
+    OpenAPI ``security`` exactly the bearer schemes whose tokens they accept."""
+    survey = create(client, paper_body(trees["human"], trees["agent"]))
+    [respondent] = invite(client, survey["id"])
+    body = client.post(f"/api/studies/{trees['study']}/participants", headers=ADMIN).json()
+    Player(client, body["id"], body["token"], body["invite_url"]).play()
+    tokens = {
+        "AdminToken": ADMIN["Authorization"],
+        "InviteToken": f"Bearer {body['token']}",
+        "SurveyInviteToken": respondent.headers["Authorization"],
+    }
+    operations = {
+        "/api/participants/{participant_id}/tree": f"/api/participants/{body['id']}/tree",
+        "/api/studies/{study_id}/candidates/{candidate_id}/image": (
+            f"/api/studies/{trees['study']}/candidates/0/image"
+        ),
+        "/api/surveys/{survey_id}/studies/{study_id}/candidates/{candidate_id}/thumb": (
+            f"/api/surveys/{survey['id']}/studies/{trees['study']}/candidates/0/thumb"
+        ),
+    }
+    paths = client.app.openapi()["paths"]
+    for template, url in operations.items():
+        documented = {name for entry in paths[template]["get"]["security"] for name in entry}
+        works = {
+            scheme
+            for scheme, token in tokens.items()
+            if client.get(url, headers={"Authorization": token}).status_code == 200
+        }
+        assert documented == works, template

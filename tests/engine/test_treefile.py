@@ -176,3 +176,27 @@ def test_load_reports_the_file_of_a_malformed_tree(doc, tmp_path) -> None:
 def test_a_negative_seed_is_an_input_error() -> None:
     with pytest.raises(InputError, match="seed must be in 0"):
         run_tournament(env_id="Hopper-v5", n_candidates=4, p=0.9, seed=-1, teacher="good")
+
+
+@pytest.mark.parametrize("number", [float("nan"), float("inf"), float("-inf")])
+@pytest.mark.parametrize(
+    "put",
+    [
+        lambda o, x: o["candidates"][0].update(env_reward=x),
+        lambda o, x: (
+            [c.update(score=1.0) for c in o["candidates"]] and o["candidates"][1].update(score=x)
+        ),
+        lambda o, x: o["tree_reward"].update(r_b=x),
+        lambda o, x: o["tree_reward"].update(r_e=x),
+        lambda o, x: o.update(p=x),
+        lambda o, x: o["candidates"][0]["qvel"].__setitem__(0, x),
+        lambda o, x: _node(o, reward=x),
+    ],
+    ids=["env_reward", "score", "r_b", "r_e", "p", "qvel", "node-reward"],
+)
+def test_every_number_must_be_finite(doc, put, number: float) -> None:
+    obj = copy.deepcopy(tree_to_json(doc))
+    put(obj, number)
+    with pytest.raises(InputError) as info:
+        tree_from_json(obj)
+    assert "\n" not in str(info.value)
