@@ -13,6 +13,7 @@ from app.api.deps import DbId, ResearcherDep, SessionDep
 from app.api.runs import PENDING, JudgeQuery, RunsRootDep, Step, load_view
 from app.services.errors import ConflictError
 from app.services.pools import members
+from engine.judges import DEFAULT_JUDGE
 
 router = APIRouter(prefix="/runs", tags=["runs"])
 
@@ -24,7 +25,7 @@ def advisors(
     root: RunsRootDep,
     _: ResearcherDep,
     checkpoint: Step = None,
-    judge: JudgeQuery = "shaped",
+    judge: JudgeQuery = DEFAULT_JUDGE,
 ) -> AdvisorsOut:
     """The agent's tree at a checkpoint against each pooled participant's tree, and against
     the pooled verdict; 409 for a run not on pooled advice."""

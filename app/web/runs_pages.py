@@ -195,11 +195,13 @@ def create_run(request: Request, session: SessionDep, fields: FormFields) -> Res
         raise InputError("the form names no study") from None
     body = _body(study_id, values, chosen)
     try:
-        if values["experiment"] and values["algo"] != "ppo":
+        if values["experiment"]:  # seeds checked even where ppo (its own baseline) ignores them
             spec = ExperimentCreate.model_validate(
                 body | {"seeds": values["seeds"].strip()}, context=FORM_INPUT
             ).spec()
-            return redirect(f"/experiments/{experiments.create_experiment(session, spec=spec).id}")
+            if values["algo"] != "ppo":
+                experiment = experiments.create_experiment(session, spec=spec)
+                return redirect(f"/experiments/{experiment.id}")
         run = runs.create_run(
             session, **RunCreate.model_validate(body, context=FORM_INPUT).model_dump()
         )

@@ -28,6 +28,7 @@ from sqlalchemy import text
 
 from app.api.deps import AJAX_HEADER
 from app.db import make_engine, make_sessions, upgrade
+from app.models import Experiment, ExperimentRun
 from app.services import auth
 from tests.app.conftest import ADMIN, ADMIN_TOKEN, Player
 from tests.app.runs_support import TINY, create_run, wait_run
@@ -163,6 +164,7 @@ def world(client: TestClient, study: dict[str, Any], make_study) -> dict[str, An
         json={"enabled": True, "max_participants": 100},
     ).json()
     params = {
+        "experiment_id": _experiment(client, study_id=study["id"], run_id=run_id),
         "survey_slug": survey_link["slug"],  # ``slug`` in /q/{slug}
         "study_id": study["id"],
         "candidate_id": 0,
@@ -184,6 +186,16 @@ def world(client: TestClient, study: dict[str, Any], make_study) -> dict[str, An
         "b": b,
         "label": {"winner": final["winner"]},
     }
+
+
+def _experiment(client: TestClient, *, study_id: int, run_id: int) -> int:
+    """An experiment whose only run is the world's trained one (no new runs to train)."""
+    with client.app.state.runtime.sessions() as session, session.begin():
+        experiment = Experiment(study_id=study_id, spec={}, seeds=[0], pilot_seeds=[])
+        session.add(experiment)
+        session.flush()
+        session.add(ExperimentRun(experiment_id=experiment.id, run_id=run_id, role="advised"))
+        return experiment.id
 
 
 def _invite(client: TestClient, study_id: int) -> Player:

@@ -258,7 +258,7 @@ def test_unknown_checkpoints_and_runs(client: TestClient, runs: dict[str, dict])
         ({"teacher": "standing"}, 422, "not both"),
         ({"participant_id": None, "algo": "bipars-em"}, 422, "trains with advice"),
         ({"algo": "sac"}, 422, "algo"),
-        ({"participant_id": None, "teacher": "random"}, 422, "teacher"),
+        ({"participant_id": None, "teacher": "psychic"}, 422, "teacher"),
         ({"timesteps": 0}, 422, "timesteps"),
         ({"n_envs": 1, "num_minibatches": 999}, 422, "num_minibatches"),
         ({"study_id": 999999}, 404, "study 999999"),

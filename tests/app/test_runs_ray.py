@@ -94,7 +94,7 @@ def test_runs_execute_as_ray_tasks(settings, ray_address: str) -> None:
         checkpoints = client.get(f"/api/runs/{tiny}/checkpoints", headers=ADMIN).json()
         assert [c["checkpoint"] for c in checkpoints] == [256, 512]
         agent = client.get(f"/api/runs/{tiny}/agent-tree", headers=ADMIN).json()
-        assert agent["judge"] == "agent:shaped@512"
+        assert agent["judge"] == "agent:return@512"
 
         wait_run(client, long, progressed)
         client.post(f"/api/runs/{long}/cancel", headers=ADMIN)

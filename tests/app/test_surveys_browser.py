@@ -237,7 +237,7 @@ def test_blank_questions_an_upload_and_a_run_through_the_form(
     one.locator("[data-field=study_id]").select_option(str(study_id))
     two.locator("[data-field=kind]").select_option("run")
     two.locator("[data-field=checkpoint]").select_option(f"{run_id}:512")
-    expect(two.locator("[data-field=judge] option")).to_have_text(["value"])
+    expect(two.locator("[data-field=judge] option")).to_have_text(["shaped-value"])
     page.check("#highlights")
     page.check("input[name=assignment][value=round_robin]")
     page.fill("#seed", "42")
@@ -257,5 +257,10 @@ def test_blank_questions_an_upload_and_a_run_through_the_form(
     assert (survey["highlights"], survey["assignment"], survey["seed"]) == (True, "round_robin", 42)
     tree1, tree2 = survey["stimuli"][0]["trees"]
     assert tree1["source"]["kind"] == "upload" and tree1["study_id"] == study_id
-    assert tree2["source"] == {"kind": "run", "run_id": run_id, "checkpoint": 512, "judge": "value"}
+    assert tree2["source"] == {
+        "kind": "run",
+        "run_id": run_id,
+        "checkpoint": 512,
+        "judge": "shaped-value",
+    }
     assert errors == []
