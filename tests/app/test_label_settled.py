@@ -99,9 +99,12 @@ def test_controls_answer_only_once_the_fade_is_over(server, browser: Browser, in
     context.close()
     assert len(enabled) == 4 and len(sent) == 3 and len(keys) == 3
     assert all(e["animations"] == 0 and e["opacity"] == "1" for e in enabled), enabled
-    # The response time runs from the moment the page settled to the key press.
+    # The response time runs from the moment the page settled to the key press, not from
+    # before the 1.5 s fade. The page and this watcher read the clock a few statements apart
+    # (the observer runs after label.js's handler, and a loaded machine may pause between
+    # them), so they agree to well within the fade, not to the millisecond.
     for body, key_at, shown in zip(sent, keys, enabled, strict=False):
-        assert abs(body["response_ms"] - (key_at - shown["at"])) <= 2, (body, key_at, shown)
+        assert abs(body["response_ms"] - (key_at - shown["at"])) <= 100, (body, key_at, shown)
     assert errors == []
 
 
