@@ -13,9 +13,10 @@ CANNOT_SHOW = """\
 The tree replays the human's bracket with a score the agent gives each candidate. What it
 shows depends on that score. With the *shaped* judge the score is R + z F, and at a candidate F
 is the advice's own tree reward: with z near 1 the tree restates the advice whatever the agent
-learned, so keeping the advice under this judge is weak evidence. The *value* judge reads the
-critic, and the *behaviour* judge reads where the agent's own rollouts go (a revealed
-preference): these can disagree with the advice, and that is the evidence. Only *contested*
+learned, so keeping the advice under this judge is weak evidence. The *shaped-value* judge reads
+the critic, which learns R + z F and so partly restates the advice too; the *behaviour* judge
+reads where the agent's own rollouts go (a revealed preference), which can disagree with the
+advice, and that is the evidence. Only *contested*
 matches, where the advice goes against the environment's reward, can tell an agent that used
 the advice from one that followed the reward; a bracket with none of them cannot tell at all.
 The 16 candidates are one bracket: a Wilson interval over its 15 matches is an interval over
@@ -32,8 +33,10 @@ def readme(summary: dict[str, Any]) -> str:
         f"`{summary['commit']}`: {cfg['env_id']}, {cfg['timesteps']:,} env steps per run, "
         f"{cfg['seeds']} seed(s) for the core arms and {cfg['extra_seeds']} for the others, one "
         f"bracket of {cfg['candidates']} candidates (p = {cfg['p']}, seed {cfg['bracket_seed']})"
-        ". Over seeds: mean and Student's t 95% interval `[low, high]`. Every number comes "
-        "from `summary.json`.\n",
+        ". Over seeds: mean and Student's t 95% interval `[low, high]`. A claim holds only "
+        "against a baseline (chance, or the no-advice arm) with an interval that excludes it: "
+        "Welch's t 95% interval of the difference over seeds; one seed never holds. Every "
+        "number comes from `summary.json`.\n",
         "## Paper vs measured\n",
         _table(
             ["claim", "paper", "measured", "rests on", "holds?"],

@@ -3,11 +3,26 @@
 Each claim names what it rests on: the arm, its seeds, the judge, the checkpoints and the
 bracket, and the rule that decides whether it holds. Numbers over seeds are means with a
 Student's t 95% interval (``[low, high]``; none for one seed).
+
+A claim **holds** only against a baseline, with an interval that excludes it: chance (0.5) for
+a share of matches, or the baseline arm, through Welch's t 95% interval of the difference of
+per-seed values. A mean past a threshold is not enough, and one seed gives no interval, so a
+claim on one seed never holds.
 """
 
 from __future__ import annotations
 
+import warnings
+from collections.abc import Sequence
 from typing import Any
+
+import numpy as np
+from scipy import stats
+
+#: A share of matches that a coin would reach.
+CHANCE = 0.5
+#: "Close to the baseline": the difference's interval stays above -10% of the baseline's mean.
+CLOSE = 0.10
 
 
 def predictions(arms: dict[str, Any]) -> list[dict[str, Any]]:
@@ -44,8 +59,8 @@ def _case1(arms: dict[str, Any]) -> dict[str, Any] | None:
         f"{stat_text(behaviour['match_agreement'])}; contested matches per seed: "
         f"{', '.join(contested)} (the good tree goes with R everywhere, so no match can show "
         "that the advice was used)",
-        _mean(shaped["match_agreement"]) >= 0.8,
-        "shaped judge keeps at least 80% (mean)",
+        _mean(shaped["match_agreement"]) >= 0.8 and _above(shaped["match_agreement"], CHANCE),
+        "shaped judge keeps at least 80% (mean), its interval above chance (0.5)",
     )
 
 
@@ -63,49 +78,59 @@ def _case2_bent(arms: dict[str, Any]) -> dict[str, Any] | None:
         f"bent won {stat_text(final['shaped']['bent_share'], pct=True)} of "
         f"straight-vs-bent matches (shaped), "
         f"{stat_text(final['behaviour']['bent_share'], pct=True)} (behaviour)",
-        _mean(final["shaped"]["bent_share"]) > 0.5,
-        "bent wins most straight-vs-bent matches, shaped judge, mean over seeds",
+        _above(final["shaped"]["bent_share"], CHANCE),
+        "bent's share (shaped judge) has its interval above chance (0.5)",
     )
 
 
 def _case2_anytime(arms: dict[str, Any]) -> dict[str, Any] | None:
-    arm = arms.get("case2")
-    if arm is None:
+    case2, ppo = arms.get("case2"), arms.get("ppo")
+    if case2 is None or ppo is None:
         return None
-    counts = [
-        sum(1 for p in s["main"] if (p["judges"]["shaped"]["bent_share"] or 0) > 0.5)
-        for s in arm["seeds"]
-    ]
-    total = len(arm["seeds"][0]["main"])
+    shares = {name: _bent_checkpoints(arm) for name, arm in (("case2", case2), ("ppo", ppo))}
+    diff = difference(shares["case2"], shares["ppo"])
     return _claim(
         "Case 2, anytime: the agent prefers bent postures at some checkpoint",
         "(the paper shows the trees at one point of training)",
-        arm,
+        case2,
         "shaped",
         "every",
-        "checkpoints where bent won most straight-vs-bent matches, per seed: "
-        + ", ".join(f"{c}/{total}" for c in counts),
-        all(c > 0 for c in counts),
-        "at one checkpoint or more, in every seed",
+        "share of checkpoints where bent won most straight-vs-bent matches, per seed: "
+        f"Case 2 {_shares(shares['case2'])}, PPO without advice {_shares(shares['ppo'])}; "
+        f"difference {diff_text(diff)}",
+        diff["ci_low"] is not None and diff["ci_low"] > 0,
+        "Case 2's share is above PPO's (interval of the difference above 0)",
     )
+
+
+def _bent_checkpoints(arm: dict[str, Any]) -> list[float]:
+    """Per seed, the share of checkpoints where bent won most straight-vs-bent matches."""
+    return [
+        float(np.mean([(p["judges"]["shaped"]["bent_share"] or 0) > 0.5 for p in s["main"]]))
+        for s in arm["seeds"]
+    ]
+
+
+def _shares(values: list[float]) -> str:
+    return ", ".join(f"{v:.0%}" for v in values)
 
 
 def _case2_return(arms: dict[str, Any]) -> dict[str, Any] | None:
     case2, ppo = arms.get("case2"), arms.get("ppo")
     if case2 is None or ppo is None:
         return None
-    a, b = _mean(case2["final_return"]), _mean(ppo["final_return"])
-    ratio = a / b if b and b > 0 else None
+    diff = difference(_per_seed(case2, "final_return_100"), _per_seed(ppo, "final_return_100"))
+    margin = -CLOSE * abs(_mean(ppo["final_return"]))
     return _claim(
         "Case 2: the return is close to the no-advice baseline",
         "BiPaRS with bad advice reaches about the PPO return",
         case2,
         "(true return)",
         "last",
-        f"{stat_text(case2['final_return'])} vs PPO {stat_text(ppo['final_return'])}"
-        + ("" if ratio is None else f" ({ratio:.2f} of PPO)"),
-        ratio is not None and ratio >= 0.9,
-        "at least 90% of PPO's mean final return",
+        f"{stat_text(case2['final_return'])} vs PPO {stat_text(ppo['final_return'])}; "
+        f"difference {diff_text(diff)}",
+        diff["ci_low"] is not None and diff["ci_low"] > margin,
+        f"the difference's interval stays above -{CLOSE:.0%} of PPO's mean ({margin:.0f})",
     )
 
 
@@ -113,15 +138,17 @@ def _control_return(arms: dict[str, Any]) -> dict[str, Any] | None:
     control, case2 = arms.get("control"), arms.get("case2")
     if control is None or case2 is None:
         return None
+    diff = difference(_per_seed(case2, "final_return_100"), _per_seed(control, "final_return_100"))
     return _claim(
         "Control: naive shaping with the standing advice does worse than Case 2",
         "not in the paper (ACV's control for what a learned z buys)",
         control,
         "(true return)",
         "last",
-        f"{stat_text(control['final_return'])} vs Case 2 {stat_text(case2['final_return'])}",
-        _mean(control["final_return"]) < _mean(case2["final_return"]),
-        "lower mean final return than Case 2",
+        f"{stat_text(control['final_return'])} vs Case 2 {stat_text(case2['final_return'])}; "
+        f"Case 2 minus control {diff_text(diff)}",
+        diff["ci_low"] is not None and diff["ci_low"] > 0,
+        "Case 2's return is higher (interval of the difference above 0)",
     )
 
 
@@ -131,15 +158,17 @@ def _contested(arms: dict[str, Any]) -> dict[str, Any] | None:
         return None
     c2 = case2["final"]["main"]["behaviour"]["contested_agreement"]
     ctl = control["final"]["main"]["behaviour"]["contested_agreement"]
+    diff = difference(_contested_per_seed(control), _contested_per_seed(case2))
     return _claim(
         "Case 2 rejects the advice where it goes against the reward, more than naive shaping",
         "implied: BiPaRS learns to ignore harmful advice",
         case2,
         "behaviour",
         "last",
-        f"contested matches kept by behaviour: Case 2 {stat_text(c2)}, control {stat_text(ctl)}",
-        _mean(c2) < _mean(ctl),
-        "Case 2 keeps fewer contested matches than the control",
+        f"contested matches kept by behaviour: Case 2 {stat_text(c2)}, control {stat_text(ctl)}; "
+        f"control minus Case 2 {diff_text(diff)}",
+        diff["ci_low"] is not None and diff["ci_low"] > 0,
+        "Case 2 keeps fewer contested matches (interval of the difference above 0)",
     )
 
 
@@ -149,6 +178,7 @@ def _used_at_all(arms: dict[str, Any]) -> dict[str, Any] | None:
         return None
     c2 = case2["final"]["main"]["behaviour"]["contested_agreement"]
     base = ppo["final"]["main"]["behaviour"]["contested_agreement"]
+    diff = difference(_contested_per_seed(case2), _contested_per_seed(ppo))
     return _claim(
         "The standing advice changed what the agent does, beyond what PPO without advice does",
         "implied by any verdict on advice use",
@@ -156,9 +186,9 @@ def _used_at_all(arms: dict[str, Any]) -> dict[str, Any] | None:
         "behaviour",
         "last",
         f"contested matches kept by behaviour: Case 2 {stat_text(c2)}, PPO without advice "
-        f"{stat_text(base)}",
-        c2["ci_low"] is not None and base["ci_high"] is not None and c2["ci_low"] > base["ci_high"],
-        "Case 2's interval lies above PPO's (no overlap)",
+        f"{stat_text(base)}; difference {diff_text(diff)}",
+        diff["ci_low"] is not None and diff["ci_low"] > 0,
+        "Case 2 keeps more than PPO (interval of the difference above 0)",
     )
 
 
@@ -176,10 +206,49 @@ def _agent_bracket(arms: dict[str, Any]) -> dict[str, Any] | None:
         f"matches kept: shaped {stat_text(final['shaped']['match_agreement'])}, behaviour "
         f"{stat_text(final['behaviour']['match_agreement'])}; bent share (shaped) "
         f"{stat_text(final['shaped']['bent_share'], pct=True)}",
-        _mean(final["shaped"]["bent_share"]) > 0.5,
-        "bent wins most straight-vs-bent matches there too (shaped, mean)",
+        _above(final["shaped"]["bent_share"], CHANCE),
+        "bent's share (shaped) has its interval above chance (0.5) there too",
         bracket="agent",
     )
+
+
+def _per_seed(arm: dict[str, Any], key: str) -> list[float | None]:
+    return [s[key] for s in arm["seeds"]]
+
+
+def _contested_per_seed(arm: dict[str, Any]) -> list[float | None]:
+    """Per seed, the behaviour judge's share of contested matches kept, last checkpoint."""
+    return [s["main"][-1]["judges"]["behaviour"]["contested_agreement"] for s in arm["seeds"]]
+
+
+def difference(a: Sequence[float | None], b: Sequence[float | None]) -> dict[str, Any]:
+    """Mean of ``a`` minus mean of ``b`` with Welch's t 95% interval (None with fewer than
+    two values on either side). Values that are all equal on both sides give the point."""
+    x, y = (np.asarray([v for v in vs if v is not None], dtype=np.float64) for vs in (a, b))
+    delta = float(x.mean() - y.mean()) if len(x) and len(y) else None
+    if len(x) < 2 or len(y) < 2:
+        return {"delta": delta, "ci_low": None, "ci_high": None}
+    if np.ptp(x) == 0 and np.ptp(y) == 0:  # scipy answers nan; the difference is exact
+        return {"delta": delta, "ci_low": delta, "ci_high": delta}
+    with warnings.catch_warnings():  # a constant side (PPO at 100% on every seed) is exact:
+        warnings.simplefilter("ignore", RuntimeWarning)  # scipy warns of precision loss there
+        low, high = stats.ttest_ind(x, y, equal_var=False).confidence_interval(0.95)
+    return {"delta": delta, "ci_low": float(low), "ci_high": float(high)}
+
+
+def diff_text(diff: dict[str, Any]) -> str:
+    """``+0.14 [-0.05, 0.33]``, or ``n/a`` / no interval with too few seeds."""
+    if diff["delta"] is None:
+        return "n/a"
+    f = (lambda v: f"{v:+.2f}") if abs(diff["delta"]) < 10 else (lambda v: f"{v:+.0f}")
+    if diff["ci_low"] is None:
+        return f"{f(diff['delta'])} (no interval: one seed)"
+    return f"{f(diff['delta'])} [{f(diff['ci_low'])}, {f(diff['ci_high'])}]"
+
+
+def _above(stat: dict[str, Any], baseline: float) -> bool:
+    """The interval over seeds lies above ``baseline`` (never with one seed)."""
+    return stat["ci_low"] is not None and stat["ci_low"] > baseline
 
 
 def _claim(
