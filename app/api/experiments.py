@@ -11,13 +11,15 @@ from datetime import datetime
 from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, Query, Response
+from fastapi.responses import JSONResponse
 from pydantic import BaseModel, ConfigDict, Field
 
 from app.api.deps import DbId, ResearcherDep, SessionDep
 from app.api.run_schemas import Judge, RunCreate
 from app.api.schemas import JsonInt, ProgressOut, UtcDatetime
 from app.models import Experiment
-from app.services import experiments
+from app.services import experiment_notes, experiments
+from app.services.csv_export import csv_text
 from app.services.experiments import (
     DEFAULT_PILOT_SEEDS,
     DEFAULT_SEEDS,
@@ -133,14 +135,18 @@ def get_experiment(experiment_id: DbId, session: SessionDep, _: ResearcherDep) -
     return _out(session, experiments.get_experiment(session, experiment_id=experiment_id))
 
 
+JudgeQuery = Annotated[Judge, Query(description="How the runs score states.")]
+StepQuery = Annotated[int | None, Query(ge=0, description="Checkpoint (default: latest).")]
+
+
 @router.get("/{experiment_id}/verdict", responses=PENDING)
 def experiment_verdict(
     experiment_id: DbId,
     session: SessionDep,
     response: Response,
     _: ResearcherDep,
-    judge: Annotated[Judge, Query(description="How the runs score states.")] = DEFAULT_JUDGE,
-    step: Annotated[int | None, Query(ge=0, description="Checkpoint (default: latest).")] = None,
+    judge: JudgeQuery = DEFAULT_JUDGE,
+    step: StepQuery = None,
 ) -> VerdictOut | dict[str, str]:
     """Advised runs against the matched baseline at one checkpoint step, for one judge."""
     found = experiments.experiment_verdict(
@@ -151,4 +157,32 @@ def experiment_verdict(
         return {"status": "pending"}
     return VerdictOut(
         judge=found.judge, step=found.step, runs=found.runs, verdict=found.verdict.to_json()
+    )
+
+
+@router.get(
+    "/{experiment_id}/verdict.csv",
+    response_class=Response,
+    responses={200: {"content": {"text/csv": {}}}, **PENDING},
+)
+def experiment_verdict_csv(
+    experiment_id: DbId,
+    session: SessionDep,
+    _: ResearcherDep,
+    judge: JudgeQuery = DEFAULT_JUDGE,
+    step: StepQuery = None,
+) -> Response:
+    """The verdict as CSV, one row per run it rests on: role, seed and the run's share of the
+    contested matches kept (CA), with Δ, its interval, p, AUC and the outcome on every row."""
+    found = experiments.experiment_verdict(
+        session, experiment_id=experiment_id, judge=judge, step=step
+    )
+    if found is None:
+        return JSONResponse({"status": "pending"}, status_code=202)
+    rows = experiment_notes.verdict_rows(session, experiment_id=experiment_id, found=found)
+    name = f"experiment-{experiment_id}-verdict-{found.judge}-step{found.step}.csv"
+    return Response(
+        csv_text(experiment_notes.CSV_HEADER, rows),
+        media_type="text/csv",
+        headers={"Content-Disposition": f'attachment; filename="{name}"'},
     )

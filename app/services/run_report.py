@@ -18,6 +18,7 @@ from sqlalchemy.orm import Session
 
 from app.models import Run
 from app.services import comparison, figures, studies
+from app.services.experiment_notes import notes_of_runs
 from app.services.images import SPECS, image_file
 from app.services.runs import advice_label, advice_of
 from engine.conformance import Conformance
@@ -114,6 +115,7 @@ def report_context(
         "score_column": comparison.score_column(judge),
         "metrics": metrics,
         "verdict": comparison.verdict(view, judge, whose(run)),
+        "experiment_notes": notes_of_runs(session, run_ids=[run.id], judge=judge),
         "who": who(run),
         "pairs": rejected_pairs(metrics),
         "judges": view.conformance,

@@ -23,14 +23,22 @@ from app.api.runs import RunsRootDep
 from app.api.schemas import FORM_INPUT
 from app.jobs.execute import run_dir
 from app.models import Run
-from app.services import comparison, experiments, participants, run_report, runs, studies
+from app.services import (
+    comparison,
+    experiment_notes,
+    experiments,
+    participants,
+    run_report,
+    runs,
+    studies,
+)
 from app.services.errors import PendingError
 from app.services.experiments import DEFAULT_SEEDS
 from app.web.csrf import CsrfChecked, FormFields
 from app.web.guards import ResearcherPage
 from app.web.rendering import PageRoute, redirect, render, thumb_template
 from engine.errors import InputError
-from engine.judges import judge_name
+from engine.judges import DEFAULT_JUDGE, judge_name
 from engine.rl.config import ADVICE_MODES, ALGOS
 
 router = APIRouter(route_class=PageRoute, include_in_schema=False, dependencies=[ResearcherPage])
@@ -269,7 +277,9 @@ def compare_page(
             "who": run_report.who(run),
             "whose": run_report.whose(run),
             "selected": selected,
-            "experiment_ids": experiments.experiments_of_run(session, run_id=run_id),
+            "experiment_notes": experiment_notes.notes_of_runs(
+                session, run_ids=[run_id], judge=judge_name(shown)
+            ),
             "thumb_template": thumb_template(run.study_id),
             "image_template": thumb_template(run.study_id).removesuffix("?size=thumb"),
             "others": len(runs.same_advice_runs(session, run=run)),
@@ -295,12 +305,8 @@ def compare_runs_page(
             "run": RunOut.of(run),
             "study": studies.get_study(session, study_id=run.study_id),
             "rows": rows,
-            "experiment_ids": sorted(
-                {
-                    e
-                    for r in rows
-                    for e in experiments.experiments_of_run(session, run_id=r["run"].id)
-                }
+            "experiment_notes": experiment_notes.notes_of_runs(
+                session, run_ids=[r["run"].id for r in rows], judge=DEFAULT_JUDGE
             ),
             "whose": run_report.whose(run),
             "advice": runs.advice_label(run),

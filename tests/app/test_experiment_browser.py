@@ -80,6 +80,12 @@ def test_the_verdict_arrives_on_the_experiment_page(server, browser: Browser) ->
     expect(page.locator("#verdict")).to_have_attribute("data-outcome", "used", timeout=30_000)
     expect(page.locator("#verdict")).to_contain_text("used your advice")
     assert_accessible(page, "experiment page with its verdict")
+    # An advised run's comparison page gives the same verdict, for its judge.
+    page.goto(f"{base}/runs/{experiment['runs'][0]['id']}/compare?judge=behaviour")
+    note = page.locator(f"#experiment-note li[data-experiment='{experiment['id']}']")
+    expect(note).to_have_attribute("data-outcome", "used")
+    expect(note).to_contain_text("Used your advice")
+    assert_accessible(page, "compare page with its experiment's verdict")
     context.close()
     phone, p = new_page(browser, errors, viewport=PHONE, is_mobile=True, has_touch=True)
     p.goto(f"{base}/login#token={ADMIN_TOKEN}")

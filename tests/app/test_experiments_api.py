@@ -8,6 +8,8 @@ known. Training and judging for real are covered by the runs tests and the brows
 
 from __future__ import annotations
 
+import csv
+import io
 from collections.abc import Iterator
 from typing import Any
 
@@ -106,6 +108,8 @@ def test_the_verdict_waits_for_judged_runs_then_says_used(client, study) -> None
     )
     path = f"/api/experiments/{experiment['id']}/verdict?judge=behaviour"
     assert client.get(path, headers=ADMIN).status_code == 202
+    pending_csv = client.get(path.replace("verdict?", "verdict.csv?"), headers=ADMIN)
+    assert pending_csv.status_code == 202 and pending_csv.json() == {"status": "pending"}
     advice = np.array(
         [
             c["env_reward"]
@@ -126,6 +130,43 @@ def test_the_verdict_waits_for_judged_runs_then_says_used(client, study) -> None
     assert verdict["outcome"] == "used", verdict
     assert verdict["ca_advised"] == [1.0] * 5 and verdict["ca_baseline"] == [0.0] * 5
     assert verdict["p_value"] < 0.05 and verdict["n_contested"] >= 3
+    _the_verdict_as_csv(client, experiment, verdict, path.replace("verdict?", "verdict.csv?"))
+    _the_verdict_on_the_runs_pages(client, experiment)
+
+
+def _the_verdict_as_csv(client: TestClient, experiment: dict, verdict: dict, path: str) -> None:
+    """One row per run the verdict rests on: its role, seed and CA; the verdict on each."""
+    response = client.get(path, headers=ADMIN)
+    assert response.status_code == 200 and response.headers["content-type"].startswith("text/csv")
+    assert (
+        f"experiment-{experiment['id']}-verdict-behaviour-step{STEP}.csv"
+        in (response.headers["content-disposition"])
+    )
+    rows = list(csv.DictReader(io.StringIO(response.text)))
+    by_role = {role: [r for r in rows if r["role"] == role] for role in ("advised", "baseline")}
+    seeds = {r["id"]: str(r["seed"]) for r in experiment["runs"]}
+    assert [r["ca"] for r in by_role["advised"]] == ["1.0"] * 5
+    assert [r["ca"] for r in by_role["baseline"]] == ["0.0"] * 5
+    assert [(r["role"], r["ca"]) for r in rows[10:]] == [("pilot", "")]
+    assert all(r["seed"] == seeds[int(r["run_id"])] for r in rows)
+    assert {(r["outcome"], r["judge"], r["step"]) for r in rows} == {("used", "behaviour", "256")}
+    assert {float(r["p_value"]) for r in rows} == {verdict["p_value"]}
+    assert {int(r["contested_matches"]) for r in rows} == {verdict["n_contested"]}
+
+
+def _the_verdict_on_the_runs_pages(client: TestClient, experiment: dict) -> None:
+    """An advised run's comparison pages give its experiment's verdict with the page's judge
+    where that judge leads verdicts; these artefacts have no return column, which they say."""
+    page = logged_in(client)
+    advised = experiment["runs"][0]["id"]
+    note = f'<li data-experiment="{experiment["id"]}" data-outcome='
+    shown = page.get(f"/runs/{advised}/compare?judge=behaviour").text
+    assert note + '"used"' in shown and "Used your advice" in shown and audit(shown) == []
+    diagnostic = page.get(f"/runs/{advised}/compare?judge=shaped").text  # never a verdict's
+    assert note + '"unavailable"' in diagnostic and "without the &#39;return&#39; judge" in (
+        diagnostic
+    )
+    assert note + '"unavailable"' in page.get(f"/runs/{advised}/compare-runs").text
 
 
 @pytest.mark.parametrize(

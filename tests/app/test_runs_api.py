@@ -23,7 +23,7 @@ from typer.testing import CliRunner, Result
 
 from app.cli import cli
 from app.db import make_engine, make_sessions
-from app.models import CheckpointArtefact
+from app.models import CheckpointArtefact, Experiment, ExperimentRun
 from app.services import artefacts, figures, run_report
 from engine.conformance import compare
 from engine.pipeline import replay_with_teacher
@@ -181,6 +181,25 @@ def test_exports(client: TestClient, runs: dict[str, dict]) -> None:
     assert report.count('<img src="data:image/jpeg;base64,') == 2 * len(rejected)
     assert bool(rejected) != ("the agent kept every choice" in report)
     assert report.count("<svg") == 4  # two trees and two curves, inline
+    assert "Did the advice change the agent?" not in report  # in no experiment
+
+
+def test_the_report_gives_the_verdict_of_the_runs_experiments(
+    client: TestClient, study: dict, runs: dict[str, dict]
+) -> None:
+    """A run in an experiment: its report says where that experiment's verdict stands (here
+    pending: one advised run and one baseline are not enough)."""
+    em, ppo = runs["em"]["id"], runs["ppo"]["id"]
+    with client.app.state.runtime.sessions() as session, session.begin():
+        experiment = Experiment(study_id=study["id"], spec={}, seeds=[0], pilot_seeds=[])
+        session.add(experiment)
+        session.flush()
+        for run_id, role in ((em, "advised"), (ppo, "baseline")):
+            session.add(ExperimentRun(experiment_id=experiment.id, run_id=run_id, role=role))
+        experiment_id = experiment.id
+    report = api(client, f"/api/runs/{em}/report.html?judge=behaviour").text
+    assert "Did the advice change the agent?" in report
+    assert f"Experiment #{experiment_id}: No verdict yet" in report
 
 
 def test_a_corrupt_thumbnail_is_drawn_without_its_picture(
