@@ -32,7 +32,7 @@ from app.models import Experiment, ExperimentRun
 from app.services import auth
 from tests.app.conftest import ADMIN, ADMIN_TOKEN, Player
 from tests.app.runs_support import TINY, create_run, wait_run
-from tests.support.postgres import BACKENDS
+from tests.support.postgres import BACKENDS, empty_database
 from tests.support.web import browser, csrf_token
 
 ANON, A, B, RESEARCHER = "anonymous", "participant A", "participant B", "researcher"
@@ -333,11 +333,7 @@ def test_invite_links_from_before_the_token_hash_still_work(
 ) -> None:
     """Migration 0003 hashes the tokens of existing participants, and keeps their matches
     (no table copy whose drop would cascade)."""
-    url = (
-        f"sqlite:///{tmp_path / 'old.sqlite3'}"
-        if backend == "sqlite"
-        else request.getfixturevalue("postgres").create_database()
-    )
+    url = empty_database(request, tmp_path, backend)
     upgrade(url, "0002")
     engine = make_engine(url)
     token = auth.new_token()

@@ -19,6 +19,7 @@ from app.services.auth import PARTICIPANT_COOKIE
 from app.services.sides import a_on_left
 from app.web.ratelimit import LoginLimiter
 from tests.app.conftest import ADMIN, Player
+from tests.support.postgres import empty_database
 
 SETTINGS = {"enabled": True, "max_participants": 50}
 
@@ -363,11 +364,7 @@ def test_consistency_check_repeats_a_pair_swapped(client, make_study) -> None:
 @pytest.mark.parametrize("backend", ["sqlite", "postgresql"])
 def test_migration_0006_keeps_matches_and_labels(request, tmp_path, backend: str) -> None:
     """0006 adds columns in place (no table copy whose drop would cascade to labels)."""
-    url = (
-        f"sqlite:///{tmp_path / 'old.sqlite3'}"
-        if backend == "sqlite"
-        else request.getfixturevalue("postgres").create_database()
-    )
+    url = empty_database(request, tmp_path, backend)
     upgrade(url, "0005")
     engine = make_engine(url)
     with engine.begin() as conn:

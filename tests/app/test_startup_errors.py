@@ -31,7 +31,7 @@ from app.services.studies import create_study
 from app.settings import Settings
 from tests.app.conftest import ADMIN_TOKEN
 from tests.support.net import free_port, listening
-from tests.support.postgres import BACKENDS
+from tests.support.postgres import BACKENDS, empty_database
 from tests.support.server import clean_env
 
 REPO = Path(__file__).resolve().parents[2]
@@ -192,11 +192,7 @@ def _at_once(code: str, *args: str, n: int = 4) -> list[subprocess.CompletedProc
 @pytest.mark.process
 @pytest.mark.parametrize("backend", BACKENDS)
 def test_concurrent_migrations_of_a_fresh_database(request, tmp_path: Path, backend: str) -> None:
-    url = (
-        f"sqlite:///{tmp_path / 'acv.sqlite3'}"
-        if backend == "sqlite"
-        else request.getfixturevalue("postgres").create_database()
-    )
+    url = empty_database(request, tmp_path, backend)
     code = (
         "from app.db import upgrade\n"
         "time.sleep(max(0.0, START - time.time()))\nupgrade(sys.argv[2])\n"

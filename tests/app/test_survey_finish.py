@@ -19,6 +19,7 @@ from app.services import survey_crowd, survey_respond
 from app.services.survey_respond import AnswerIn
 from tests.app.conftest import ADMIN, BACKENDS
 from tests.app.surveys_support import invite, paper_body, participant_trees
+from tests.support.postgres import empty_database
 
 RESPONDENTS = 30
 
@@ -101,11 +102,7 @@ def test_screens_submitted_at_once_finish_the_respondent(client, survey, monkeyp
 def test_migration_0010_finishes_stuck_respondents_and_keeps_every_row(
     request, tmp_path, backend: str
 ) -> None:
-    url = (
-        f"sqlite:///{tmp_path / 'old.sqlite3'}"
-        if backend == "sqlite"
-        else request.getfixturevalue("postgres").create_database()
-    )
+    url = empty_database(request, tmp_path, backend)
     upgrade(url, "0009")
     done, early = "2026-11-20 12:00:00", "2026-11-20 11:00:00"
     engine = make_engine(url)
@@ -157,11 +154,7 @@ def test_migration_0010_finishes_stuck_respondents_and_keeps_every_row(
 def test_migration_0011_marks_existing_crowd_participants(request, tmp_path, backend) -> None:
     """Participants of a study with an open link keep getting its code (they may be crowd
     workers part way through); those of a study without one never had a code to get."""
-    url = (
-        f"sqlite:///{tmp_path / 'old.sqlite3'}"
-        if backend == "sqlite"
-        else request.getfixturevalue("postgres").create_database()
-    )
+    url = empty_database(request, tmp_path, backend)
     upgrade(url, "0010")
     engine = make_engine(url)
     with engine.begin() as conn:

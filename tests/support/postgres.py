@@ -31,6 +31,14 @@ class PostgresMissing(RuntimeError):
     """PostgreSQL's server programs are not installed."""
 
 
+def empty_database(request: pytest.FixtureRequest, folder: Path, backend: str) -> str:
+    """The URL of a new empty database: a SQLite file in ``folder``, or a PostgreSQL database
+    on the session's server (the ``postgres`` fixture, started on first use)."""
+    if backend == "sqlite":
+        return f"sqlite:///{folder / 'acv.sqlite3'}"
+    return str(request.getfixturevalue("postgres").create_database())
+
+
 def pg_bindir() -> Path:
     """The newest installed PostgreSQL's ``bin`` directory (with ``initdb`` and ``pg_ctl``)."""
     found = sorted(
