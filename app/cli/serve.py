@@ -223,4 +223,6 @@ def _demo_lines(runtime: Runtime, base: str) -> list[str]:
     return [
         f"  demo study:       {base}/studies/{demo.study.id}  (id {demo.study.id})",
         f"  participant link: {invite_url(base, demo.invite_token)}",
+        f"  demo experiment:  {base}/experiments/{demo.experiment_id}  (its 12 runs train in "
+        "the background; the verdict comes in about 7 minutes on two cores)",
     ]
