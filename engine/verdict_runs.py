@@ -12,7 +12,8 @@ from pathlib import Path
 import numpy as np
 
 from engine.errors import InputError
-from engine.rl.agent_judge import JUDGES, agent_tree, candidate_terms, load_agent
+from engine.judges import judge_name
+from engine.rl.agent_judge import agent_tree, candidate_terms, load_agent
 from engine.rl.behaviour import RolloutOptions
 from engine.rl.checkpoint import find_checkpoint
 from engine.rl.config import TrainConfig
@@ -85,8 +86,7 @@ def judge_scores(
     Returns:
         shape ``(len(runs), N)``, candidates in id order.
     """
-    if judge not in JUDGES:
-        raise InputError(f"unknown judge {judge!r}: expected one of {', '.join(JUDGES)}")
+    judge = judge_name(judge)
     rows = np.zeros((len(runs), len(advice.candidates)))
     for i, run in enumerate(runs):
         scores = agent_tree(Path(run), None, judge, advice, rollouts=rollouts).scores
@@ -122,7 +122,7 @@ def runs_verdict(
     Args:
         advice: the advice tree.
         arms: run directories ``(advised, baseline, pilot)``.
-        judge: one of :data:`engine.rl.agent_judge.JUDGES`.
+        judge: one of :data:`engine.judges.JUDGES` (or a legacy name).
         rng: the verdict's bootstrap.
         options: margins, minimum matches, level and power.
         rollouts: the behaviour judge's rollouts.

@@ -10,6 +10,7 @@ import numpy as np
 import typer
 
 from app.cli.root import cli, fail
+from engine.judges import DEFAULT_JUDGE
 from engine.treefile import load_tree
 
 Opt = typer.Option
@@ -26,7 +27,9 @@ def verdict_cmd(
         list[Path],
         Opt(help="A no-advice run on a seed of its own (picks the contested matches); repeat."),
     ],
-    judge: Annotated[str, Opt(help="The judge that scores every run's candidates.")] = "behaviour",
+    judge: Annotated[
+        str, Opt(help="The judge that scores every run's candidates (value: shaped-value).")
+    ] = DEFAULT_JUDGE,
     margin_advice: Annotated[
         float, Opt(help="Share of the advice scores' range a winner must lead by.")
     ] = 0.05,

@@ -4,7 +4,8 @@ An experiment trains one advice source with one algorithm, env, budget and setti
 evaluation seeds; its **matched baseline** is ``ppo`` with no advice on the same seeds, env,
 budget and settings, and its **pilot** runs are ``ppo`` on seeds of their own, which only pick
 the contested matches (docs/method.md §2.11). Baseline and pilot runs are shared: a run of the
-same study, config and seed that is not failed or cancelled is reused, not trained again.
+same study, config and seed that names advice (so its checkpoints are judged) and is not
+failed or cancelled is reused, not trained again.
 
 The verdict reads the runs' stored checkpoint artefacts (the per-candidate table that each
 run's executor writes) and hands them to :func:`engine.verdict.verdict`.
@@ -134,7 +135,9 @@ def _baseline_run(session: Session, spec: ExperimentSpec, seed: int) -> Run:
         )
         .order_by(Run.id)
     )
-    same = next((run for run in reusable if run.config == config), None)
+    # Only runs that name advice have their checkpoints judged (app.jobs.execute). Checked
+    # here, not in SQL: the JSON column stores a run without advice as JSON null, not NULL.
+    same = next((r for r in reusable if r.config == config and r.advice is not None), None)
     return same or runs.create_run(session, **request, seed=seed)
 
 

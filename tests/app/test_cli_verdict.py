@@ -126,3 +126,14 @@ def test_immediate_r_contested_uses_the_pilot_judges_r(monkeypatch, capsys, runs
     informative = [tuple(p) for p in m["contested"] + m["agreed"]]
     expected = [(a, b, w) for a, b, w in informative if r[w] < r[b if w == a else a]]
     assert [tuple(p) for p in m["r_contested"]] == expected
+
+
+def test_the_legacy_value_judge_is_shaped_value(monkeypatch, capsys, runs: Path) -> None:
+    args = _args(runs)
+    args[-1] = "value"
+    code, legacy, err = acv(monkeypatch, capsys, *args, "--json")
+    assert code == 0, err
+    args[-1] = "shaped-value"
+    code, current, err = acv(monkeypatch, capsys, *args, "--json")
+    assert code == 0, err
+    assert json.loads(legacy) == json.loads(current)

@@ -97,6 +97,18 @@ def test_an_experiment_queues_advised_baseline_and_pilot_runs(client, study) -> 
     assert [e["id"] for e in listed] == [created["id"], other["id"], third["id"]]
 
 
+def test_a_ppo_run_without_advice_is_not_a_baseline(client) -> None:
+    # Its checkpoints are never judged, so an experiment resting on it would wait for ever.
+    study = new_study(client, n_candidates=4, seed=12)
+    plain = client.post(
+        "/api/runs", json={"study_id": study["id"], "seed": 0, **BODY, "algo": "ppo"}, headers=ADMIN
+    )
+    assert plain.status_code == 202, plain.text
+    created = _create(client, study_id=study["id"], teacher="good", seeds=2, pilot_seeds=1, **BODY)
+    baseline = [r for r in created["runs"] if r["role"] == "baseline" and r["seed"] == 0]
+    assert baseline and baseline[0]["id"] != plain.json()["id"]
+
+
 def test_the_verdict_waits_for_judged_runs_then_says_used(client, study) -> None:
     experiment = _create(
         client,
