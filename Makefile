@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: setup system-deps test-deps run test lint bench clean
+.PHONY: setup system-deps test-deps run test test-fast lint bench clean
 
 # Debian packages needed at run time: EGL and OSMesa for off-screen MuJoCo rendering.
 APT_PACKAGES := libegl1 libegl-mesa0 libgl1-mesa-dri libosmesa6
@@ -45,11 +45,16 @@ run: setup
 test: lint test-deps
 	$(BIN)/pytest -n 2 -m "not slow" -q --durations=15
 
+# The unit tiers only: no browser, PostgreSQL, training, Ray or fresh processes (seconds, for
+# the edit-test loop; `make test` runs everything CI runs).
+test-fast: setup
+	$(BIN)/pytest -n 2 -q -m "not slow and not browser and not postgres and not training and not ray and not process"
+
 # Style, formatting and types (mypy: strict on engine/, check_untyped_defs on app/; see
 # [tool.mypy] in pyproject.toml).
 lint: setup
-	$(BIN)/ruff check app engine tests benchmarks
-	$(BIN)/ruff format --check app engine tests benchmarks
+	$(BIN)/ruff check app engine tests benchmarks migrations
+	$(BIN)/ruff format --check app engine tests benchmarks migrations
 	$(BIN)/mypy engine app
 
 clean:

@@ -36,10 +36,12 @@ def upgrade() -> None:
         sa.Column("status", sa.String(length=16), nullable=False),
         sa.Column("error", sa.Text(), nullable=True),
         _created_at(),
-        sa.CheckConstraint("status IN ('preparing', 'ready', 'failed')",
-                           name=op.f("ck_studies_status")),
-        sa.CheckConstraint("n_candidates >= 2 AND n_candidates <= 128",
-                           name=op.f("ck_studies_n_candidates")),
+        sa.CheckConstraint(
+            "status IN ('preparing', 'ready', 'failed')", name=op.f("ck_studies_status")
+        ),
+        sa.CheckConstraint(
+            "n_candidates >= 2 AND n_candidates <= 128", name=op.f("ck_studies_n_candidates")
+        ),
         sa.CheckConstraint("p >= 0 AND p <= 1", name=op.f("ck_studies_p")),
         sa.PrimaryKeyConstraint("id", name=op.f("pk_studies")),
     )
@@ -52,8 +54,12 @@ def upgrade() -> None:
         sa.Column("env_reward", sa.Float(), nullable=False),
         sa.Column("image_path", sa.String(length=255), nullable=False),
         sa.Column("thumb_path", sa.String(length=255), nullable=False),
-        sa.ForeignKeyConstraint(["study_id"], ["studies.id"], ondelete="CASCADE",
-                                name=op.f("fk_candidates_study_id_studies")),
+        sa.ForeignKeyConstraint(
+            ["study_id"],
+            ["studies.id"],
+            ondelete="CASCADE",
+            name=op.f("fk_candidates_study_id_studies"),
+        ),
         sa.PrimaryKeyConstraint("study_id", "id", name=op.f("pk_candidates")),
     )
     op.create_table(
@@ -65,8 +71,12 @@ def upgrade() -> None:
         _created_at(),
         sa.Column("last_active_at", sa.DateTime(timezone=True), nullable=True),
         sa.Column("finished_at", sa.DateTime(timezone=True), nullable=True),
-        sa.ForeignKeyConstraint(["study_id"], ["studies.id"], ondelete="CASCADE",
-                                name=op.f("fk_participants_study_id_studies")),
+        sa.ForeignKeyConstraint(
+            ["study_id"],
+            ["studies.id"],
+            ondelete="CASCADE",
+            name=op.f("fk_participants_study_id_studies"),
+        ),
         sa.PrimaryKeyConstraint("id", name=op.f("pk_participants")),
         sa.UniqueConstraint("token", name=op.f("uq_participants_token")),
     )
@@ -77,14 +87,24 @@ def upgrade() -> None:
         sa.Column("slot", sa.Integer(), autoincrement=False, nullable=False),
         sa.Column("a", sa.Integer(), nullable=False),
         sa.Column("b", sa.Integer(), nullable=True),
-        sa.ForeignKeyConstraint(["study_id", "a"], ["candidates.study_id", "candidates.id"],
-                                ondelete="CASCADE",
-                                name=op.f("fk_bracket_slots_study_id_a_candidates")),
-        sa.ForeignKeyConstraint(["study_id", "b"], ["candidates.study_id", "candidates.id"],
-                                ondelete="CASCADE",
-                                name=op.f("fk_bracket_slots_study_id_b_candidates")),
-        sa.ForeignKeyConstraint(["study_id"], ["studies.id"], ondelete="CASCADE",
-                                name=op.f("fk_bracket_slots_study_id_studies")),
+        sa.ForeignKeyConstraint(
+            ["study_id", "a"],
+            ["candidates.study_id", "candidates.id"],
+            ondelete="CASCADE",
+            name=op.f("fk_bracket_slots_study_id_a_candidates"),
+        ),
+        sa.ForeignKeyConstraint(
+            ["study_id", "b"],
+            ["candidates.study_id", "candidates.id"],
+            ondelete="CASCADE",
+            name=op.f("fk_bracket_slots_study_id_b_candidates"),
+        ),
+        sa.ForeignKeyConstraint(
+            ["study_id"],
+            ["studies.id"],
+            ondelete="CASCADE",
+            name=op.f("fk_bracket_slots_study_id_studies"),
+        ),
         sa.PrimaryKeyConstraint("study_id", "slot", name=op.f("pk_bracket_slots")),
     )
     op.create_table(
@@ -97,11 +117,16 @@ def upgrade() -> None:
         sa.Column("b", sa.Integer(), nullable=False),
         _created_at(),
         sa.CheckConstraint("a <> b", name=op.f("ck_matches_distinct_players")),
-        sa.ForeignKeyConstraint(["participant_id"], ["participants.id"], ondelete="CASCADE",
-                                name=op.f("fk_matches_participant_id_participants")),
+        sa.ForeignKeyConstraint(
+            ["participant_id"],
+            ["participants.id"],
+            ondelete="CASCADE",
+            name=op.f("fk_matches_participant_id_participants"),
+        ),
         sa.PrimaryKeyConstraint("id", name=op.f("pk_matches")),
-        sa.UniqueConstraint("participant_id", "round", "slot",
-                            name=op.f("uq_matches_participant_id_round_slot")),
+        sa.UniqueConstraint(
+            "participant_id", "round", "slot", name=op.f("uq_matches_participant_id_round_slot")
+        ),
     )
     op.create_table(
         "labels",
@@ -112,10 +137,18 @@ def upgrade() -> None:
         _created_at(),
         sa.Column("response_ms", sa.BigInteger(), nullable=True),
         sa.CheckConstraint("response_ms >= 0", name=op.f("ck_labels_response_ms")),
-        sa.ForeignKeyConstraint(["match_id"], ["matches.id"], ondelete="CASCADE",
-                                name=op.f("fk_labels_match_id_matches")),
-        sa.ForeignKeyConstraint(["participant_id"], ["participants.id"], ondelete="CASCADE",
-                                name=op.f("fk_labels_participant_id_participants")),
+        sa.ForeignKeyConstraint(
+            ["match_id"],
+            ["matches.id"],
+            ondelete="CASCADE",
+            name=op.f("fk_labels_match_id_matches"),
+        ),
+        sa.ForeignKeyConstraint(
+            ["participant_id"],
+            ["participants.id"],
+            ondelete="CASCADE",
+            name=op.f("fk_labels_participant_id_participants"),
+        ),
         sa.PrimaryKeyConstraint("id", name=op.f("pk_labels")),
         # At most one label per match, enforced by the database.
         sa.UniqueConstraint("match_id", name=op.f("uq_labels_match_id")),

@@ -47,16 +47,25 @@ def upgrade() -> None:
         _time("started_at"),
         _time("heartbeat_at"),
         _time("finished_at"),
-        sa.CheckConstraint("status IN ('queued', 'running', 'succeeded', 'failed', 'cancelled', "
-                           "'interrupted')", name=op.f("ck_runs_status")),
-        sa.CheckConstraint("participant_id IS NULL OR teacher IS NULL",
-                           name=op.f("ck_runs_one_advice_source")),
-        sa.CheckConstraint("timesteps > 0 AND n_envs > 0 AND progress >= 0",
-                           name=op.f("ck_runs_budget")),
-        sa.ForeignKeyConstraint(["study_id"], ["studies.id"], ondelete="CASCADE",
-                                name=op.f("fk_runs_study_id_studies")),
-        sa.ForeignKeyConstraint(["participant_id"], ["participants.id"], ondelete="CASCADE",
-                                name=op.f("fk_runs_participant_id_participants")),
+        sa.CheckConstraint(
+            "status IN ('queued', 'running', 'succeeded', 'failed', 'cancelled', 'interrupted')",
+            name=op.f("ck_runs_status"),
+        ),
+        sa.CheckConstraint(
+            "participant_id IS NULL OR teacher IS NULL", name=op.f("ck_runs_one_advice_source")
+        ),
+        sa.CheckConstraint(
+            "timesteps > 0 AND n_envs > 0 AND progress >= 0", name=op.f("ck_runs_budget")
+        ),
+        sa.ForeignKeyConstraint(
+            ["study_id"], ["studies.id"], ondelete="CASCADE", name=op.f("fk_runs_study_id_studies")
+        ),
+        sa.ForeignKeyConstraint(
+            ["participant_id"],
+            ["participants.id"],
+            ondelete="CASCADE",
+            name=op.f("fk_runs_participant_id_participants"),
+        ),
         sa.PrimaryKeyConstraint("id", name=op.f("pk_runs")),
     )
     op.create_index(op.f("ix_runs_study_id"), "runs", ["study_id"])

@@ -27,8 +27,12 @@ def upgrade() -> None:
         sa.Column("step", sa.BigInteger(), nullable=False),
         sa.Column("payload", sa.JSON(), nullable=False),
         sa.Column("created_at", sa.DateTime(timezone=True), nullable=False),
-        sa.ForeignKeyConstraint(["run_id"], ["runs.id"], ondelete="CASCADE",
-                                name=op.f("fk_checkpoint_artefacts_run_id_runs")),
+        sa.ForeignKeyConstraint(
+            ["run_id"],
+            ["runs.id"],
+            ondelete="CASCADE",
+            name=op.f("fk_checkpoint_artefacts_run_id_runs"),
+        ),
         sa.PrimaryKeyConstraint("run_id", "step", name=op.f("pk_checkpoint_artefacts")),
     )
 

@@ -22,8 +22,9 @@ _WHEN = sa.DateTime(timezone=True)
 
 
 def _fk(table: str, column: str, target: str) -> sa.ForeignKeyConstraint:
-    return sa.ForeignKeyConstraint([column], [f"{target}.id"], ondelete="CASCADE",
-                                   name=op.f(f"fk_{table}_{column}_{target}"))
+    return sa.ForeignKeyConstraint(
+        [column], [f"{target}.id"], ondelete="CASCADE", name=op.f(f"fk_{table}_{column}_{target}")
+    )
 
 
 def upgrade() -> None:
@@ -40,10 +41,12 @@ def upgrade() -> None:
         sa.Column("seed", sa.BigInteger(), nullable=False),
         sa.Column("rr_counter", sa.Integer(), nullable=False),
         sa.Column("created_at", _WHEN, nullable=False),
-        sa.CheckConstraint("assignment IN ('all', 'round_robin')",
-                           name=op.f("ck_surveys_assignment")),
-        sa.CheckConstraint("exclusion_rule IN ('none', 'attention_check')",
-                           name=op.f("ck_surveys_exclusion_rule")),
+        sa.CheckConstraint(
+            "assignment IN ('all', 'round_robin')", name=op.f("ck_surveys_assignment")
+        ),
+        sa.CheckConstraint(
+            "exclusion_rule IN ('none', 'attention_check')", name=op.f("ck_surveys_exclusion_rule")
+        ),
         sa.CheckConstraint("rr_counter >= 0", name=op.f("ck_surveys_rr_counter")),
         sa.PrimaryKeyConstraint("id", name=op.f("pk_surveys")),
     )
@@ -59,8 +62,9 @@ def upgrade() -> None:
         sa.Column("expected", sa.JSON(), nullable=False),
         _fk("survey_stimuli", "survey_id", "surveys"),
         sa.PrimaryKeyConstraint("id", name=op.f("pk_survey_stimuli")),
-        sa.UniqueConstraint("survey_id", "position",
-                            name=op.f("uq_survey_stimuli_survey_id_position")),
+        sa.UniqueConstraint(
+            "survey_id", "position", name=op.f("uq_survey_stimuli_survey_id_position")
+        ),
     )
     op.create_table(
         "survey_respondents",
@@ -78,10 +82,10 @@ def upgrade() -> None:
         sa.PrimaryKeyConstraint("id", name=op.f("pk_survey_respondents")),
         sa.UniqueConstraint("token", name=op.f("uq_survey_respondents_token")),
     )
-    op.create_index(op.f("ix_survey_respondents_survey_id"), "survey_respondents",
-                    ["survey_id"])
-    op.create_index(op.f("ix_survey_respondents_token_hash"), "survey_respondents",
-                    ["token_hash"], unique=True)
+    op.create_index(op.f("ix_survey_respondents_survey_id"), "survey_respondents", ["survey_id"])
+    op.create_index(
+        op.f("ix_survey_respondents_token_hash"), "survey_respondents", ["token_hash"], unique=True
+    )
     op.create_table(
         "survey_screens",
         sa.Column("respondent_id", sa.Integer(), nullable=False),
@@ -95,8 +99,9 @@ def upgrade() -> None:
         _fk("survey_screens", "respondent_id", "survey_respondents"),
         _fk("survey_screens", "stimulus_id", "survey_stimuli"),
         sa.PrimaryKeyConstraint("respondent_id", "position", name=op.f("pk_survey_screens")),
-        sa.UniqueConstraint("respondent_id", "stimulus_id",
-                            name=op.f("uq_survey_screens_respondent_id_stimulus_id")),
+        sa.UniqueConstraint(
+            "respondent_id", "stimulus_id", name=op.f("uq_survey_screens_respondent_id_stimulus_id")
+        ),
     )
     op.create_table(
         "survey_answers",
@@ -107,19 +112,29 @@ def upgrade() -> None:
         sa.Column("value", sa.Text(), nullable=False),
         sa.Column("confidence", sa.Integer(), nullable=True),
         sa.Column("created_at", _WHEN, nullable=False),
-        sa.CheckConstraint("confidence IS NULL OR (confidence >= 1 AND confidence <= 5)",
-                           name=op.f("ck_survey_answers_confidence")),
+        sa.CheckConstraint(
+            "confidence IS NULL OR (confidence >= 1 AND confidence <= 5)",
+            name=op.f("ck_survey_answers_confidence"),
+        ),
         _fk("survey_answers", "respondent_id", "survey_respondents"),
         _fk("survey_answers", "stimulus_id", "survey_stimuli"),
         sa.PrimaryKeyConstraint("id", name=op.f("pk_survey_answers")),
-        sa.UniqueConstraint("respondent_id", "stimulus_id", "question",
-                            name=op.f("uq_survey_answers_respondent_id_stimulus_id_question")),
+        sa.UniqueConstraint(
+            "respondent_id",
+            "stimulus_id",
+            "question",
+            name=op.f("uq_survey_answers_respondent_id_stimulus_id_question"),
+        ),
     )
-    op.create_index(op.f("ix_survey_answers_respondent_id"), "survey_answers",
-                    ["respondent_id"])
+    op.create_index(op.f("ix_survey_answers_respondent_id"), "survey_answers", ["respondent_id"])
 
 
 def downgrade() -> None:
-    for table in ("survey_answers", "survey_screens", "survey_respondents", "survey_stimuli",
-                  "surveys"):
+    for table in (
+        "survey_answers",
+        "survey_screens",
+        "survey_respondents",
+        "survey_stimuli",
+        "surveys",
+    ):
         op.drop_table(table)

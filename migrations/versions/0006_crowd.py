@@ -23,8 +23,9 @@ _WHEN = sa.DateTime(timezone=True)
 
 
 def _fk(table: str, column: str, target: str) -> sa.ForeignKeyConstraint:
-    return sa.ForeignKeyConstraint([column], [f"{target}.id"], ondelete="CASCADE",
-                                   name=op.f(f"fk_{table}_{column}_{target}"))
+    return sa.ForeignKeyConstraint(
+        [column], [f"{target}.id"], ondelete="CASCADE", name=op.f(f"fk_{table}_{column}_{target}")
+    )
 
 
 def upgrade() -> None:
@@ -42,9 +43,11 @@ def upgrade() -> None:
         sa.Column("redirect_url", sa.String(500), nullable=True),
         sa.Column("consistency_check", sa.Boolean(), nullable=False),
         sa.Column("speed_threshold_ms", sa.Integer(), nullable=False),
-        sa.CheckConstraint("max_participants >= 1 AND joined >= 0 AND joined <= "
-                           "max_participants AND declines >= 0",
-                           name=op.f("ck_crowd_settings_counts")),
+        sa.CheckConstraint(
+            "max_participants >= 1 AND joined >= 0 AND joined <= "
+            "max_participants AND declines >= 0",
+            name=op.f("ck_crowd_settings_counts"),
+        ),
         sa.CheckConstraint("speed_threshold_ms >= 0", name=op.f("ck_crowd_settings_speed")),
         _fk("crowd_settings", "study_id", "studies"),
         sa.PrimaryKeyConstraint("study_id", name=op.f("pk_crowd_settings")),
@@ -54,10 +57,15 @@ def upgrade() -> None:
     # recreate these tables, and the drop would cascade to every match and label.
     op.add_column("participants", sa.Column("external_id", sa.String(200), nullable=True))
     op.add_column("participants", sa.Column("external_ids", sa.JSON(), nullable=True))
-    op.create_index(op.f("uq_participants_study_external_id"), "participants",
-                    ["study_id", "external_id"], unique=True)
-    op.add_column("matches", sa.Column("a_left", sa.Boolean(), nullable=False,
-                                       server_default=sa.true()))
+    op.create_index(
+        op.f("uq_participants_study_external_id"),
+        "participants",
+        ["study_id", "external_id"],
+        unique=True,
+    )
+    op.add_column(
+        "matches", sa.Column("a_left", sa.Boolean(), nullable=False, server_default=sa.true())
+    )
     op.add_column("labels", sa.Column("chose_left", sa.Boolean(), nullable=True))
     op.create_table(
         "consistency_checks",
