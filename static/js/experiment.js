@@ -1,6 +1,7 @@
 // The experiment page: while runs train, poll the experiment every few seconds and update
-// each run's status and progress; when a verdict appears or changes step, reload the page
-// (the verdict is rendered on the server). Stops once every run has ended.
+// each run's status and progress; when a verdict appears, or changes step or the runs it
+// rests on, reload the page (the verdict is rendered on the server). Stops once every run
+// has ended.
 /* global ACV */
 "use strict";
 
@@ -22,13 +23,19 @@
     }
   }
 
+  // The template's data-verdict-key: the step, then every run id it rests on, in order.
+  function verdictKey(found) {
+    const ids = Object.values(found.runs).flat().sort((a, b) => a - b);
+    return `${found.step}:${ids.join(",")}`;
+  }
+
   async function poll() {
     const experiment = await ACV.api("GET", root.dataset.experimentUrl);
     if (experiment.status !== 200) return;
     update(experiment.data.runs);
     const verdictUrl = `${root.dataset.experimentUrl}/verdict?judge=${root.dataset.judge}`;
     const verdict = await ACV.api("GET", verdictUrl);
-    if (verdict.status === 200 && String(verdict.data.step) !== root.dataset.verdictStep) {
+    if (verdict.status === 200 && verdictKey(verdict.data) !== root.dataset.verdictKey) {
       window.location.reload();
       return;
     }

@@ -144,6 +144,15 @@ def test_the_verdict_waits_for_judged_runs_then_says_used(client, study) -> None
     assert verdict["p_value"] < 0.05 and verdict["n_contested"] >= 3
     _the_verdict_as_csv(client, experiment, verdict, path.replace("verdict?", "verdict.csv?"))
     _the_verdict_on_the_runs_pages(client, experiment)
+    _the_page_knows_its_verdict(client, experiment, body)
+
+
+def _the_page_knows_its_verdict(client: TestClient, experiment: dict, body: dict) -> None:
+    """The experiment page's ``data-verdict-key`` is the key static/js/experiment.js makes of
+    the verdict's JSON (the step, then the sorted run ids): the page reloads when it changes."""
+    html = logged_in(client).get(f"/experiments/{experiment['id']}?judge=behaviour").text
+    ids = sorted(i for role in body["runs"].values() for i in role)
+    assert f'data-verdict-key="{body["step"]}:{",".join(map(str, ids))}"' in html
 
 
 def _the_verdict_as_csv(client: TestClient, experiment: dict, verdict: dict, path: str) -> None:
