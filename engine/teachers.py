@@ -16,6 +16,7 @@ Any teacher may flip each decision with probability ``noise``, mimicking human e
 from __future__ import annotations
 
 from collections.abc import Sequence
+from enum import StrEnum
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -29,7 +30,17 @@ from engine.tournament import Judge, ScoreJudge
 if TYPE_CHECKING:  # mujoco loads where an env is built, not in web processes
     import mujoco
 
-TEACHERS: tuple[str, ...] = ("good", "standing", "orthogonal", "random")
+
+class Teacher(StrEnum):
+    """The simulated teachers (this module's docstring says what each prefers)."""
+
+    GOOD = "good"
+    STANDING = "standing"
+    ORTHOGONAL = "orthogonal"
+    RANDOM = "random"
+
+
+TEACHERS: tuple[str, ...] = tuple(t.value for t in Teacher)
 
 
 def standing_score(qpos: np.ndarray, model: mujoco.MjModel) -> np.ndarray:

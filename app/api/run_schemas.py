@@ -7,15 +7,12 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, StrictBool
 
 from app.api.schemas import JsonFloat, JsonInt, ProgressOut, UtcDatetime
-from app.models import RUN_STATUSES, Run
+from app.models import Run, RunStatus
 from app.services.pools import members
-from app.services.runs import MAX_TIMESTEPS, RUN_TEACHERS, advice_label
-from engine.rl.config import ADVICE_MODES, ALGOS, TrainConfig
+from app.services.runs import MAX_TIMESTEPS, advice_label
+from engine.rl.config import AdviceMode, Algo, TrainConfig
+from engine.teachers import Teacher
 
-RunStatus = Literal[RUN_STATUSES]  # type: ignore[valid-type]
-Algo = Literal[ALGOS]  # type: ignore[valid-type]
-Teacher = Literal[RUN_TEACHERS]  # type: ignore[valid-type]
-AdviceMode = Literal[ADVICE_MODES]  # type: ignore[valid-type]
 #: engine.judges.JUDGES, and ``value``, the old name of ``shaped-value`` (still accepted).
 Judge = Literal["return", "behaviour", "shaped", "shaping", "shaped-value", "value"]
 DbInt = Annotated[JsonInt, Field(ge=1, le=2**31 - 1)]
@@ -44,7 +41,7 @@ class RunCreate(BaseModel):
         False, description="Pooled advice: every finished participant of the study."
     )
     teacher: Teacher | None = None
-    algo: Algo = "bipars-em"
+    algo: Algo = Algo.BIPARS_EM
     timesteps: JsonInt = Field(ge=1, le=MAX_TIMESTEPS, description="Env steps over all envs.")
     seed: JsonInt = Field(0, ge=0, le=2**31 - 1)
     n_envs: JsonInt = Field(4, ge=1, le=64)
@@ -119,7 +116,7 @@ class RunOut(BaseModel):
             seed=run.seed,
             n_envs=run.n_envs,
             config=run.config,
-            status=run.status,
+            status=RunStatus(run.status),
             progress=ProgressOut(done=run.progress, total=config.num_updates * config.batch_size),
             metrics=run.metrics,
             error=run.error,

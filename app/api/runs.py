@@ -30,7 +30,7 @@ from app.api.errors import RESPONSES
 from app.api.run_schemas import CheckpointOut, Judge, RunCreate, RunCreated, RunOut
 from app.jobs.execute import run_dir
 from app.jobs.settings import JobSettings
-from app.models import Run
+from app.models import Run, RunStatus
 from app.services import comparison, run_report, runs, studies
 from app.services.figures import FORMATS
 from engine.judges import DEFAULT_JUDGE
@@ -80,7 +80,7 @@ def create_run(body: RunCreate, session: SessionDep, _: ResearcherDep) -> RunCre
     """Queue a training run; a worker starts it (``status`` goes ``queued`` -> ``running`` ->
     ``succeeded``, ``failed``, ``cancelled`` or ``interrupted``)."""
     run = runs.create_run(session, **body.model_dump())
-    return RunCreated(id=run.id, status=run.status)
+    return RunCreated(id=run.id, status=RunStatus(run.status))
 
 
 @router.get("")

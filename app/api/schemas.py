@@ -14,15 +14,12 @@ from pydantic import (
     ValidationInfo,
 )
 
-from app.models import STUDY_STATUSES, as_utc
+from app.models import StudyStatus, as_utc
 from app.services.labelling import MAX_RESPONSE_MS
 from app.services.participants import MAX_BATCH
 from app.services.studies import MAX_INSTRUCTIONS_CHARS, MAX_NAME_CHARS, MAX_SEED
 from engine.candidates import MAX_CANDIDATES
 from engine.envs import DEFAULT_ENV_ID
-
-StudyStatus = Literal[STUDY_STATUSES]  # type: ignore[valid-type]
-
 
 #: Validation context of HTML forms, whose every field is text: there ``"3"`` is an integer.
 FORM_INPUT = {"form": True}

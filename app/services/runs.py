@@ -30,13 +30,10 @@ from engine.bracket import Bracket
 from engine.envs import env_model
 from engine.errors import InputError
 from engine.rl.config import TrainConfig
-from engine.teachers import make_teacher
+from engine.teachers import TEACHERS, make_teacher
 from engine.tournament import play
 from engine.treefile import TreeDocument, make_document, tree_from_json, tree_to_json
 
-#: Simulated teachers a run may take its advice from: the paper's two cases, a posture R does
-#: not reward, and a fair coin per match (shuffled advice, a negative control).
-RUN_TEACHERS = ("good", "standing", "orthogonal", "random")
 RESUMABLE: tuple[RunStatus, ...] = (RunStatus.INTERRUPTED, RunStatus.FAILED, RunStatus.CANCELLED)
 FINAL: tuple[RunStatus, ...] = (RunStatus.SUCCEEDED, RunStatus.FAILED, RunStatus.CANCELLED)
 MAX_TIMESTEPS = 100_000_000
@@ -189,8 +186,8 @@ def advice_tree(
 def teacher_tree(session: Session, *, study_id: int, teacher: str) -> TreeDocument:
     """A simulated teacher's tree over the study's bracket (as
     :func:`engine.pipeline.replay_with_teacher` makes it, without noise)."""
-    if teacher not in RUN_TEACHERS:
-        raise InputError(f"unknown teacher {teacher!r}: expected one of {', '.join(RUN_TEACHERS)}")
+    if teacher not in TEACHERS:
+        raise InputError(f"unknown teacher {teacher!r}: expected one of {', '.join(TEACHERS)}")
     study = get_ready_study(session, study_id=study_id)
     cands = engine_candidates_of(session, study_id=study_id)
     bracket = first_round(session, study_id=study_id)

@@ -40,6 +40,7 @@ from app.web.rendering import PageRoute, redirect, render, thumb_template
 from engine.errors import InputError
 from engine.judges import DEFAULT_JUDGE, judge_name
 from engine.rl.config import ADVICE_MODES, ALGOS
+from engine.teachers import TEACHERS
 
 router = APIRouter(route_class=PageRoute, include_in_schema=False, dependencies=[ResearcherPage])
 
@@ -116,7 +117,7 @@ def _advice_choices(finished: list[tuple[int, str]]) -> list[tuple[str, str]]:
     return (
         [(f"participant:{pid}", label) for pid, label in finished]
         + pooled
-        + [(f"teacher:{t}", f"simulated teacher: {t}") for t in runs.RUN_TEACHERS]
+        + [(f"teacher:{t}", f"simulated teacher: {t}") for t in TEACHERS]
         + [("none", "none (ppo only)")]
     )
 

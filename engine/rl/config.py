@@ -5,12 +5,22 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
+from enum import StrEnum
 from typing import Any
 
 from engine.errors import InputError, seed_error
 
-ALGOS: tuple[str, ...] = ("ppo", "ppo-shaped", "bipars-em", "bipars-mgl")
-"""``ppo``: env reward only; ``ppo-shaped``: R + F (z = 1); ``bipars-*``: R + z_phi(s) F(s)."""
+
+class Algo(StrEnum):
+    """``ppo``: env reward only; ``ppo-shaped``: R + F (z = 1); ``bipars-*``: R + z_phi(s) F(s)."""
+
+    PPO = "ppo"
+    PPO_SHAPED = "ppo-shaped"
+    BIPARS_EM = "bipars-em"
+    BIPARS_MGL = "bipars-mgl"
+
+
+ALGOS: tuple[str, ...] = tuple(a.value for a in Algo)
 
 ADVISED_ALGOS: frozenset[str] = frozenset(ALGOS[1:])
 """Algorithms that need an advice reward F."""
@@ -18,12 +28,23 @@ ADVISED_ALGOS: frozenset[str] = frozenset(ALGOS[1:])
 BIPARS_ALGOS: frozenset[str] = frozenset(ALGOS[2:])
 """Algorithms that learn the shaping weight z_phi (Hu et al. 2020)."""
 
-REWARD_ADVICE = "reward"
+
+class AdviceMode(StrEnum):
+    """How F is made: the three of :class:`engine.advice.AdviceReward` (F from the advice
+    tree), or ``reward`` (F = R; the advice tree is then only what the agent is compared
+    against)."""
+
+    NEAREST = "nearest"
+    SOFTMAX = "softmax"
+    PAPER_MIN = "paper-min"
+    REWARD = "reward"
+
+
+REWARD_ADVICE = AdviceMode.REWARD.value
 """The advice mode in which F is the env's own step reward (the paper's Case 1, F = R)."""
 
-ADVICE_MODES: tuple[str, ...] = ("nearest", "softmax", "paper-min", REWARD_ADVICE)
-"""F modes: the three of :class:`engine.advice.AdviceReward` (F from the advice tree), or
-``reward`` (F = R; the advice tree is then only what the agent is compared against)."""
+ADVICE_MODES: tuple[str, ...] = tuple(m.value for m in AdviceMode)
+"""The values of :class:`AdviceMode`."""
 
 MIN_MINIBATCH = 2
 """Fewest transitions per minibatch: advantages are normalised by their std over it, and the
