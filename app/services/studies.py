@@ -152,7 +152,7 @@ def _sample(study: Study) -> tuple[list[engine_candidates.Candidate], FirstRound
     cands = engine_candidates.sample_candidates(
         study.env_id, study.n_candidates, rng=rng, mode=cast(SamplingMode, study.sampling)
     )
-    abilities = np.array([c.env_reward for c in cands])
+    abilities = engine_candidates.seed_abilities(cands)
     return cands, make_first_round([c.id for c in cands], abilities, study.p, rng)
 
 
