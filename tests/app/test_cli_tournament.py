@@ -114,6 +114,14 @@ def _write_variants(d: Path) -> None:
         (["tournament", "--env", "NoSuchEnv-v0", "--out", "x.json"], "unknown env"),
         (["tournament", "--teacher", "oracle", "--out", "x.json"], "unknown teacher"),
         (
+            ["tournament", "--sampling", "informative", "--out", "x.json"],
+            "--sampling informative needs --baseline, a finished no-advice ppo run",
+        ),
+        (
+            ["tournament", "--baseline", "missing", "--out", "x.json"],
+            "--baseline is for --sampling informative only",
+        ),
+        (
             ["tournament", "--replay", "missing.json", "--teacher", "good", "--out", "x.json"],
             "cannot read tree file",
         ),
