@@ -13,6 +13,7 @@ from concurrent.futures import Future, ThreadPoolExecutor
 from sqlalchemy.orm import Session, sessionmaker
 
 from app.db import make_engine, make_sessions
+from app.jobs.settings import JobSettings
 from app.preflight import check_data_dir
 from app.services.auth import ensure_admin_token
 from app.services.studies import prepare_study, preparing_study_ids
@@ -55,6 +56,7 @@ class Runtime:
             study_id=study_id,
             renderer=self.renderer,
             data_dir=self.settings.data_dir,
+            runs_dir=JobSettings().runs_root(self.settings),
         )
 
     def prepare_later(self, study_id: int) -> Future:

@@ -2,13 +2,16 @@
 
 Modes (docs/method.md section 2): ``uniform`` picks N of all visited states uniformly;
 ``diverse`` clusters the visited states' standardised posture features with k-means and keeps
-the state nearest each centroid (the paper's "future work" on more interpretable trees).
+the state nearest each centroid (the paper's "future work" on more interpretable trees);
+``informative`` pools states of a trained no-advice baseline's rollouts and of random ones,
+and keeps N spread over the baseline's return and diverse in posture, each carrying that
+return as its ``seed_score`` (:mod:`engine.informative`).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from dataclasses import dataclass
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
 from typing import Any, Literal
 
 import gymnasium as gym
@@ -19,8 +22,10 @@ from engine.errors import InputError
 from engine.gym_types import mujoco_base
 from engine.rewards import posture_features, state_reward
 
-SamplingMode = Literal["uniform", "diverse"]
-SAMPLING_MODES: tuple[str, ...] = ("uniform", "diverse")
+SamplingMode = Literal["uniform", "diverse", "informative"]
+SAMPLING_MODES: tuple[str, ...] = ("uniform", "diverse", "informative")
+#: The modes that need a trained no-advice baseline's policy.
+BASELINE_MODES: tuple[str, ...] = ("informative",)
 MAX_CANDIDATES = 128
 
 #: A policy for rollouts: observation -> action. ``None`` means uniform random actions.
@@ -35,13 +40,27 @@ class Candidate:
         id: position in the study's candidate list, ``0 .. N-1``.
         qpos: generalised positions, shape ``(nq,)``.
         qvel: generalised velocities, shape ``(nv,)``.
-        env_reward: R(s), its ability in Braverman-Mossel seeding.
+        env_reward: R(s), its ability in Braverman-Mossel seeding unless ``seed_score`` is
+            given.
+        seed_score: its ability in Braverman-Mossel seeding instead of R(s), when not None
+            (``informative`` sampling: the baseline's return from the state). Not stored:
+            it only places the candidate in the first round.
     """
 
     id: int
     qpos: np.ndarray
     qvel: np.ndarray
     env_reward: float
+    seed_score: float | None = None
+
+
+def seed_abilities(candidates: Sequence[Candidate]) -> np.ndarray:
+    """Each candidate's ability in Braverman-Mossel seeding, shape ``(N,)``: its
+    ``seed_score`` when it has one, else its R(s)."""
+    return np.array(
+        [c.env_reward if c.seed_score is None else c.seed_score for c in candidates],
+        dtype=np.float64,
+    )
 
 
 def sample_candidates(
@@ -59,14 +78,27 @@ def sample_candidates(
         env_id: a Gymnasium MuJoCo env id.
         n: number of candidates, 2 ..  :data:`MAX_CANDIDATES`.
         rng: the only source of randomness (env seeds, actions, the pick).
-        mode: ``uniform`` or ``diverse``.
+        mode: ``uniform``, ``diverse`` or ``informative``.
         rollout_steps: env steps to visit; default ``max(2000, 50 n)``.
-        policy: observation -> action; random actions when ``None``.
+        policy: observation -> action; random actions when ``None``. For ``informative``,
+            the trained no-advice baseline's deterministic policy (required): half the
+            steps follow it, half are random (:mod:`engine.informative`).
+
+    Raises:
+        InputError: ``n`` out of range, an unknown mode or env, or ``informative`` without
+            a baseline policy.
     """
     if not 2 <= n <= MAX_CANDIDATES:
         raise InputError(f"number of candidates must be in 2..{MAX_CANDIDATES}, got {n}")
     if mode not in SAMPLING_MODES:
         raise InputError(f"unknown sampling mode {mode!r}: expected one of {SAMPLING_MODES}")
+    if mode == "informative":
+        if policy is None:
+            raise InputError(
+                "informative sampling needs a trained no-advice baseline's policy: "
+                "train a ppo run on this env first"
+            )
+        return _sample_informative(env_id, n, rng, rollout_steps or max(2000, 50 * n), policy)
     env = make_env(env_id)
     try:
         qpos, qvel = _rollout(env, rollout_steps or max(2000, 50 * n), rng, policy)
@@ -77,6 +109,27 @@ def sample_candidates(
             else _pick_diverse(features, n, rng)
         )
         return [_candidate(env, i, qpos[j], qvel[j]) for i, j in enumerate(picked)]
+    finally:
+        env.close()
+
+
+def _sample_informative(
+    env_id: str, n: int, rng: np.random.Generator, steps: int, policy: Policy
+) -> list[Candidate]:
+    from engine.informative import informative_pool, pick_informative  # deferred: rollouts
+
+    pool = informative_pool(env_id, n, steps, rng, policy)
+    env = make_env(env_id)
+    try:
+        features = posture_features(pool.qpos, mujoco_base(env).model)
+        picked = pick_informative(pool.estimate, features, n, rng)
+        return [
+            replace(
+                _candidate(env, i, pool.qpos[j], pool.qvel[j]),
+                seed_score=float(pool.estimate[j]),
+            )
+            for i, j in enumerate(picked)
+        ]
     finally:
         env.close()
 

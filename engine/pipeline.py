@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from engine.bracket import Bracket, make_first_round
-from engine.candidates import Policy, SamplingMode, sample_candidates
+from engine.candidates import Policy, SamplingMode, sample_candidates, seed_abilities
 from engine.envs import env_model
 from engine.errors import check_seed
 from engine.teachers import make_teacher
@@ -33,15 +33,16 @@ def run_tournament(
 
     Args:
         policy: observation -> action for the rollouts the candidates come from; random
-            actions when None (see :func:`engine.candidates.sample_candidates`).
+            actions when None (see :func:`engine.candidates.sample_candidates`); for
+            ``informative`` sampling, the no-advice baseline's policy, whose return estimate
+            then seeds the bracket (:func:`engine.candidates.seed_abilities`).
 
     Raises:
         InputError: a bad argument (negative seed, N < 2, unknown env, teacher or mode).
     """
     rng = np.random.default_rng(check_seed(seed))
     candidates = sample_candidates(env_id, n_candidates, rng=rng, mode=sampling, policy=policy)
-    abilities = np.array([c.env_reward for c in candidates])
-    first_round = make_first_round([c.id for c in candidates], abilities, p, rng)
+    first_round = make_first_round([c.id for c in candidates], seed_abilities(candidates), p, rng)
     judge, scores = make_teacher(teacher, candidates, env_model(env_id), noise=noise, rng=rng)
     results = play(Bracket(first_round), {c.id: c for c in candidates}, judge)
     return make_document(

@@ -72,7 +72,10 @@ class StudyCreate(BaseModel):
         description="Braverman-Mossel coin probability of the seeding.",
     )
     seed: JsonInt = Field(0, ge=0, le=MAX_SEED)
-    sampling: Literal["uniform", "diverse"] = "uniform"
+    sampling: Literal["uniform", "diverse", "informative"] = Field(
+        "uniform",
+        description="informative needs a finished no-advice ppo run on the env (any study's).",
+    )
     instructions: str = Field(
         "",
         max_length=MAX_INSTRUCTIONS_CHARS,

@@ -11,7 +11,7 @@ from rich.console import Console
 from rich.table import Table
 
 from app.cli.root import cli, fail
-from engine.candidates import SAMPLING_MODES, SamplingMode
+from engine.candidates import BASELINE_MODES, SAMPLING_MODES, Policy, SamplingMode
 from engine.conformance import Conformance, compare
 from engine.envs import DEFAULT_ENV_ID, check_env_id
 from engine.errors import check_seed
@@ -29,7 +29,14 @@ def tournament(
     seed: Annotated[int, typer.Option(help="Seed for sampling, seeding and noise.")] = 0,
     teacher: Annotated[str, typer.Option(help=f"Judge: {', '.join(TEACHERS)}.")] = "standing",
     noise: Annotated[float, typer.Option(help="Probability of flipping each decision.")] = 0.0,
-    sampling: Annotated[str, typer.Option(help="uniform or diverse.")] = "uniform",
+    sampling: Annotated[str, typer.Option(help=" or ".join(SAMPLING_MODES))] = "uniform",
+    baseline: Annotated[
+        Path | None,
+        typer.Option(
+            help="informative sampling: a finished no-advice ppo run directory (or a "
+            "checkpoint file) whose policy the candidates' rollouts follow."
+        ),
+    ] = None,
     replay: Annotated[
         Path | None,
         typer.Option(help="Replay this tree's bracket (same candidates and first round)."),
@@ -44,6 +51,12 @@ def tournament(
         doc = replay_with_teacher(load_tree(replay), teacher, noise)
     else:
         _check_new(env, candidates, p, seed, sampling)
+        if (sampling in BASELINE_MODES) != (baseline is not None):
+            fail(
+                f"--sampling {sampling} needs --baseline, a finished no-advice ppo run on {env}"
+                if baseline is None
+                else f"--baseline is for --sampling {' or '.join(BASELINE_MODES)} only"
+            )
         doc = run_tournament(
             env_id=env,
             n_candidates=candidates,
@@ -52,9 +65,24 @@ def tournament(
             teacher=teacher,
             noise=noise,
             sampling=cast(SamplingMode, sampling),
+            policy=None if baseline is None else _baseline_policy(baseline, env),
         )  # _check_new checked it
     dump_tree(doc, out)
     typer.echo(f"wrote {out}: {len(doc.candidates)} candidates, champion {doc.tree.root}")
+
+
+def _baseline_policy(path: Path, env: str) -> Policy:
+    """The deterministic policy of a no-advice run's last checkpoint (or of a checkpoint)."""
+    from engine.rl.checkpoint import find_checkpoint
+    from engine.rl.trained import deterministic_policy, load_agent
+
+    trained = load_agent(path if path.is_file() else find_checkpoint(path))
+    if trained.config.uses_advice or trained.config.env_id != env:
+        fail(
+            f"--baseline must be a no-advice ppo run on {env}, got {trained.config.algo} on "
+            f"{trained.config.env_id}"
+        )
+    return deterministic_policy(trained)
 
 
 def _check_new(env: str, candidates: int, p: float, seed: int, sampling: str) -> None:

@@ -4,11 +4,19 @@ Creating a study stores its parameters with status ``preparing``; :func:`prepare
 (usually on a background thread) then samples the candidate states, seeds the first round
 with the Braverman-Mossel model and renders the images, exactly as
 :func:`engine.pipeline.run_tournament` does for the same seed, and sets ``ready``.
+
+``informative`` sampling (:mod:`engine.informative`) rolls out a trained no-advice baseline:
+the latest ``ppo`` run on the study's env (any study's) that succeeded before the study was
+created (:func:`baseline_run`). ``ppo`` trains on R alone, whether or not it names advice to
+be compared with. Runs that finish later are ignored, so preparing the study again (after a
+restart) picks the same run; creating the study fails with :class:`InputError` when there is
+none.
 """
 
 from __future__ import annotations
 
 import logging
+from datetime import datetime
 from pathlib import Path
 from typing import cast
 
@@ -17,7 +25,7 @@ from sqlalchemy import select, update
 from sqlalchemy.orm import Session, sessionmaker
 
 from app.db import writing
-from app.models import BracketSlot, Candidate, Study
+from app.models import BracketSlot, Candidate, Run, RunStatus, Study, utcnow
 from app.services.errors import ConflictError, NotFoundError
 from app.services.images import ImageSize, render_candidates
 from engine import candidates as engine_candidates
@@ -50,6 +58,7 @@ def create_study(
         InputError: any parameter is out of range, or the env is not a MuJoCo env.
     """
     _check_params(
+        session,
         name=name,
         env_id=env_id,
         n_candidates=n_candidates,
@@ -74,6 +83,7 @@ def create_study(
 
 
 def _check_params(
+    session: Session,
     *,
     name: str,
     env_id: str,
@@ -107,6 +117,40 @@ def _check_params(
         raise
     except Exception as exc:  # registered but unusable here (missing extras, ...)
         raise InputError(f"env {env_id!r} cannot be made: {type(exc).__name__}: {exc}") from exc
+    needs_baseline = sampling in engine_candidates.BASELINE_MODES
+    if needs_baseline and baseline_run(session, env_id=env_id) is None:
+        raise InputError(no_baseline_message(env_id))
+
+
+def no_baseline_message(env_id: str) -> str:
+    """Why an ``informative`` study cannot be sampled on ``env_id``."""
+    return f"informative sampling needs a finished no-advice ppo run on {env_id}; train one first"
+
+
+def baseline_run(session: Session, *, env_id: str, before: datetime | None = None) -> Run | None:
+    """The no-advice baseline of ``informative`` sampling: the latest ``ppo`` run on ``env_id``
+    (of any study) that succeeded, finished at ``before`` or earlier (now when None)."""
+    return session.scalars(
+        select(Run)
+        .join(Study, Run.study_id == Study.id)
+        .where(
+            Study.env_id == env_id,
+            Run.algo == "ppo",
+            Run.status == RunStatus.SUCCEEDED.value,
+            Run.finished_at <= (before or utcnow()),
+        )
+        .order_by(Run.finished_at.desc(), Run.id.desc())
+        .limit(1)
+    ).first()
+
+
+def baseline_policy(run_id: int, runs_dir: Path) -> engine_candidates.Policy:
+    """The deterministic policy of a baseline run's last checkpoint (loads torch)."""
+    from app.jobs.execute import run_dir
+    from engine.rl.checkpoint import find_checkpoint
+    from engine.rl.trained import deterministic_policy, load_agent
+
+    return deterministic_policy(load_agent(find_checkpoint(run_dir(runs_dir, run_id))))
 
 
 def check_text(**fields: str | None) -> None:
@@ -117,9 +161,17 @@ def check_text(**fields: str | None) -> None:
 
 
 def prepare_study(
-    sessions: sessionmaker[Session], *, study_id: int, renderer: RenderService, data_dir: Path
+    sessions: sessionmaker[Session],
+    *,
+    study_id: int,
+    renderer: RenderService,
+    data_dir: Path,
+    runs_dir: Path | None = None,
 ) -> None:
     """Sample, seed and render a ``preparing`` study, then mark it ``ready``.
+
+    ``runs_dir`` holds the run directories (``data_dir / "runs"`` when None), where an
+    ``informative`` study finds its baseline's checkpoint.
 
     Never raises: a failure is stored on the study (status ``failed``, ``error``) and logged.
     Safe to run twice at once (two server processes resuming the same study): the loser's
@@ -127,10 +179,20 @@ def prepare_study(
     """
     with sessions() as session:
         study = session.get(Study, study_id)
+        baseline = (
+            baseline_run(session, env_id=study.env_id, before=study.created_at)
+            if study is not None and study.sampling in engine_candidates.BASELINE_MODES
+            else None
+        )
     if study is None or study.status != "preparing":
         return
     try:  # the slow part holds no database connection
-        cands, bracket = _sample(study)
+        policy = None
+        if study.sampling in engine_candidates.BASELINE_MODES:
+            if baseline is None:
+                raise InputError(no_baseline_message(study.env_id))
+            policy = baseline_policy(baseline.id, runs_dir or data_dir / "runs")
+        cands, bracket = _sample(study, policy)
         paths = render_candidates(
             renderer, data_dir=data_dir, env_id=study.env_id, candidates=cands
         )
@@ -146,13 +208,19 @@ def prepare_study(
             )
 
 
-def _sample(study: Study) -> tuple[list[engine_candidates.Candidate], FirstRound]:
+def _sample(
+    study: Study, policy: engine_candidates.Policy | None
+) -> tuple[list[engine_candidates.Candidate], FirstRound]:
     """Candidates, then the first round, from one generator (as ``run_tournament`` does)."""
     rng = np.random.default_rng(study.seed)
     cands = engine_candidates.sample_candidates(
-        study.env_id, study.n_candidates, rng=rng, mode=cast(SamplingMode, study.sampling)
+        study.env_id,
+        study.n_candidates,
+        rng=rng,
+        mode=cast(SamplingMode, study.sampling),
+        policy=policy,
     )
-    abilities = np.array([c.env_reward for c in cands])
+    abilities = engine_candidates.seed_abilities(cands)
     return cands, make_first_round([c.id for c in cands], abilities, study.p, rng)
 
 

@@ -78,19 +78,44 @@ def candidate_returns(
         doc: the bracket whose candidates are the start states.
         options: rollouts, horizon, perturbation and seed.
     """
+    return state_returns(
+        policy,
+        doc.env_id,
+        np.stack([c.qpos for c in doc.candidates]),
+        np.stack([c.qvel for c in doc.candidates]),
+        options,
+    )
+
+
+def state_returns(
+    policy: Callable[[np.ndarray], np.ndarray],
+    env_id: str,
+    qpos: np.ndarray,
+    qvel: np.ndarray,
+    options: ReturnOptions,
+) -> np.ndarray:
+    """Return-to-go of ``policy`` from each of a batch of states, shape ``(B, rollouts)``.
+
+    Args:
+        policy: observation -> action mean (clipped here to the action space).
+        env_id: the env the states belong to.
+        qpos: start positions, shape ``(B, nq)``.
+        qvel: start velocities, shape ``(B, nv)``.
+        options: rollouts, horizon, perturbation and seed.
+    """
     rng = np.random.default_rng(options.seed)
-    env = make_env(doc.env_id)
+    env = make_env(env_id)
     try:
         env.reset(seed=options.seed)
         space = box(env.action_space)
         noise = _noise(env) if options.noise is None else options.noise
-        out = np.zeros((len(doc.candidates), options.rollouts))
-        for i, c in enumerate(doc.candidates):
+        out = np.zeros((len(qpos), options.rollouts))
+        for i, (q, v) in enumerate(zip(qpos, qvel, strict=True)):
             for k in range(options.rollouts):
-                qpos = c.qpos + rng.uniform(-noise, noise, c.qpos.shape)
-                qvel = c.qvel + rng.uniform(-noise, noise, c.qvel.shape)
+                start_q = q + rng.uniform(-noise, noise, q.shape)
+                start_v = v + rng.uniform(-noise, noise, v.shape)
                 env.reset()  # restarts the time limit; the state is then replaced
-                obs = restore(env, qpos, qvel)
+                obs = restore(env, start_q, start_v)
                 for _ in range(options.horizon):
                     obs, r, terminated, _, _ = env.step(policy(obs).clip(space.low, space.high))
                     out[i, k] += float(r)

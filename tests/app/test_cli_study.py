@@ -72,6 +72,10 @@ def test_create_invite_simulate_list(run, tmp_path) -> None:
     [
         (["study", "create", "--name", "x", "--env", "CartPole-v1"], "not a MuJoCo env"),
         (["study", "create", "--name", "x", "--candidates", "200"], "n_candidates"),
+        (
+            ["study", "create", "--name", "x", "--env", "Hopper-v5", "--sampling", "informative"],
+            "informative sampling needs a finished no-advice ppo run on Hopper-v5; train one first",
+        ),
         (["participant", "add", "--study", "424242"], "study 424242 not found"),
         (["simulate", "--study", "424242"], "study 424242 not found"),
         (

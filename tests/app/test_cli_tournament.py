@@ -114,6 +114,14 @@ def _write_variants(d: Path) -> None:
         (["tournament", "--env", "NoSuchEnv-v0", "--out", "x.json"], "unknown env"),
         (["tournament", "--teacher", "oracle", "--out", "x.json"], "unknown teacher"),
         (
+            ["tournament", "--sampling", "informative", "--out", "x.json"],
+            "--sampling informative needs --baseline, a finished no-advice ppo run",
+        ),
+        (
+            ["tournament", "--baseline", "missing", "--out", "x.json"],
+            "--baseline is for --sampling informative only",
+        ),
+        (
             ["tournament", "--replay", "missing.json", "--teacher", "good", "--out", "x.json"],
             "cannot read tree file",
         ),
@@ -168,3 +176,36 @@ def test_non_finite_numbers_in_a_tree_file_exit_2(trees: Path, where: str, token
     assert r.returncode == 2, r.stdout
     assert r.stderr.startswith("acv: error:") and len(r.stderr.strip().splitlines()) == 1
     assert "must be a finite number" in r.stderr, r.stderr
+
+
+@pytest.mark.slow
+@pytest.mark.training
+def test_informative_tournament_follows_a_baseline_run(tmp_path: Path) -> None:
+    """``--sampling informative --baseline RUN`` samples from a no-advice run's policy; the
+    same seed gives the same tree, and a run on another env is refused."""
+    from engine.rl.config import TrainConfig
+    from engine.rl.runner import train
+
+    run = tmp_path / "ppo"
+    tiny = {"n_envs": 1, "num_steps": 128, "num_minibatches": 4, "update_epochs": 1}
+    train(TrainConfig(algo="ppo", env_id="Hopper-v5", total_timesteps=128, **tiny), None, run)
+    args = ["tournament", "--env", "Hopper-v5", "--candidates", "4", "--p", "0", "--seed", "2"]
+    for name in ("a", "b"):
+        r = acv(
+            *args,
+            "--sampling",
+            "informative",
+            "--baseline",
+            str(run),
+            "--out",
+            f"{name}.json",
+            cwd=tmp_path,
+        )
+        assert r.returncode == 0, r.stderr
+    assert (tmp_path / "a.json").read_bytes() == (tmp_path / "b.json").read_bytes()
+    assert len(json.loads((tmp_path / "a.json").read_text())["candidates"]) == 4
+    other = [*args[:2], "Walker2d-v5", *args[3:]]
+    r = acv(
+        *other, "--sampling", "informative", "--baseline", str(run), "--out", "x.json", cwd=tmp_path
+    )
+    assert r.returncode == 2 and "--baseline must be a no-advice ppo run on Walker2d-v5" in r.stderr
