@@ -5,18 +5,13 @@ Creating a study stores its parameters with status ``preparing``; :func:`prepare
 with the Braverman-Mossel model and renders the images, exactly as
 :func:`engine.pipeline.run_tournament` does for the same seed, and sets ``ready``.
 
-``informative`` sampling (:mod:`engine.informative`) rolls out a trained no-advice baseline:
-the latest ``ppo`` run on the study's env (any study's) that succeeded before the study was
-created (:func:`baseline_run`). ``ppo`` trains on R alone, whether or not it names advice to
-be compared with. Runs that finish later are ignored, so preparing the study again (after a
-restart) picks the same run; creating the study fails with :class:`InputError` when there is
-none.
+``informative`` sampling rolls out a trained no-advice baseline
+(:mod:`app.services.study_baseline`).
 """
 
 from __future__ import annotations
 
 import logging
-from datetime import datetime
 from pathlib import Path
 from typing import cast
 
@@ -25,9 +20,10 @@ from sqlalchemy import select, update
 from sqlalchemy.orm import Session, sessionmaker
 
 from app.db import writing
-from app.models import BracketSlot, Candidate, Run, RunStatus, Study, utcnow
+from app.models import BracketSlot, Candidate, Study
 from app.services.errors import ConflictError, NotFoundError
 from app.services.images import ImageSize, render_candidates
+from app.services.study_baseline import baseline_policy, baseline_run, no_baseline_message
 from engine import candidates as engine_candidates
 from engine.bracket import FirstRound, make_first_round
 from engine.candidates import SamplingMode
@@ -120,37 +116,6 @@ def _check_params(
     needs_baseline = sampling in engine_candidates.BASELINE_MODES
     if needs_baseline and baseline_run(session, env_id=env_id) is None:
         raise InputError(no_baseline_message(env_id))
-
-
-def no_baseline_message(env_id: str) -> str:
-    """Why an ``informative`` study cannot be sampled on ``env_id``."""
-    return f"informative sampling needs a finished no-advice ppo run on {env_id}; train one first"
-
-
-def baseline_run(session: Session, *, env_id: str, before: datetime | None = None) -> Run | None:
-    """The no-advice baseline of ``informative`` sampling: the latest ``ppo`` run on ``env_id``
-    (of any study) that succeeded, finished at ``before`` or earlier (now when None)."""
-    return session.scalars(
-        select(Run)
-        .join(Study, Run.study_id == Study.id)
-        .where(
-            Study.env_id == env_id,
-            Run.algo == "ppo",
-            Run.status == RunStatus.SUCCEEDED.value,
-            Run.finished_at <= (before or utcnow()),
-        )
-        .order_by(Run.finished_at.desc(), Run.id.desc())
-        .limit(1)
-    ).first()
-
-
-def baseline_policy(run_id: int, runs_dir: Path) -> engine_candidates.Policy:
-    """The deterministic policy of a baseline run's last checkpoint (loads torch)."""
-    from app.jobs.execute import run_dir
-    from engine.rl.checkpoint import find_checkpoint
-    from engine.rl.trained import deterministic_policy, load_agent
-
-    return deterministic_policy(load_agent(find_checkpoint(run_dir(runs_dir, run_id))))
 
 
 def check_text(**fields: str | None) -> None:
