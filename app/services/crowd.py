@@ -18,7 +18,8 @@ from sqlalchemy.orm import Session
 from app.db import writing
 from app.models import CrowdSettings, Participant
 from app.services import open_links
-from app.services.auth import new_token, participant_by_token
+from app.services.auth import new_token
+from app.services.members import STUDY
 from app.services.open_links import (
     DEFAULT_EXTERNAL_PARAMS,
     MAX_PARTICIPANTS,
@@ -100,13 +101,11 @@ def returning(
     """
     return open_links.returning(
         session,
-        Participant,
-        owner="study_id",
+        STUDY,
         owner_id=link.study_id,
         params=link.external_params,
         ids=ids,
         token=token,
-        by_token=participant_by_token,
     )
 
 

@@ -17,8 +17,8 @@ from app.db import writing
 from app.models import SurveyCrowdSettings, SurveyRespondent
 from app.services import open_links
 from app.services.auth import new_token
+from app.services.members import SURVEY
 from app.services.open_links import LinkFullError, LinkOptions
-from app.services.survey_respond import respondent_by_token
 from app.services.surveys import get_survey
 
 
@@ -70,13 +70,11 @@ def returning(
     """
     return open_links.returning(
         session,
-        SurveyRespondent,
-        owner="survey_id",
+        SURVEY,
         owner_id=link.survey_id,
         params=link.external_params,
         ids=ids,
         token=token,
-        by_token=respondent_by_token,
     )
 
 

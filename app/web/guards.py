@@ -9,7 +9,7 @@ from fastapi import Cookie, Depends, Request
 
 from app.api.deps import RuntimeDep, SessionDep
 from app.models import Participant
-from app.services import auth
+from app.services import auth, members
 from app.services.errors import AuthError
 from app.web.rendering import RedirectTo, login_url
 
@@ -36,7 +36,7 @@ def page_participant(session: SessionDep, cookie: ParticipantCookie = None) -> P
         AuthError: no cookie, or its token is no longer valid (an error page says what to do).
     """
     try:
-        return auth.participant_by_token(session, token=cookie)
+        return members.member_by_token(session, members.STUDY, token=cookie)
     except AuthError:
         raise AuthError(
             "This browser has no valid invitation. Open the invite link you "

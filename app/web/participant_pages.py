@@ -15,7 +15,7 @@ from sqlalchemy.orm import Session
 
 from app.api.deps import SessionDep
 from app.models import Participant
-from app.services import auth, crowd, crowd_check, participants, studies
+from app.services import auth, crowd, crowd_check, members, participants, studies
 from app.services.errors import AuthError, NotFoundError
 from app.web.guards import PageParticipant
 from app.web.rendering import PageRoute, RedirectTo, is_https, redirect, render, thumb_template
@@ -38,7 +38,7 @@ def where_next(progress: participants.Progress) -> str:
 def invite_link(token: str, request: Request, session: SessionDep) -> RedirectResponse:
     """Remember the invitation in this browser and continue where the participant left off."""
     try:
-        person = auth.participant_by_token(session, token=token)
+        person = members.member_by_token(session, members.STUDY, token=token)
     except AuthError:
         raise NotFoundError(
             "This invite link is not valid. Check that you copied all of it, "

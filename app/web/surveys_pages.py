@@ -17,7 +17,7 @@ from sqlalchemy.orm import Session
 from app.api.deps import DbId, SessionDep
 from app.api.surveys import RespondentCookie
 from app.models import Survey, SurveyRespondent
-from app.services import survey_crowd, survey_respond, survey_results, surveys
+from app.services import members, survey_crowd, survey_respond, survey_results, surveys
 from app.services.errors import AuthError, NotFoundError
 from app.services.open_links import LinkOptions
 from app.services.survey_sources import source_menus
@@ -91,7 +91,7 @@ def survey_page(survey_id: DbId, request: Request, session: SessionDep) -> HTMLR
 def survey_invite(token: str, request: Request, session: SessionDep) -> RedirectResponse:
     """Remember the survey invitation in this browser and continue where they left off."""
     try:
-        survey_respond.respondent_by_token(session, token=token)
+        members.member_by_token(session, members.SURVEY, token=token)
     except AuthError:
         raise NotFoundError(
             "This survey link is not valid. Check that you copied all of it, "
@@ -104,7 +104,7 @@ def survey_invite(token: str, request: Request, session: SessionDep) -> Redirect
 
 def _respondent(session: Session, cookie: str | None) -> SurveyRespondent:
     try:
-        return survey_respond.respondent_by_token(session, token=cookie)
+        return members.member_by_token(session, members.SURVEY, token=cookie)
     except AuthError:
         raise AuthError(
             "This browser has no valid survey invitation. Open the link you were "
