@@ -35,6 +35,7 @@ from app.runtime import Runtime
 from app.services import (
     auth,
     members,
+    recruiting,
     studies,
     survey_crowd,
     survey_respond,
@@ -123,7 +124,7 @@ def my_survey(session: SessionDep, person: RespondentDep) -> dict[str, Any]:
     open-link respondent has finished, the completion code and redirect URL (or nulls)."""
     survey = surveys.get_survey(session, survey_id=person.survey_id)
     done, total = survey_respond.progress(session, respondent_id=person.id)
-    link = survey_crowd.completion(session, respondent=person)
+    link = recruiting.completion(session, survey_crowd.LINK, member=person)
     return {
         "survey_id": survey.id,
         "name": survey.name,

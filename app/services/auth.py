@@ -17,6 +17,7 @@ import secrets
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from fastapi import Response
 from sqlalchemy import Connection
@@ -28,8 +29,9 @@ from engine.errors import InputError
 
 ADMIN_TOKEN_FILE = "admin_token"
 RESEARCHER_COOKIE = "acv_researcher"
-PARTICIPANT_COOKIE = "acv_participant"
-PARTICIPANT_COOKIE_MAX_AGE_S = 90 * 24 * 3600
+PARTICIPANT_COOKIE = members.STUDY.cookie
+#: How long a member's browser remembers their invitation, so they can resume.
+MEMBER_COOKIE_MAX_AGE_S = 90 * 24 * 3600
 #: Shortest admin token accepted: ~190 bits as URL-safe base64, beyond brute force.
 MIN_ADMIN_TOKEN_CHARS = 32
 #: Seconds a researcher cookie may claim to come from the future (clocks of several hosts).
@@ -186,12 +188,15 @@ def set_researcher_cookie(
     )
 
 
-def set_participant_cookie(response: Response, *, token: str, secure: bool) -> None:
-    """Remember the participant in this browser, so they can resume (HttpOnly, Lax)."""
+def set_member_cookie(
+    response: Response, kind: members.CollectionKind[Any], *, token: str, secure: bool
+) -> None:
+    """Remember a participant or respondent in this browser, so they can resume (HttpOnly,
+    SameSite=Lax)."""
     response.set_cookie(
-        PARTICIPANT_COOKIE,
+        kind.cookie,
         token,
-        max_age=PARTICIPANT_COOKIE_MAX_AGE_S,
+        max_age=MEMBER_COOKIE_MAX_AGE_S,
         httponly=True,
         samesite="lax",
         secure=secure,

@@ -56,13 +56,17 @@ class CollectionKind(Generic[Member]):
     noun: str
     collection: type[Study] | type[Survey]
     member: type[Member]
-    #: The member's column holding their collection's id (``study_id``).
-    owner: str
-    #: Where an invite link points: this prefix and the token.
+    #: Where an invite link points (this prefix and the token), and the cookie it sets.
     invite_prefix: str
+    cookie: str
     #: What a caller is told: no token sent; a token that names nobody of this kind.
     missing: str
     unknown: str
+
+    @property
+    def owner(self) -> str:
+        """The member's column that holds their collection's id (``study_id``)."""
+        return f"{self.noun}_id"
 
     def invite_path(self, token: str) -> str:
         """The path of a member's invite link."""
@@ -73,8 +77,8 @@ STUDY = CollectionKind(
     noun="study",
     collection=Study,
     member=Participant,
-    owner="study_id",
     invite_prefix="/p/",
+    cookie="acv_participant",
     missing="a participant invite token is required",
     unknown="unknown invite token",
 )
@@ -82,8 +86,8 @@ SURVEY = CollectionKind(
     noun="survey",
     collection=Survey,
     member=SurveyRespondent,
-    owner="survey_id",
     invite_prefix="/r/",
+    cookie="acv_respondent",
     missing="a survey invite token is required",
     unknown="unknown survey invite token",
 )

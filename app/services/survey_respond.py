@@ -15,7 +15,6 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from fastapi import Response
 from sqlalchemy import func, select, update
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
@@ -36,8 +35,7 @@ from app.services.studies import check_text
 from app.services.surveys import get_survey, questions_for, stimuli_of
 from engine.errors import InputError
 
-RESPONDENT_COOKIE = "acv_respondent"
-COOKIE_MAX_AGE_S = 90 * 24 * 3600
+RESPONDENT_COOKIE = SURVEY.cookie
 MAX_BATCH = 500
 MAX_TEXT_ANSWER_CHARS = 2_000
 #: Longest time on one screen that is stored (a day; longer is a tab left open).
@@ -71,18 +69,6 @@ def add_respondents(
     with writing(session):
         session.add_all(people)
     return people
-
-
-def set_respondent_cookie(response: Response, *, token: str, secure: bool) -> None:
-    """Remember the respondent in this browser, so they can resume (HttpOnly, Lax)."""
-    response.set_cookie(
-        RESPONDENT_COOKIE,
-        token,
-        max_age=COOKIE_MAX_AGE_S,
-        httponly=True,
-        samesite="lax",
-        secure=secure,
-    )
 
 
 def respondent_rng(survey: Survey, respondent_id: int) -> np.random.Generator:
