@@ -165,7 +165,7 @@ class Participant(Base):
     """Someone labelling a study's bracket, known only by their invite token.
 
     Requests are matched by ``token_hash`` and then the token itself is compared in
-    constant time (:func:`app.services.auth.participant_by_token`): an index lookup's timing
+    constant time (:func:`app.services.members.resolve`): an index lookup's timing
     can tell an attacker about the hash of their guess, never about a real token.
     """
 

@@ -18,14 +18,14 @@ from app.api.crowd_schemas import (
 )
 from app.api.deps import DbId, ResearcherDep, SessionDep
 from app.models import CrowdSettings
-from app.services import crowd, crowd_stats, label_export
+from app.services import crowd, crowd_stats, label_export, recruiting
 from app.services.errors import NotFoundError
 
 router = APIRouter(prefix="/studies", tags=["crowd"])
 
 
 def crowd_out(request: Request, row: CrowdSettings) -> CrowdOut:
-    url = str(request.base_url).rstrip("/") + crowd.open_path(row.slug)
+    url = str(request.base_url).rstrip("/") + crowd.LINK.open_path(row.slug)
     return CrowdOut.model_validate(
         {**{k: getattr(row, k) for k in CrowdOut.model_fields if k != "url"}, "url": url}
     )
@@ -46,7 +46,7 @@ def set_crowd(
 @router.get("/{study_id}/crowd")
 def get_crowd(study_id: DbId, request: Request, session: SessionDep, _: ResearcherDep) -> CrowdOut:
     """The study's open link and options; 404 until they are set."""
-    row = crowd.crowd_settings(session, study_id=study_id)
+    row = recruiting.settings(session, crowd.LINK, study_id)
     if row is None:
         raise NotFoundError(f"study {study_id} has no open link")
     return crowd_out(request, row)

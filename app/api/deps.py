@@ -23,9 +23,8 @@ from sqlalchemy.orm import Session
 from app.db import POOL_CAPACITY
 from app.models import Participant
 from app.runtime import Runtime
-from app.services import auth
+from app.services import auth, members
 from app.services.errors import AuthError, ForbiddenError, TooManyAttemptsError
-from app.services.survey_respond import is_respondent_token
 from app.settings import Settings
 
 if TYPE_CHECKING:  # app.web imports this module: no import of it at run time
@@ -143,9 +142,7 @@ def _failed(limiter: LoginLimiter, address: str) -> None:
 
 def _is_invite_token(runtime: Runtime, token: str) -> bool:
     with runtime.sessions() as session:
-        return auth.is_invite_token(session, token=token) or is_respondent_token(
-            session, token=token
-        )
+        return members.is_member_token(session, token=token)
 
 
 async def require_researcher(
@@ -202,13 +199,13 @@ async def invite_token(
 
 
 #: The unchecked invite token, for hot paths that check it in their own worker thread
-#: (``auth.participant_by_token``) rather than in a thread hop of its own.
+#: (``auth.participant_ref``) rather than in a thread hop of its own.
 InviteTokenDep = Annotated[str | None, Depends(invite_token)]
 
 
 def require_participant(session: SessionDep, token: InviteTokenDep) -> auth.ParticipantRef:
     """The participant whose invite token is sent (known tokens without a query), or 401."""
-    participant = auth.participant_ref_by_token(session, token=token)
+    participant = auth.participant_ref(session, token=token)
     session.commit()  # hand the connection back while the request waits for the handler
     return participant
 
@@ -224,13 +221,13 @@ async def participant_gate(request: Request) -> None:
         request, await _invite_bearer(request), request.cookies.get(auth.PARTICIPANT_COOKIE)
     )
     runtime: Runtime = request.app.state.runtime
-    if not auth.known_participant(runtime.engine, token=token):
+    if not members.known(runtime.engine, members.STUDY, token=token):
         await anyio.to_thread.run_sync(_check_participant, runtime, token)
 
 
 def _check_participant(runtime: Runtime, token: str | None) -> None:
     with runtime.engine.connect() as conn:
-        auth.participant_ref_by_token(conn, token=token)
+        auth.participant_ref(conn, token=token)
 
 
 def get_viewer(
@@ -250,7 +247,7 @@ def get_viewer(
         if not blocked and auth.is_researcher(admin_token=runtime.admin_token, bearer=token):
             return Viewer(researcher=True)
         try:
-            participant = auth.participant_by_token(session, token=token)
+            participant = members.member_by_token(session, members.STUDY, token=token)
         except AuthError:
             if blocked:
                 raise _too_many(limiter, address) from None
@@ -265,7 +262,7 @@ def get_viewer(
             max_age_s=runtime.settings.session_max_age_s,
         ):
             return Viewer(researcher=True)
-        participant = auth.participant_by_token(session, token=participant_cookie)
+        participant = members.member_by_token(session, members.STUDY, token=participant_cookie)
     session.commit()  # as in require_participant
     return Viewer(researcher=False, participant=participant)
 

@@ -43,7 +43,7 @@ def _label(
     runtime: Runtime, token: str | None, match_id: int, body: LabelIn
 ) -> tuple[labelling.LabelResult, int]:
     with runtime.engine.connect() as conn:
-        person = auth.participant_ref_by_token(conn, token=token)
+        person = auth.participant_ref(conn, token=token)
         result = labelling.submit_label(
             conn,
             participant=person,

@@ -72,7 +72,7 @@ async def next_match(token: InviteTokenDep, runtime: RuntimeDep) -> Response:
 
 def _next_match(runtime: Runtime, token: str | None) -> dict[str, Any] | None:
     with runtime.engine.connect() as conn:
-        person = auth.participant_ref_by_token(conn, token=token)
+        person = auth.participant_ref(conn, token=token)
         upcoming = labelling.next_match(conn, participant=person)
     return None if upcoming is None else next_match_body(person.study_id, upcoming)
 

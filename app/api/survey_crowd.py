@@ -10,7 +10,7 @@ from sqlalchemy.orm import Session
 from app.api.crowd_schemas import OpenLinkIn, SurveyCrowdOut
 from app.api.deps import DbId, ResearcherDep, SessionDep
 from app.models import SurveyCrowdSettings
-from app.services import survey_crowd
+from app.services import recruiting, survey_crowd
 from app.services.errors import NotFoundError
 from app.services.open_links import LinkOptions
 
@@ -20,7 +20,7 @@ router = APIRouter(prefix="/surveys", tags=["surveys"])
 def survey_crowd_out(
     request: Request, session: Session, row: SurveyCrowdSettings
 ) -> SurveyCrowdOut:
-    url = str(request.base_url).rstrip("/") + survey_crowd.open_path(row.slug)
+    url = str(request.base_url).rstrip("/") + survey_crowd.LINK.open_path(row.slug)
     fields = {
         k: getattr(row, k) for k in SurveyCrowdOut.model_fields if k not in ("url", "completed")
     }
@@ -36,7 +36,7 @@ def set_survey_crowd(
     """Set the survey's open link ``/q/<slug>``: on or off, largest number of respondents,
     external id parameters, consent text, completion code and redirect URL."""
     options = LinkOptions(**{**body.model_dump(), "external_params": tuple(body.external_params)})
-    row = survey_crowd.configure(session, survey_id=survey_id, options=options)
+    row = recruiting.configure(session, survey_crowd.LINK, survey_id, options)
     return survey_crowd_out(request, session, row)
 
 
@@ -45,7 +45,7 @@ def get_survey_crowd(
     survey_id: DbId, request: Request, session: SessionDep, _: ResearcherDep
 ) -> SurveyCrowdOut:
     """The survey's open link, options and counts; 404 until they are set."""
-    row = survey_crowd.crowd_settings(session, survey_id=survey_id)
+    row = recruiting.settings(session, survey_crowd.LINK, survey_id)
     if row is None:
         raise NotFoundError(f"survey {survey_id} has no open link")
     return survey_crowd_out(request, session, row)

@@ -32,7 +32,16 @@ from app.api.survey_schemas import (
 )
 from app.models import Survey, SurveyRespondent
 from app.runtime import Runtime
-from app.services import auth, studies, survey_crowd, survey_respond, survey_results, surveys
+from app.services import (
+    auth,
+    members,
+    recruiting,
+    studies,
+    survey_crowd,
+    survey_respond,
+    survey_results,
+    surveys,
+)
 from app.services.errors import AuthError, NotFoundError
 from app.services.images import MEDIA_TYPE, image_file
 from app.services.survey_respond import AnswerIn
@@ -56,7 +65,7 @@ def require_respondent(
     token = credentials.credentials if credentials is not None else cookie
     if credentials is None and cookie:
         check_cookie_write(request)
-    person = survey_respond.respondent_by_token(session, token=token)
+    person = members.member_by_token(session, members.SURVEY, token=token)
     session.commit()
     return person
 
@@ -115,7 +124,7 @@ def my_survey(session: SessionDep, person: RespondentDep) -> dict[str, Any]:
     open-link respondent has finished, the completion code and redirect URL (or nulls)."""
     survey = surveys.get_survey(session, survey_id=person.survey_id)
     done, total = survey_respond.progress(session, respondent_id=person.id)
-    link = survey_crowd.completion(session, respondent=person)
+    link = recruiting.completion(session, survey_crowd.LINK, member=person)
     return {
         "survey_id": survey.id,
         "name": survey.name,
@@ -320,7 +329,7 @@ def _check_viewer(
         max_age_s=runtime.settings.session_max_age_s,
     ):
         return
-    person = survey_respond.respondent_by_token(session, token=bearer or respondent_cookie)
+    person = members.member_by_token(session, members.SURVEY, token=bearer or respondent_cookie)
     if person.survey_id != survey_id:
         raise AuthError("this invite is for another survey")
 

@@ -3,7 +3,8 @@
 Researchers send ``Authorization: Bearer <admin token>`` to the API; pages use an HttpOnly
 SameSite cookie holding a login time and a random nonce signed with a key derived from the
 admin token (never the token itself), accepted for ``ACV_SESSION_HOURS``. Participants send
-``Authorization: Bearer <invite token>``, or carry the cookie that ``/p/<token>`` sets.
+``Authorization: Bearer <invite token>``, or carry the cookie that ``/p/<token>`` sets; their
+tokens are checked by :func:`app.services.members.resolve`, as respondents' are.
 """
 
 from __future__ import annotations
@@ -12,34 +13,30 @@ import contextlib
 import hashlib
 import hmac
 import os
-import re
 import secrets
 import time
-import weakref
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from fastapi import Response
-from sqlalchemy import Connection, Engine, bindparam, select
+from sqlalchemy import Connection
 from sqlalchemy.orm import Session
 
-from app.db import engine_of
-from app.models import Participant, token_digest
-from app.services.errors import AuthError
+from app.services import members
 from app.settings import Settings
 from engine.errors import InputError
 
 ADMIN_TOKEN_FILE = "admin_token"
 RESEARCHER_COOKIE = "acv_researcher"
-PARTICIPANT_COOKIE = "acv_participant"
-PARTICIPANT_COOKIE_MAX_AGE_S = 90 * 24 * 3600
+PARTICIPANT_COOKIE = members.STUDY.cookie
+#: How long a member's browser remembers their invitation, so they can resume.
+MEMBER_COOKIE_MAX_AGE_S = 90 * 24 * 3600
 #: Shortest admin token accepted: ~190 bits as URL-safe base64, beyond brute force.
 MIN_ADMIN_TOKEN_CHARS = 32
 #: Seconds a researcher cookie may claim to come from the future (clocks of several hosts).
 CLOCK_SKEW_S = 60
 _MAX_TOKEN_CHARS = 256
-#: What invite tokens look like (URL-safe base64); anything else is not looked up at all.
-_TOKEN_SHAPE = re.compile(r"[A-Za-z0-9_-]{1,256}")
 
 
 def new_token() -> str:
@@ -156,35 +153,6 @@ def is_researcher(
     )
 
 
-def is_invite_token(session: Session, *, token: str) -> bool:
-    """Whether ``token`` is some participant's invite token (a credential, not a guess)."""
-    try:
-        participant_by_token(session, token=token)
-    except AuthError:
-        return False
-    return True
-
-
-def participant_by_token(session: Session, *, token: str | None) -> Participant:
-    """The participant holding invite ``token``.
-
-    Raises:
-        AuthError: missing or unknown token.
-    """
-    if not token:
-        raise AuthError("a participant invite token is required")
-    if not _TOKEN_SHAPE.fullmatch(token):
-        raise AuthError("unknown invite token")
-    participant = session.scalar(
-        select(Participant).where(Participant.token_hash == token_digest(token))
-    )
-    if participant is None or not secrets.compare_digest(
-        token.encode(), participant.token.encode()
-    ):
-        raise AuthError("unknown invite token")
-    return participant
-
-
 @dataclass(frozen=True)
 class ParticipantRef:
     """A participant as the labelling hot path knows them (no row object, no session)."""
@@ -194,51 +162,15 @@ class ParticipantRef:
     token: str
 
 
-#: Participants already looked up in this process, by database (engine) and token digest:
-#: invite tokens never change and participants are never deleted (and the label write
-#: checks the row is there), so the hot path needs no query to authenticate a known token.
-_known: weakref.WeakKeyDictionary[Engine, dict[str, ParticipantRef]] = weakref.WeakKeyDictionary()
-_MAX_KNOWN = 100_000
-_BY_DIGEST = select(Participant.id, Participant.study_id, Participant.token).where(
-    Participant.token_hash == bindparam("digest")
-)
-
-
-def participant_ref_by_token(db: Session | Connection, *, token: str | None) -> ParticipantRef:
-    """The participant holding invite ``token``, from this process's cache when known.
+def participant_ref(db: Session | Connection, *, token: str | None) -> ParticipantRef:
+    """The participant holding invite ``token`` (:func:`app.services.members.resolve`, which
+    remembers known tokens in this process, so the hot path needs no query for them).
 
     Raises:
         AuthError: missing or unknown token.
     """
-    if not token:
-        raise AuthError("a participant invite token is required")
-    if not _TOKEN_SHAPE.fullmatch(token):
-        raise AuthError("unknown invite token")
-    digest = token_digest(token)
-    engine = engine_of(db)
-    cache = _known.get(engine)
-    if cache is None:
-        cache = _known.setdefault(engine, {})
-    if (known := cache.get(digest)) is None:
-        row = db.execute(_BY_DIGEST, {"digest": digest}).one_or_none()
-        if row is None:
-            raise AuthError("unknown invite token")
-        known = ParticipantRef(*row)
-        if len(cache) >= _MAX_KNOWN:  # bounded memory; the busy ones come back at once
-            cache.clear()
-        cache[digest] = known
-    if not secrets.compare_digest(token.encode(), known.token.encode()):
-        raise AuthError("unknown invite token")
-    return known
-
-
-def known_participant(engine: Engine, *, token: str | None) -> bool:
-    """Whether ``token`` is the invite token of a participant this process already looked
-    up (no query: the hot path checks a credential without a thread hop)."""
-    if not token or not _TOKEN_SHAPE.fullmatch(token):
-        return False
-    known = _known.get(engine, {}).get(token_digest(token))
-    return known is not None and secrets.compare_digest(token.encode(), known.token.encode())
+    ref = members.resolve(db, members.STUDY, token=token)
+    return ParticipantRef(ref.id, ref.collection_id, ref.token)
 
 
 def set_researcher_cookie(
@@ -256,12 +188,15 @@ def set_researcher_cookie(
     )
 
 
-def set_participant_cookie(response: Response, *, token: str, secure: bool) -> None:
-    """Remember the participant in this browser, so they can resume (HttpOnly, Lax)."""
+def set_member_cookie(
+    response: Response, kind: members.CollectionKind[Any], *, token: str, secure: bool
+) -> None:
+    """Remember a participant or respondent in this browser, so they can resume (HttpOnly,
+    SameSite=Lax)."""
     response.set_cookie(
-        PARTICIPANT_COOKIE,
+        kind.cookie,
         token,
-        max_age=PARTICIPANT_COOKIE_MAX_AGE_S,
+        max_age=MEMBER_COOKIE_MAX_AGE_S,
         httponly=True,
         samesite="lax",
         secure=secure,

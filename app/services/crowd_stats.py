@@ -12,7 +12,8 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from app.models import Label, Match, Participant
-from app.services.crowd import DEFAULT_SPEED_THRESHOLD_MS, crowd_settings
+from app.services import recruiting
+from app.services.crowd import DEFAULT_SPEED_THRESHOLD_MS, LINK
 from app.services.crowd_check import agreement_by_participant
 from app.services.studies import engine_candidates_of, get_study
 from engine import agreement
@@ -102,7 +103,7 @@ def _participant_quality(
 def quality(session: Session, *, study_id: int) -> StudyQuality:
     """Position bias, median response time and consistency, per participant and study."""
     get_study(session, study_id=study_id)
-    settings = crowd_settings(session, study_id=study_id)
+    settings = recruiting.settings(session, LINK, study_id)
     threshold = settings.speed_threshold_ms if settings else DEFAULT_SPEED_THRESHOLD_MS
     rows = label_rows(session, study_id=study_id)
     checks = agreement_by_participant(session, study_id=study_id)

@@ -11,6 +11,7 @@ constraint behind both).
 
 from __future__ import annotations
 
+import contextlib
 import re
 import secrets
 import unicodedata
@@ -24,7 +25,9 @@ from sqlalchemy.orm import Session
 
 from app.db import writing
 from app.models import CrowdSettings, Participant, SurveyCrowdSettings, SurveyRespondent
+from app.services import members
 from app.services.errors import AuthError, ConflictError, NotFoundError, ServiceError
+from app.services.members import CollectionKind
 from app.services.studies import check_text
 from engine.errors import InputError
 
@@ -194,41 +197,37 @@ def completion(session: Session, model: type[Link], key: int, person: Joiner) ->
 
 def returning(
     session: Session,
-    model: type[Person],
+    kind: CollectionKind[Person],
     *,
-    owner: str,
     owner_id: int,
     params: list[str],
     ids: dict[str, str],
     token: str | None,
-    by_token: Callable[..., Person],
 ) -> Person | None:
-    """The person of ``model`` (whose ``owner`` column is ``owner_id``) this visitor already
-    is, or ``None`` for a new one.
+    """The member of ``kind`` in the collection ``owner_id`` this visitor already is, or
+    ``None`` for a new one.
 
-    Without an external id, the person whose cookie ``token`` (checked by ``by_token``) the
-    browser holds. With one that joined before, that person only in the browser that joined
-    (its cookie), or where every other external parameter (the platform's per-attempt ids,
-    such as ``SESSION_ID``) was stored and matches: an id alone is public enough (it is in
-    every URL the platform makes) that it must not hand over someone's session.
+    Without an external id, the member whose cookie ``token`` (checked by
+    :func:`app.services.members.member_by_token`) the browser holds. With one that joined
+    before, that person only in the browser that joined (its cookie), or where every other
+    external parameter (the platform's per-attempt ids, such as ``SESSION_ID``) was stored
+    and matches: an id alone is public enough (it is in every URL the platform makes) that
+    it must not hand over someone's session.
 
     Raises:
         AlreadyTookPartError: the id joined before, and neither the cookie nor the
             per-attempt ids say this is the same person.
     """
     cookie = None
-    if token:  # looked up by its hash and compared in constant time, as invite links are
-        try:
-            cookie = by_token(session, token=token)
-        except AuthError:
-            cookie = None
-        if cookie is not None and getattr(cookie, owner) != owner_id:
-            cookie = None
+    if token:  # a cookie of another collection, or no longer valid, is no cookie here
+        with contextlib.suppress(AuthError):
+            cookie = members.member_by_token(session, kind, token=token, collection_id=owner_id)
     key = ids.get(params[0])
     if key is None:
         return cookie
+    model = kind.member
     known = session.scalar(
-        select(model).where(getattr(model, owner) == owner_id, model.external_id == key)
+        select(model).where(getattr(model, kind.owner) == owner_id, model.external_id == key)
     )
     if known is None:
         return None

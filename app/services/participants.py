@@ -12,6 +12,7 @@ from app.db import writing
 from app.models import Label, Match, Participant, Study
 from app.services.auth import new_token
 from app.services.errors import NotFoundError
+from app.services.members import STUDY
 from app.services.sides import a_on_left
 from app.services.studies import check_text, first_round, get_ready_study, get_study
 from engine.bracket import Bracket
@@ -53,7 +54,7 @@ class ParticipantSummary:
 
 def invite_path(token: str) -> str:
     """The invite link's path (the page at ``/p/<token>`` sets the participant cookie)."""
-    return f"/p/{token}"
+    return STUDY.invite_path(token)
 
 
 def invite_url(base_url: str, token: str) -> str:

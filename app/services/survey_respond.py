@@ -11,12 +11,10 @@ the database performs atomically, so concurrent respondents never get the same s
 
 from __future__ import annotations
 
-import secrets
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from fastapi import Response
 from sqlalchemy import func, select, update
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
@@ -28,17 +26,16 @@ from app.models import (
     SurveyRespondent,
     SurveyScreen,
     SurveyStimulus,
-    token_digest,
     utcnow,
 )
 from app.services.auth import new_token
-from app.services.errors import AuthError, ConflictError, NotFoundError
+from app.services.errors import ConflictError, NotFoundError
+from app.services.members import SURVEY
 from app.services.studies import check_text
 from app.services.surveys import get_survey, questions_for, stimuli_of
 from engine.errors import InputError
 
-RESPONDENT_COOKIE = "acv_respondent"
-COOKIE_MAX_AGE_S = 90 * 24 * 3600
+RESPONDENT_COOKIE = SURVEY.cookie
 MAX_BATCH = 500
 MAX_TEXT_ANSWER_CHARS = 2_000
 #: Longest time on one screen that is stored (a day; longer is a tab left open).
@@ -55,7 +52,7 @@ class AnswerIn:
 
 def invite_path(token: str) -> str:
     """The invite link's path (it sets the respondent cookie, as ``/p/<token>`` does)."""
-    return f"/r/{token}"
+    return SURVEY.invite_path(token)
 
 
 def add_respondents(
@@ -72,43 +69,6 @@ def add_respondents(
     with writing(session):
         session.add_all(people)
     return people
-
-
-def respondent_by_token(session: Session, *, token: str | None) -> SurveyRespondent:
-    """The respondent holding invite ``token`` (looked up by hash, compared in constant time).
-
-    Raises:
-        AuthError: missing or unknown token.
-    """
-    if not token or len(token) > 256 or not token.isascii():
-        raise AuthError("a survey invite token is required")
-    person = session.scalar(
-        select(SurveyRespondent).where(SurveyRespondent.token_hash == token_digest(token))
-    )
-    if person is None or not secrets.compare_digest(token.encode(), person.token.encode()):
-        raise AuthError("unknown survey invite token")
-    return person
-
-
-def is_respondent_token(session: Session, *, token: str) -> bool:
-    """Whether ``token`` is some respondent's invite token (a credential, not a guess)."""
-    try:
-        respondent_by_token(session, token=token)
-    except AuthError:
-        return False
-    return True
-
-
-def set_respondent_cookie(response: Response, *, token: str, secure: bool) -> None:
-    """Remember the respondent in this browser, so they can resume (HttpOnly, Lax)."""
-    response.set_cookie(
-        RESPONDENT_COOKIE,
-        token,
-        max_age=COOKIE_MAX_AGE_S,
-        httponly=True,
-        samesite="lax",
-        secure=secure,
-    )
 
 
 def respondent_rng(survey: Survey, respondent_id: int) -> np.random.Generator:

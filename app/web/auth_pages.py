@@ -15,7 +15,7 @@ from fastapi import APIRouter, Query, Request, Response
 from fastapi.responses import HTMLResponse, RedirectResponse
 
 from app.api.deps import RuntimeDep, SessionDep
-from app.services import auth
+from app.services import auth, members
 from app.services.errors import AuthError
 from app.web.csrf import CsrfChecked, FormFields
 from app.web.guards import ParticipantCookie, ResearcherCookie, safe_next
@@ -42,7 +42,7 @@ def home(
         return redirect("/studies")
     if participant:
         try:
-            auth.participant_by_token(session, token=participant)
+            members.member_by_token(session, members.STUDY, token=participant)
             return redirect("/participate")
         except AuthError:
             pass

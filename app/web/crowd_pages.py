@@ -9,7 +9,7 @@ from sqlalchemy.orm import Session
 
 from app.api.deps import SessionDep
 from app.models import CrowdSettings
-from app.services import auth, crowd, crowd_check, participants, studies
+from app.services import auth, crowd, crowd_check, participants, recruiting, studies
 from app.services.open_links import check_open, is_full
 from app.web import open_links
 from app.web.csrf import CsrfChecked, FormFields
@@ -30,21 +30,25 @@ def _enter(
 ) -> Response:
     """Resume a returning visitor, or make a participant of a new one (rate-limited)."""
     token = request.cookies.get(auth.PARTICIPANT_COOKIE)
-    person = crowd.returning(session, link=link, ids=ids, token=token)
+    person = recruiting.returning(session, crowd.LINK, link=link, ids=ids, token=token)
     if person is None:
-        person = open_links.admit(request, lambda: crowd.join(session, link=link, ids=ids))
+        person = open_links.admit(
+            request, lambda: recruiting.join(session, crowd.LINK, link=link, ids=ids)
+        )
     response = redirect(where_next(participants.progress(session, participant=person)))
-    auth.set_participant_cookie(response, token=person.token, secure=is_https(request))
+    auth.set_member_cookie(
+        response, crowd.LINK.members, token=person.token, secure=is_https(request)
+    )
     return response
 
 
 @router.get("/s/{slug}")
 def open_link(slug: str, request: Request, session: SessionDep) -> Response:
     """The consent page, or straight on to the instructions; "full" past the maximum."""
-    link = crowd.open_link(session, slug=slug)
-    ids = crowd.external_ids(link, open_links.query(request))
-    returning = crowd.returning(
-        session, link=link, ids=ids, token=request.cookies.get(auth.PARTICIPANT_COOKIE)
+    link = recruiting.open_link(session, crowd.LINK, slug)
+    ids = recruiting.external_ids(link, open_links.query(request))
+    returning = recruiting.returning(
+        session, crowd.LINK, link=link, ids=ids, token=request.cookies.get(auth.PARTICIPANT_COOKIE)
     )
     if returning is None:
         check_open(link, what="study")
@@ -52,18 +56,13 @@ def open_link(slug: str, request: Request, session: SessionDep) -> Response:
         return _full(request, session, link)
     if returning is None and link.consent_text:
         return open_links.consent(
-            request, _name(session, link), link, crowd.open_path(link.slug), ids
+            request, _name(session, link), link, crowd.LINK.open_path(link.slug), ids
         )
     return _join_or_full(request, session, link, ids)
 
 
 def _full(request: Request, session: Session, link: CrowdSettings) -> Response:
-    return open_links.message(
-        request,
-        _name(session, link),
-        "This study is full",
-        "This study has all the participants it needs. Thank you for your interest.",
-    )
+    return open_links.full(request, _name(session, link), crowd.LINK)
 
 
 def _join_or_full(
@@ -78,10 +77,10 @@ def _join_or_full(
 @router.post("/s/{slug}", dependencies=[CsrfChecked])
 def consent(slug: str, request: Request, session: SessionDep, fields: FormFields) -> Response:
     """Agree (a participant is made) or decline (only the count of declines grows)."""
-    link = crowd.open_link(session, slug=slug)
-    ids = crowd.external_ids(link, fields)
+    link = recruiting.open_link(session, crowd.LINK, slug)
+    ids = recruiting.external_ids(link, fields)
     if fields.get("decision") != "agree":
-        crowd.decline(session, link=link)
+        recruiting.decline(session, crowd.LINK, link=link)
         return open_links.message(
             request, _name(session, link), "You declined", open_links.DECLINED
         )

@@ -10,7 +10,7 @@ from sqlalchemy.orm import Session
 
 from app.api.crowd_schemas import CrowdIn
 from app.api.deps import DbId, SessionDep
-from app.services import crowd, crowd_stats
+from app.services import crowd, crowd_stats, recruiting
 from app.web.csrf import CsrfChecked, FormFields
 from app.web.guards import ResearcherPage
 from app.web.open_links import link_form, validated, whole
@@ -49,7 +49,7 @@ def heat_map(agreement: crowd_stats.StudyAgreement) -> list[dict[str, Any]]:
 
 def crowd_context(request: Request, session: Session, study_id: int) -> dict[str, Any]:
     """What ``study_crowd.html`` shows: settings and link, quality, agreement."""
-    row = crowd.crowd_settings(session, study_id=study_id)
+    row = recruiting.settings(session, crowd.LINK, study_id)
     agreement = crowd_stats.study_agreement(session, study_id=study_id)
     teachers: dict[int, dict[str, float | None]] = {}
     for t in agreement.teachers:
@@ -59,7 +59,7 @@ def crowd_context(request: Request, session: Session, study_id: int) -> dict[str
         "crowd_defaults": crowd.CrowdOptions(),
         "open_url": None
         if row is None
-        else str(request.base_url).rstrip("/") + crowd.open_path(row.slug),
+        else str(request.base_url).rstrip("/") + crowd.LINK.open_path(row.slug),
         "quality": crowd_stats.quality(session, study_id=study_id),
         "agreement": agreement,
         "heat_rows": heat_map(agreement),

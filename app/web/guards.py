@@ -6,11 +6,13 @@ from __future__ import annotations
 from typing import Annotated
 
 from fastapi import Cookie, Depends, Request
+from sqlalchemy.orm import Session
 
 from app.api.deps import RuntimeDep, SessionDep
 from app.models import Participant
-from app.services import auth
+from app.services import auth, members
 from app.services.errors import AuthError
+from app.services.members import CollectionKind, Member
 from app.web.rendering import RedirectTo, login_url
 
 DEFAULT_NEXT = "/studies"
@@ -29,19 +31,30 @@ def researcher_page(request: Request, runtime: RuntimeDep, cookie: ResearcherCoo
 ResearcherPage = Depends(researcher_page)
 
 
-def page_participant(session: SessionDep, cookie: ParticipantCookie = None) -> Participant:
-    """The participant whose invite cookie this browser holds.
+def page_member(
+    session: Session, kind: CollectionKind[Member], cookie: str | None, *, lost: str
+) -> Member:
+    """The member of ``kind`` whose invite cookie this browser holds.
 
     Raises:
-        AuthError: no cookie, or its token is no longer valid (an error page says what to do).
+        AuthError: ``lost`` (what to do, for the error page), when there is no cookie or its
+            token is no longer valid.
     """
     try:
-        return auth.participant_by_token(session, token=cookie)
+        return members.member_by_token(session, kind, token=cookie)
     except AuthError:
-        raise AuthError(
-            "This browser has no valid invitation. Open the invite link you "
-            "were sent (it looks like /p/...) to start or continue."
-        ) from None
+        raise AuthError(lost) from None
+
+
+def page_participant(session: SessionDep, cookie: ParticipantCookie = None) -> Participant:
+    """The participant whose invite cookie this browser holds (:func:`page_member`)."""
+    return page_member(
+        session,
+        members.STUDY,
+        cookie,
+        lost="This browser has no valid invitation. Open the invite link you "
+        "were sent (it looks like /p/...) to start or continue.",
+    )
 
 
 PageParticipant = Annotated[Participant, Depends(page_participant)]

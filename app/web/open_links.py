@@ -19,6 +19,7 @@ from pydantic import BaseModel, ValidationError
 from app.models import CrowdSettings, SurveyCrowdSettings
 from app.services.errors import TooManyAttemptsError
 from app.services.open_links import DEFAULT_EXTERNAL_PARAMS
+from app.services.recruiting import LinkKind
 from app.web.ratelimit import client_address
 from app.web.rendering import render
 from engine.errors import InputError
@@ -62,6 +63,12 @@ def message(request: Request, name: str, title: str, text: str, status_code: int
         {"header_name": name, "title": title, "text": text},
         status_code=status_code,
     )
+
+
+def full(request: Request, name: str, kind: LinkKind[Any, Any]) -> Response:
+    """The page a visitor sees past the link's largest number of people."""
+    title, text = kind.full
+    return message(request, name, title, text)
 
 
 def consent(

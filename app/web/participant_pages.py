@@ -15,7 +15,7 @@ from sqlalchemy.orm import Session
 
 from app.api.deps import SessionDep
 from app.models import Participant
-from app.services import auth, crowd, crowd_check, participants, studies
+from app.services import auth, crowd, crowd_check, members, participants, recruiting, studies
 from app.services.errors import AuthError, NotFoundError
 from app.web.guards import PageParticipant
 from app.web.rendering import PageRoute, RedirectTo, is_https, redirect, render, thumb_template
@@ -38,14 +38,14 @@ def where_next(progress: participants.Progress) -> str:
 def invite_link(token: str, request: Request, session: SessionDep) -> RedirectResponse:
     """Remember the invitation in this browser and continue where the participant left off."""
     try:
-        person = auth.participant_by_token(session, token=token)
+        person = members.member_by_token(session, members.STUDY, token=token)
     except AuthError:
         raise NotFoundError(
             "This invite link is not valid. Check that you copied all of it, "
             "or ask the researcher for a new one."
         ) from None
     response = redirect(where_next(participants.progress(session, participant=person)))
-    auth.set_participant_cookie(response, token=token, secure=is_https(request))
+    auth.set_member_cookie(response, members.STUDY, token=token, secure=is_https(request))
     return response
 
 
@@ -82,5 +82,5 @@ def thanks(request: Request, session: SessionDep, person: PageParticipant) -> Re
         raise RedirectTo(LABEL)
     if crowd_check.pending_pair(session, participant=person) is not None:
         raise RedirectTo("/participate/check")
-    context["crowd"] = crowd.completion(session, participant=person)
+    context["crowd"] = recruiting.completion(session, crowd.LINK, member=person)
     return render(request, "thanks.html", context)

@@ -16,7 +16,7 @@ from app.api.crowd_schemas import OpenLinkIn
 from app.api.deps import DbId, SessionDep
 from app.api.surveys import RespondentCookie
 from app.models import SurveyCrowdSettings
-from app.services import survey_crowd, survey_respond, surveys
+from app.services import auth, recruiting, survey_crowd, surveys
 from app.services.open_links import LinkOptions, check_open, is_full
 from app.web import open_links
 from app.web.csrf import CsrfChecked, FormFields
@@ -32,12 +32,7 @@ def _name(session: Session, link: SurveyCrowdSettings) -> str:
 
 
 def _full(request: Request, session: Session, link: SurveyCrowdSettings) -> Response:
-    return open_links.message(
-        request,
-        _name(session, link),
-        "This survey is full",
-        "This survey has all the respondents it needs. Thank you for your interest.",
-    )
+    return open_links.full(request, _name(session, link), survey_crowd.LINK)
 
 
 def _enter(
@@ -48,16 +43,18 @@ def _enter(
     cookie: str | None,
 ) -> Response:
     """Resume a returning visitor, or make a respondent of a new one; "full" past the max."""
-    person = survey_crowd.returning(session, link=link, ids=ids, token=cookie)
+    person = recruiting.returning(session, survey_crowd.LINK, link=link, ids=ids, token=cookie)
     if person is None:
         try:
             person = open_links.admit(
-                request, lambda: survey_crowd.join(session, link=link, ids=ids)
+                request, lambda: recruiting.join(session, survey_crowd.LINK, link=link, ids=ids)
             )
         except survey_crowd.SurveyFullError:
             return _full(request, session, link)
     response = redirect(RESPOND)
-    survey_respond.set_respondent_cookie(response, token=person.token, secure=is_https(request))
+    auth.set_member_cookie(
+        response, survey_crowd.LINK.members, token=person.token, secure=is_https(request)
+    )
     return response
 
 
@@ -66,15 +63,15 @@ def open_link(
     slug: str, request: Request, session: SessionDep, cookie: RespondentCookie = None
 ) -> Response:
     """The consent page, or straight on to the survey; "full" past the maximum."""
-    link = survey_crowd.open_link(session, slug=slug)
-    ids = survey_crowd.external_ids(link, open_links.query(request))
-    returning = survey_crowd.returning(session, link=link, ids=ids, token=cookie)
+    link = recruiting.open_link(session, survey_crowd.LINK, slug)
+    ids = recruiting.external_ids(link, open_links.query(request))
+    returning = recruiting.returning(session, survey_crowd.LINK, link=link, ids=ids, token=cookie)
     if returning is None:
         check_open(link, what="survey")
     if returning is None and is_full(link):
         return _full(request, session, link)
     if returning is None and link.consent_text:
-        path = survey_crowd.open_path(link.slug)
+        path = survey_crowd.LINK.open_path(link.slug)
         return open_links.consent(request, _name(session, link), link, path, ids)
     return _enter(request, session, link, ids, cookie)
 
@@ -88,10 +85,10 @@ def consent(
     cookie: RespondentCookie = None,
 ) -> Response:
     """Agree (a respondent is made) or decline (only the count of declines grows)."""
-    link = survey_crowd.open_link(session, slug=slug)
-    ids = survey_crowd.external_ids(link, fields)
+    link = recruiting.open_link(session, survey_crowd.LINK, slug)
+    ids = recruiting.external_ids(link, fields)
     if fields.get("decision") != "agree":
-        survey_crowd.decline(session, link=link)
+        recruiting.decline(session, survey_crowd.LINK, link=link)
         return open_links.message(
             request, _name(session, link), "You declined", open_links.DECLINED
         )
@@ -104,5 +101,5 @@ def set_crowd(survey_id: DbId, session: SessionDep, fields: FormFields) -> Respo
     the survey page's crowd section."""
     body = open_links.validated(OpenLinkIn, open_links.link_form(fields))
     options = LinkOptions(**{**body.model_dump(), "external_params": tuple(body.external_params)})
-    survey_crowd.configure(session, survey_id=survey_id, options=options)
+    recruiting.configure(session, survey_crowd.LINK, survey_id, options)
     return redirect(f"/surveys/{survey_id}#crowd")

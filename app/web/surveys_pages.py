@@ -17,11 +17,19 @@ from sqlalchemy.orm import Session
 from app.api.deps import DbId, SessionDep
 from app.api.surveys import RespondentCookie
 from app.models import Survey, SurveyRespondent
-from app.services import survey_crowd, survey_respond, survey_results, surveys
+from app.services import (
+    auth,
+    members,
+    recruiting,
+    survey_crowd,
+    survey_respond,
+    survey_results,
+    surveys,
+)
 from app.services.errors import AuthError, NotFoundError
 from app.services.open_links import LinkOptions
 from app.services.survey_sources import source_menus
-from app.web.guards import ResearcherPage
+from app.web.guards import ResearcherPage, page_member
 from app.web.rendering import PageRoute, is_https, redirect, render
 
 router = APIRouter(route_class=PageRoute, include_in_schema=False)
@@ -54,12 +62,12 @@ def new_survey_page(request: Request, session: SessionDep) -> HTMLResponse:
 def crowd_context(request: Request, session: Session, survey_id: int) -> dict[str, Any]:
     """What the survey page's "Crowd: open link" section shows (the form posts to
     :mod:`app.web.survey_crowd_pages`)."""
-    row = survey_crowd.crowd_settings(session, survey_id=survey_id)
+    row = recruiting.settings(session, survey_crowd.LINK, survey_id)
     base = str(request.base_url).rstrip("/")
     return {
         "crowd": row,
         "crowd_defaults": LinkOptions(),
-        "open_url": None if row is None else base + survey_crowd.open_path(row.slug),
+        "open_url": None if row is None else base + survey_crowd.LINK.open_path(row.slug),
         "completed": survey_crowd.completed(session, survey_id=survey_id),
     }
 
@@ -91,25 +99,25 @@ def survey_page(survey_id: DbId, request: Request, session: SessionDep) -> HTMLR
 def survey_invite(token: str, request: Request, session: SessionDep) -> RedirectResponse:
     """Remember the survey invitation in this browser and continue where they left off."""
     try:
-        survey_respond.respondent_by_token(session, token=token)
+        members.member_by_token(session, members.SURVEY, token=token)
     except AuthError:
         raise NotFoundError(
             "This survey link is not valid. Check that you copied all of it, "
             "or ask the researcher for a new one."
         ) from None
     response = redirect(RESPOND)
-    survey_respond.set_respondent_cookie(response, token=token, secure=is_https(request))
+    auth.set_member_cookie(response, members.SURVEY, token=token, secure=is_https(request))
     return response
 
 
 def _respondent(session: Session, cookie: str | None) -> SurveyRespondent:
-    try:
-        return survey_respond.respondent_by_token(session, token=cookie)
-    except AuthError:
-        raise AuthError(
-            "This browser has no valid survey invitation. Open the link you were "
-            "sent (it looks like /r/...) to start or continue."
-        ) from None
+    return page_member(
+        session,
+        members.SURVEY,
+        cookie,
+        lost="This browser has no valid survey invitation. Open the link you were "
+        "sent (it looks like /r/...) to start or continue.",
+    )
 
 
 @router.get(RESPOND)

@@ -29,7 +29,7 @@ from sqlalchemy import text
 from app.api.deps import AJAX_HEADER
 from app.db import make_engine, make_sessions, upgrade
 from app.models import Experiment, ExperimentRun
-from app.services import auth
+from app.services import auth, members
 from tests.app.conftest import ADMIN, ADMIN_TOKEN, Player
 from tests.app.runs_support import TINY, create_run, wait_run
 from tests.support.postgres import BACKENDS, empty_database
@@ -363,7 +363,7 @@ def test_invite_links_from_before_the_token_hash_still_work(
     engine = make_engine(url)
     try:
         with make_sessions(engine)() as session:
-            assert auth.participant_by_token(session, token=token).id == 1
+            assert members.member_by_token(session, members.STUDY, token=token).id == 1
             assert session.scalar(text("SELECT count(*) FROM matches")) == 1
     finally:
         engine.dispose()

@@ -15,7 +15,7 @@ from sqlalchemy import text
 
 from app.db import make_engine, upgrade
 from app.models import SurveyRespondent
-from app.services import survey_crowd, survey_respond
+from app.services import recruiting, survey_crowd, survey_respond
 from app.services.survey_respond import AnswerIn
 from tests.app.conftest import ADMIN, BACKENDS
 from tests.app.surveys_support import invite, paper_body, participant_trees
@@ -41,10 +41,10 @@ def _people(client: TestClient, survey_id: int) -> list[int]:
     """Half invited, half through the open link; every one's screens planned."""
     invited = [r.id for r in invite(client, survey_id, RESPONDENTS // 2)]
     with client.app.state.runtime.sessions() as session:
-        link = survey_crowd.crowd_settings(session, survey_id=survey_id)
+        link = recruiting.settings(session, survey_crowd.LINK, survey_id)
         assert link is not None
         crowd = [
-            survey_crowd.join(session, link=link, ids={}).id
+            recruiting.join(session, survey_crowd.LINK, link=link, ids={}).id
             for _ in range(RESPONDENTS - len(invited))
         ]
         for rid in invited + crowd:
@@ -90,7 +90,7 @@ def test_screens_submitted_at_once_finish_the_respondent(client, survey, monkeyp
             person = session.get_one(SurveyRespondent, rid)
             assert survey_respond.progress(session, respondent_id=rid) == (2, 2)
             assert person.finished_at is not None, f"respondent {rid} left unfinished"
-            link = survey_crowd.completion(session, respondent=person)
+            link = recruiting.completion(session, survey_crowd.LINK, member=person)
             assert (link.completion_code if link else None) == (
                 "F2DONE" if person.via_link else None
             )
