@@ -23,7 +23,12 @@ from app.db import writing
 from app.models import BracketSlot, Candidate, Study
 from app.services.errors import ConflictError, NotFoundError
 from app.services.images import ImageSize, render_candidates
-from app.services.study_baseline import baseline_policy, baseline_run, no_baseline_message
+from app.services.study_baseline import (
+    baseline_run,
+    no_baseline_message,
+    study_baseline_id,
+    study_policy,
+)
 from engine import candidates as engine_candidates
 from engine.bracket import FirstRound, make_first_round
 from engine.candidates import SamplingMode
@@ -144,19 +149,11 @@ def prepare_study(
     """
     with sessions() as session:
         study = session.get(Study, study_id)
-        baseline = (
-            baseline_run(session, env_id=study.env_id, before=study.created_at)
-            if study is not None and study.sampling in engine_candidates.BASELINE_MODES
-            else None
-        )
+        baseline = None if study is None else study_baseline_id(session, study)
     if study is None or study.status != "preparing":
         return
     try:  # the slow part holds no database connection
-        policy = None
-        if study.sampling in engine_candidates.BASELINE_MODES:
-            if baseline is None:
-                raise InputError(no_baseline_message(study.env_id))
-            policy = baseline_policy(baseline.id, runs_dir or data_dir / "runs")
+        policy = study_policy(study, baseline, runs_dir or data_dir / "runs")
         cands, bracket = _sample(study, policy)
         paths = render_candidates(
             renderer, data_dir=data_dir, env_id=study.env_id, candidates=cands

@@ -17,7 +17,8 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from app.models import Run, RunStatus, Study, utcnow
-from engine.candidates import Policy
+from engine.candidates import BASELINE_MODES, Policy
+from engine.errors import InputError
 
 
 def no_baseline_message(env_id: str) -> str:
@@ -49,3 +50,25 @@ def baseline_policy(run_id: int, runs_dir: Path) -> Policy:
     from engine.rl.trained import deterministic_policy, load_agent
 
     return deterministic_policy(load_agent(find_checkpoint(run_dir(runs_dir, run_id))))
+
+
+def study_baseline_id(session: Session, study: Study) -> int | None:
+    """The baseline run of an ``informative`` study (None for another mode, or none found)."""
+    if study.sampling not in BASELINE_MODES:
+        return None
+    run = baseline_run(session, env_id=study.env_id, before=study.created_at)
+    return None if run is None else run.id
+
+
+def study_policy(study: Study, baseline_id: int | None, runs_dir: Path) -> Policy | None:
+    """What the study's candidate rollouts follow: its baseline's policy for ``informative``
+    sampling, random actions (None) otherwise.
+
+    Raises:
+        InputError: an ``informative`` study without a baseline run.
+    """
+    if study.sampling not in BASELINE_MODES:
+        return None
+    if baseline_id is None:
+        raise InputError(no_baseline_message(study.env_id))
+    return baseline_policy(baseline_id, runs_dir)
