@@ -21,6 +21,7 @@ import httpx
 import pytest
 from playwright.sync_api import Browser, BrowserContext, Page, expect, sync_playwright
 
+from tests.support.a11y import assert_accessible
 from tests.support.browser import wait_for_match
 from tests.support.server import acv_serve, clean_env
 
@@ -93,6 +94,8 @@ def create_study_and_invite(page: Page, base: str) -> tuple[str, str]:
     page.wait_for_url(f"{base}/studies")
     assert ADMIN_TOKEN not in page.url and ADMIN_TOKEN not in page.content()
     page.click("text=New study")
+    page.wait_for_selector("#sampling")
+    assert_accessible(page, "new-study form")
     page.fill("#name", "Browser study")
     page.fill("#n_candidates", str(N_CANDIDATES))
     page.fill("#seed", "7")
@@ -128,6 +131,30 @@ def fits_width(page: Page) -> bool:
 def in_view(page: Page, selector: str) -> bool:
     box = page.locator(selector).bounding_box()
     return box is not None and box["y"] + box["height"] <= page.viewport_size["height"]
+
+
+@pytest.mark.parametrize("viewport", [DESKTOP, PHONE], ids=["desktop", "phone"])
+def test_the_form_refuses_informative_sampling_without_a_baseline(
+    server: tuple[str, Path], browser: Browser, viewport: dict[str, int]
+) -> None:
+    # This server trains nothing, so no no-advice ppo run exists for informative sampling.
+    base, _ = server
+    errors: list[str] = []
+    context, page = new_page(browser, errors, viewport=viewport)
+    page.goto(f"{base}/login#token={ADMIN_TOKEN}")
+    page.wait_for_url(f"{base}/studies")
+    page.goto(f"{base}/studies/new")
+    page.fill("#name", "Informative study")
+    page.select_option("#sampling", "informative")
+    page.click("button:has-text('Create study')")
+    expect(page.locator("p.error[role=alert]")).to_contain_text("no-advice ppo run")
+    assert page.input_value("#name") == "Informative study"  # the input is kept
+    assert_accessible(page, "new-study form refusing informative sampling")
+    context.close()
+    assert errors == [
+        "Failed to load resource: the server responded with a status of 422 "
+        f"(Unprocessable Entity) ({base}/studies)"
+    ]
 
 
 def test_participant_bracket_and_researcher_tree(
