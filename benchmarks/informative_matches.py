@@ -33,12 +33,8 @@ from typing import Any
 
 import numpy as np
 
-from engine.bracket import Bracket, make_first_round
-from engine.candidates import Candidate, Policy, sample_candidates, seed_abilities
-from engine.envs import env_model
-from engine.teachers import make_teacher
-from engine.tournament import play
-from engine.treefile import TreeDocument, make_document
+from engine.candidates import Policy, sample_candidates
+from engine.pipeline import teacher_bracket
 from engine.verdict import VerdictOptions, advice_scores, bracket_pairs, split_matches
 
 TARGET = 8
@@ -60,25 +56,6 @@ def baseline(env_id: str, seed: int, steps: int, cache: Path) -> Policy:
         train(config, None, out)
         print(f"trained {out} in {time.time() - start:.0f} s", flush=True)
     return deterministic_policy(load_agent(find_checkpoint(out)))
-
-
-def teacher_bracket(
-    env_id: str, cands: list[Candidate], p: float, teacher: str, rng: np.random.Generator
-) -> TreeDocument:
-    """The BM first round and the teacher's bracket over ``cands`` (as run_tournament)."""
-    first_round = make_first_round([c.id for c in cands], seed_abilities(cands), p, rng)
-    judge, scores = make_teacher(teacher, cands, env_model(env_id), rng=rng)
-    results = play(Bracket(first_round), {c.id: c for c in cands}, judge)
-    return make_document(
-        env_id=env_id,
-        seed=0,
-        p=p,
-        judge=teacher,
-        candidates=cands,
-        first_round=first_round,
-        results=results,
-        scores=scores,
-    )
 
 
 def measure(args: argparse.Namespace) -> list[dict[str, Any]]:
@@ -108,7 +85,7 @@ def measure(args: argparse.Namespace) -> list[dict[str, Any]]:
                 for teacher in args.teachers:
                     for p in args.p:
                         rng.bit_generator.state = after_sampling  # as a study with this p
-                        doc = teacher_bracket(env_id, cands, p, teacher, rng)
+                        doc = teacher_bracket(env_id, cands, rng, p=p, seed=0, teacher=teacher)
                         split = split_matches(
                             advice_scores(doc), pilot, bracket_pairs(doc), VerdictOptions()
                         )

@@ -5,7 +5,13 @@ from __future__ import annotations
 import numpy as np
 
 from engine.bracket import Bracket, make_first_round
-from engine.candidates import Policy, SamplingMode, sample_candidates, seed_abilities
+from engine.candidates import (
+    Candidate,
+    Policy,
+    SamplingMode,
+    sample_candidates,
+    seed_abilities,
+)
 from engine.envs import env_model
 from engine.errors import check_seed
 from engine.teachers import make_teacher
@@ -42,6 +48,25 @@ def run_tournament(
     """
     rng = np.random.default_rng(check_seed(seed))
     candidates = sample_candidates(env_id, n_candidates, rng=rng, mode=sampling, policy=policy)
+    return teacher_bracket(
+        env_id, candidates, rng, p=p, seed=seed, teacher=teacher, noise=noise, r_b=r_b, r_e=r_e
+    )
+
+
+def teacher_bracket(
+    env_id: str,
+    candidates: list[Candidate],
+    rng: np.random.Generator,
+    *,
+    p: float,
+    seed: int,
+    teacher: str,
+    noise: float = 0.0,
+    r_b: float = 1.0,
+    r_e: float = 1.0,
+) -> TreeDocument:
+    """BM-seed the first round over ``candidates`` and let a simulated teacher play the
+    bracket (``seed`` is only recorded in the document; ``rng`` draws everything)."""
     first_round = make_first_round([c.id for c in candidates], seed_abilities(candidates), p, rng)
     judge, scores = make_teacher(teacher, candidates, env_model(env_id), noise=noise, rng=rng)
     results = play(Bracket(first_round), {c.id: c for c in candidates}, judge)
