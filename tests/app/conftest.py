@@ -25,6 +25,7 @@ import pytest
 from fastapi.testclient import TestClient
 
 from app.db import upgrade
+from app.jobs.settings import JobSettings
 from app.main import create_app
 from app.settings import Settings
 from tests.support.postgres import BACKENDS, PostgresCluster, PostgresMissing
@@ -76,8 +77,11 @@ def settings(backend_url: tuple[Path, str]) -> Settings:
 
 @pytest.fixture(scope="module")
 def client(settings: Settings) -> Iterator[TestClient]:
-    """The app on this module's database, lifespan running."""
-    with TestClient(create_app(settings)) as test_client:
+    """The app on this module's database, lifespan running. Its worker never backfills by
+    itself (a module's tests decide when checkpoints get judged; see ``test_backfill_worker``)."""
+    app = create_app(settings)
+    app.state.job_settings = JobSettings(backfill_s=0)
+    with TestClient(app) as test_client:
         yield test_client
 
 

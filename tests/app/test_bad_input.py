@@ -19,13 +19,12 @@ from fastapi.testclient import TestClient
 from sqlalchemy import update
 
 from app.db import make_engine, make_sessions
-from app.jobs.settings import JobSettings
-from app.main import create_app
 from app.middleware import MAX_BODY_BYTES
 from app.models import Candidate, Run
 from app.services import artefacts
 from engine.rl.checkpoint import checkpoint_path
 from tests.app.conftest import ADMIN, ADMIN_TOKEN
+from tests.app.runs_support import run_app
 
 CANARY = "acv-canary-outside-the-data-dir"
 MALFORMED_IDS = [
@@ -61,6 +60,16 @@ TRAVERSALS = [
     "//{canary_abs}",
     "/studies/{sid}/participants/..%2f..%2f{canary}/tree.json",
 ]
+
+
+@pytest.fixture(scope="module")
+def client(settings) -> Iterator[TestClient]:
+    """This module's one app, without its training worker (and so without its idle backfill):
+    runs stay as the tests leave them, and only a test's own backfill judges their
+    checkpoints. (With a worker beside it, its backfill could judge a corrupt checkpoint
+    first, and the test's own backfill would then find nothing to do.)"""
+    with run_app(settings, worker=False) as test_client:
+        yield test_client
 
 
 @pytest.fixture(scope="module")
@@ -335,23 +344,14 @@ def test_json_numbers_are_not_guessed_from_other_types(client, invite, body) -> 
     )
 
 
-@pytest.fixture(scope="module")
-def no_worker(settings) -> Iterator[TestClient]:
-    """The app without its training worker: runs stay as the test leaves them."""
-    app = create_app(settings)
-    app.state.job_settings = JobSettings(run_worker=False)
-    with TestClient(app) as client:
-        yield client
-
-
 @pytest.mark.parametrize(
     "content", [b"", b"not a checkpoint", b"PK\x03\x04" + b"\x00" * 64, b"\x80\x02garbage"]
 )
 def test_corrupt_checkpoints_are_refused_with_a_clear_message(
-    no_worker, settings, study, content: bytes
+    client, settings, study, content: bytes
 ) -> None:
     """The backfill job stores why a checkpoint cannot be judged; readers answer with it."""
-    run_id = no_worker.post(
+    run_id = client.post(
         "/api/runs",
         headers=ADMIN,
         json={"study_id": study["id"], "teacher": "good", "algo": "ppo-shaped", "timesteps": 1000},
@@ -359,7 +359,7 @@ def test_corrupt_checkpoints_are_refused_with_a_clear_message(
     path = checkpoint_path(settings.data_dir / "runs" / str(run_id), 256)
     path.parent.mkdir(parents=True)
     path.write_bytes(content)
-    assert no_worker.post(f"/api/runs/{run_id}/cancel", headers=ADMIN).status_code == 202
+    assert client.post(f"/api/runs/{run_id}/cancel", headers=ADMIN).status_code == 202
     sessions = make_sessions(make_engine(settings.sqlalchemy_url))
     assert artefacts.backfill(sessions, runs_root=settings.data_dir / "runs") == 1
     for url in (
@@ -367,18 +367,18 @@ def test_corrupt_checkpoints_are_refused_with_a_clear_message(
         f"/api/runs/{run_id}/conformance",
         f"/api/runs/{run_id}/trees/agent.svg",
     ):
-        response = no_worker.get(url, headers=ADMIN)
+        response = client.get(url, headers=ADMIN)
         assert response.status_code == 422, (url, response.text)
         assert "step_256.pt is not" in response.json()["detail"]
-    curve = no_worker.get(f"/api/runs/{run_id}/conformance-curve", headers=ADMIN)
+    curve = client.get(f"/api/runs/{run_id}/conformance-curve", headers=ADMIN)
     assert curve.status_code == 200 and curve.json() == []
 
 
 @pytest.mark.parametrize("advice", [{"format": "acv.tree/9"}, {"not": "a tree"}, []])
 def test_a_corrupt_stored_tree_is_refused_with_a_clear_message(
-    no_worker, settings, study, advice
+    client, settings, study, advice
 ) -> None:
-    run_id = no_worker.post(
+    run_id = client.post(
         "/api/runs",
         headers=ADMIN,
         json={"study_id": study["id"], "teacher": "good", "algo": "ppo-shaped", "timesteps": 1000},
@@ -388,7 +388,7 @@ def test_a_corrupt_stored_tree_is_refused_with_a_clear_message(
         session.execute(update(Run).where(Run.id == run_id).values(advice=advice))
         session.commit()
     engine.dispose()
-    response = no_worker.get(f"/api/runs/{run_id}/advice-tree", headers=ADMIN)
+    response = client.get(f"/api/runs/{run_id}/advice-tree", headers=ADMIN)
     assert response.status_code == 422 and response.json()["detail"], response.text
 
 
