@@ -110,6 +110,8 @@ class Study(Base):
     seed: Mapped[int] = mapped_column(BigInteger)
     sampling: Mapped[str] = mapped_column(String(16))
     instructions: Mapped[str] = mapped_column(Text)
+    #: Extra pairs each participant is asked after the bracket (:class:`DisagreementPair`).
+    disagreement_pairs: Mapped[int] = mapped_column(Integer, default=0)
     status: Mapped[str] = mapped_column(String(16), default="preparing")
     error: Mapped[str | None] = mapped_column(Text, default=None)
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
@@ -133,6 +135,9 @@ class Candidate(Base):
     env_reward: Mapped[float] = mapped_column(Float)
     image_path: Mapped[str] = mapped_column(String(255))
     thumb_path: Mapped[str] = mapped_column(String(255))
+    #: The study's no-advice baseline's return from this state (studies that ask
+    #: disagreement pairs; NULL otherwise).
+    baseline_return: Mapped[float | None] = mapped_column(Float, default=None)
 
 
 class BracketSlot(Base):
@@ -285,6 +290,26 @@ class ConsistencyCheck(Base):
         ForeignKey("participants.id", ondelete="CASCADE"), primary_key=True
     )
     match_id: Mapped[int] = mapped_column(ForeignKey("matches.id", ondelete="CASCADE"))
+    a_left: Mapped[bool] = mapped_column(Boolean)
+    winner: Mapped[int | None] = mapped_column(Integer, default=None)
+    response_ms: Mapped[int | None] = mapped_column(BigInteger, default=None)
+    shown_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+    answered_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), default=None)
+
+
+class DisagreementPair(Base):
+    """After the bracket, a pair where the participant's advice and a no-advice baseline
+    disagree (:mod:`engine.disagreement`): labelled and exported like a match, never part of
+    the tree. ``a`` is the advice's pick, ``b`` the baseline's; ``winner`` is the answer."""
+
+    __tablename__ = "disagreement_pairs"
+
+    participant_id: Mapped[int] = mapped_column(
+        ForeignKey("participants.id", ondelete="CASCADE"), primary_key=True
+    )
+    position: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=False)
+    a: Mapped[int] = mapped_column(Integer)
+    b: Mapped[int] = mapped_column(Integer)
     a_left: Mapped[bool] = mapped_column(Boolean)
     winner: Mapped[int | None] = mapped_column(Integer, default=None)
     response_ms: Mapped[int | None] = mapped_column(BigInteger, default=None)

@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Annotated, Any
 
-from fastapi import APIRouter, Request, Response
+from fastapi import APIRouter, Path, Request, Response
 from fastapi.responses import JSONResponse
 from starlette.concurrency import run_in_threadpool
 
@@ -20,8 +20,10 @@ from app.api.deps import (
 from app.api.schemas import (
     BracketCellOut,
     BracketOut,
+    LabelIn,
     MeOut,
     NextMatchOut,
+    PairOut,
     ParticipantOut,
     ProgressOut,
     UndoOut,
@@ -29,8 +31,9 @@ from app.api.schemas import (
 from app.api.studies import participant_out
 from app.api.urls import image_url
 from app.runtime import Runtime
-from app.services import auth, labelling, participants, studies, trees
+from app.services import auth, disagreement, labelling, participants, studies, trees
 from app.services.errors import ForbiddenError
+from engine.disagreement import MAX_PAIRS
 from engine.treefile import tree_to_json
 
 router = APIRouter(prefix="/participants", tags=["participants"])
@@ -117,6 +120,52 @@ def bracket(person: ParticipantDep, session: SessionDep) -> BracketOut:
     """The whole bracket as decided so far, round by round (for the live bracket view)."""
     rounds = labelling.bracket_view(session, participant=person)
     return BracketOut(rounds=[[BracketCellOut(**vars(c)) for c in cells] for cells in rounds])
+
+
+@router.get("/me/pairs")
+def disagreement_pairs(person: ParticipantDep, session: SessionDep) -> list[PairOut]:
+    """The participant's disagreement pairs, asked after the bracket (empty until it is
+    finished, and when the study asks none)."""
+    found = disagreement.pairs(session, participant=person)
+    return [pair_out(person.study_id, p) for p in found]
+
+
+@router.post(
+    "/me/pairs/{position}/label",
+    status_code=201,
+    responses={
+        200: {"description": "The same answer was already stored (idempotent).", "model": PairOut},
+        404: {"description": "No such pair for this participant (or the bracket is unfinished)."},
+        409: {"description": "The pair is already answered the other way."},
+        422: {"description": "The winner is not one of the pair."},
+    },
+)
+def label_pair(
+    position: Annotated[int, Path(ge=0, le=MAX_PAIRS)],
+    body: LabelIn,
+    person: ParticipantDep,
+    session: SessionDep,
+    response: Response,
+) -> PairOut:
+    """Store the participant's preferred candidate of a disagreement pair."""
+    pair, created = disagreement.answer(
+        session,
+        participant=person,
+        position=position,
+        winner=body.winner,
+        response_ms=body.response_ms,
+    )
+    if not created:
+        response.status_code = 200
+    return pair_out(person.study_id, pair)
+
+
+def pair_out(study_id: int, pair: disagreement.PairView) -> PairOut:
+    return PairOut(
+        **vars(pair),
+        left_image_url=image_url(study_id, pair.left),
+        right_image_url=image_url(study_id, pair.right),
+    )
 
 
 @router.get("/{participant_id}")

@@ -19,6 +19,7 @@ from app.services.labelling import MAX_RESPONSE_MS
 from app.services.participants import MAX_BATCH
 from app.services.studies import MAX_INSTRUCTIONS_CHARS, MAX_NAME_CHARS, MAX_SEED
 from engine.candidates import MAX_CANDIDATES
+from engine.disagreement import MAX_PAIRS
 from engine.envs import DEFAULT_ENV_ID
 
 #: Validation context of HTML forms, whose every field is text: there ``"3"`` is an integer.
@@ -72,6 +73,14 @@ class StudyCreate(BaseModel):
         description="Braverman-Mossel coin probability of the seeding.",
     )
     seed: JsonInt = Field(0, ge=0, le=MAX_SEED)
+    disagreement_pairs: JsonInt = Field(
+        0,
+        ge=0,
+        le=MAX_PAIRS,
+        description="Extra pairs asked after the bracket, where the participant's advice and "
+        "a no-advice baseline disagree (never part of the tree); > 0 needs a finished "
+        "no-advice ppo run on the env (any study's).",
+    )
     sampling: Literal["uniform", "diverse", "informative"] = Field(
         "uniform",
         description="informative needs a finished no-advice ppo run on the env (any study's).",
@@ -93,6 +102,7 @@ class StudyOut(BaseModel):
     p: float
     seed: int
     sampling: str
+    disagreement_pairs: int
     instructions: str
     status: StudyStatus
     error: str | None
@@ -102,6 +112,10 @@ class StudyOut(BaseModel):
 class CandidateOut(BaseModel):
     id: int
     env_reward: float
+    baseline_return: float | None = Field(
+        description="The study's no-advice baseline's return from this state (studies that "
+        "ask disagreement pairs; null otherwise)."
+    )
     qpos: list[float]
     qvel: list[float]
     image_url: str
@@ -109,11 +123,14 @@ class CandidateOut(BaseModel):
 
 
 class AdvicePowerOut(BaseModel):
-    """Can a participant's advice be told apart on this bracket (estimated from R)?"""
+    """Can a participant's advice be told apart on this bracket and their disagreement pairs
+    (estimated from the study's baseline where it has one, else from R)?"""
 
     participant_id: int
     n_matches: int
-    contested: int = Field(description="Informative matches where R picks the other winner.")
+    contested: int = Field(
+        description="Informative matches where the baseline (else R) picks the other winner."
+    )
     uninformative: int = Field(description="Matches where the advice or R has no preference.")
     min_detectable_delta: float | None = Field(
         description="Smallest Δ an experiment detects (α 0.05, power 0.8); null: none."
@@ -206,6 +223,18 @@ class LabelOut(BaseModel):
     next: NextMatchOut | None = Field(
         description="The match to decide now (as next-match answers); null once finished."
     )
+
+
+class PairOut(BaseModel):
+    """A disagreement pair after the bracket: never part of the tree."""
+
+    position: int = Field(description="Its place among the participant's pairs, from 0.")
+    total: int = Field(description="How many pairs the participant is asked.")
+    left: int
+    right: int
+    left_image_url: str
+    right_image_url: str
+    winner: int | None = Field(description="The answer; null while open.")
 
 
 class UndoOut(BaseModel):

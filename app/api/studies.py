@@ -83,6 +83,7 @@ def list_candidates(study_id: DbId, session: SessionDep, _: ResearcherDep) -> li
         CandidateOut(
             id=c.id,
             env_reward=c.env_reward,
+            baseline_return=c.baseline_return,
             qpos=c.qpos,
             qvel=c.qvel,
             image_url=image_url(study_id, c.id),

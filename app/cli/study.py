@@ -14,6 +14,7 @@ from app.services import participants, studies, trees
 from app.services import simulate as simulation
 from app.services.participants import invite_url
 from engine.candidates import SAMPLING_MODES
+from engine.disagreement import MAX_PAIRS
 from engine.envs import DEFAULT_ENV_ID
 from engine.teachers import TEACHERS
 from engine.treefile import dump_tree
@@ -32,6 +33,13 @@ def create(
     p: Annotated[float, typer.Option(help="Braverman-Mossel coin probability.")] = 0.9,
     seed: Annotated[int, typer.Option(help="Seed for sampling and seeding.")] = 0,
     sampling: Annotated[str, typer.Option(help=" or ".join(SAMPLING_MODES))] = "uniform",
+    disagreement_pairs: Annotated[
+        int,
+        typer.Option(
+            help=f"Extra pairs asked after the bracket where the advice and a no-advice ppo "
+            f"run disagree (0..{MAX_PAIRS}; > 0 needs such a run on the env)."
+        ),
+    ] = 0,
     instructions: Annotated[str, typer.Option(help="Text shown to participants.")] = "",
     instructions_file: Annotated[
         Path | None, typer.Option(help="Read the instructions from this file instead.")
@@ -50,6 +58,7 @@ def create(
                 seed=seed,
                 sampling=sampling,
                 instructions=text,
+                disagreement_pairs=disagreement_pairs,
             )
         runtime.prepare(study.id)
         with runtime.sessions() as session:

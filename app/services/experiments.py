@@ -22,13 +22,13 @@ from sqlalchemy.orm import Session
 
 from app.db import writing
 from app.models import Experiment, ExperimentRole, ExperimentRun, Run, RunStatus
-from app.services import artefacts, runs
+from app.services import artefacts, disagreement, runs
 from app.services.errors import NotFoundError
 from app.services.studies import get_ready_study
 from engine.errors import InputError
 from engine.judges import JUDGE_COLUMNS, judge_name
 from engine.treefile import TreeDocument, tree_from_json
-from engine.verdict import Verdict, VerdictInputs, advice_scores, bracket_pairs, verdict
+from engine.verdict import Pair, Verdict, VerdictInputs, advice_scores, bracket_pairs, verdict
 
 #: Evaluation seeds per arm: the default, and the range the form and API accept.
 DEFAULT_SEEDS, MIN_SEEDS, MAX_SEEDS = 5, 2, 20
@@ -207,7 +207,7 @@ def experiment_verdict(
         advised=arrays["advised"],
         baseline=arrays["baseline"],
         pilot=arrays["pilot"],
-        matches=bracket_pairs(advice),
+        matches=bracket_pairs(advice) + _pairs_of(session, experiment),
         reward=np.array([c.env_reward for c in advice.candidates]),
     )
     result = verdict(inputs, np.random.default_rng([experiment.id, step]))
@@ -258,11 +258,24 @@ def _scores(tables: list[list[dict[str, Any]]], judge: str) -> np.ndarray:
     return np.array(scores, dtype=float)
 
 
-def _advice_of(session: Session, experiment: Experiment) -> TreeDocument:
-    """The advice tree the experiment's advised runs train with."""
-    advised = next(
+def _advised_run(session: Session, experiment: Experiment) -> Run:
+    return next(
         run for role, run in members(session, experiment_id=experiment.id) if role == "advised"
     )
+
+
+def _pairs_of(session: Session, experiment: Experiment) -> tuple[Pair, ...]:
+    """The answered disagreement pairs of the participant whose advice the runs take (none
+    for a teacher's or pooled advice): the verdict counts them as matches of the advice."""
+    advised = _advised_run(session, experiment)
+    if advised.participant_id is None or advised.advice_pool:
+        return ()
+    return disagreement.answered(session, participant_id=advised.participant_id)
+
+
+def _advice_of(session: Session, experiment: Experiment) -> TreeDocument:
+    """The advice tree the experiment's advised runs train with."""
+    advised = _advised_run(session, experiment)
     if advised.advice is None:
         raise InputError(f"experiment {experiment.id}'s runs have no advice tree")
     return tree_from_json(advised.advice)

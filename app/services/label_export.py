@@ -1,6 +1,8 @@
 """Labels for reuse (issue 14): one row per label, as JSONL, CSV and Parquet.
 
-Each row names the study, the participant and their external ids, the match and its round,
+Each row names the study, the participant and their external ids, its ``kind`` (``bracket``,
+or ``disagreement`` for a pair asked after the bracket, which has no match id or round:
+:mod:`app.services.disagreement`), the match and its round,
 the candidates shown on the left and on the right, the winner and the side chosen, the
 response time, when the pair was shown and when it was labelled. ``shown_at`` is
 ``labelled_at`` minus the response time (the page measures that from both pictures being
@@ -12,13 +14,13 @@ from __future__ import annotations
 
 import io
 import json
-from datetime import timedelta
+from datetime import datetime, timedelta
 from typing import Any
 
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from app.models import Label, Match, Participant, as_utc
+from app.models import DisagreementPair, Label, Match, Participant, as_utc
 from app.services import csv_export
 from app.services.crowd_stats import quality
 from app.services.studies import get_study
@@ -28,6 +30,7 @@ COLUMNS = (
     "participant_id",
     "external_id",
     "external_ids",
+    "kind",
     "match_id",
     "round",
     "left",
@@ -70,28 +73,77 @@ def records(session: Session, *, study_id: int) -> list[dict[str, Any]]:
         .order_by(Label.id)
     )
     out = []
-    for pid, ext, ext_ids, mid, rnd, a, b, a_left, winner, chose_left, ms, at in rows:
-        labelled = as_utc(at)
-        shown = None if ms is None else labelled - timedelta(milliseconds=ms)
-        out.append(
-            {
-                "study_id": study_id,
-                "participant_id": pid,
-                "external_id": ext,
-                "external_ids": ext_ids or {},
-                "match_id": mid,
-                "round": rnd,
-                "left": a if a_left else b,
-                "right": b if a_left else a,
-                "winner": winner,
-                "side": _side(chose_left),
-                "response_ms": ms,
-                "shown_at": None if shown is None else shown.isoformat(),
-                "labelled_at": labelled.isoformat(),
-                "flags": flags.get(pid, []),
-            }
+    out = [
+        _record(study_id, flags, "bracket", pid, ext, ext_ids, mid, rnd, a, b, a_left, w, ms, at)
+        | {"side": _side(chose_left)}  # None for labels stored before sides were recorded
+        for pid, ext, ext_ids, mid, rnd, a, b, a_left, w, chose_left, ms, at in rows
+    ]
+    return out + _pair_records(session, study_id, flags)
+
+
+def _pair_records(
+    session: Session, study_id: int, flags: dict[int, list[str]]
+) -> list[dict[str, Any]]:
+    """The answered disagreement pairs, by participant and position."""
+    rows = session.execute(
+        select(
+            DisagreementPair.participant_id,
+            Participant.external_id,
+            Participant.external_ids,
+            DisagreementPair.a,
+            DisagreementPair.b,
+            DisagreementPair.a_left,
+            DisagreementPair.winner,
+            DisagreementPair.response_ms,
+            DisagreementPair.answered_at,
         )
-    return out
+        .join(Participant, Participant.id == DisagreementPair.participant_id)
+        .where(Participant.study_id == study_id, DisagreementPair.winner.is_not(None))
+        .order_by(DisagreementPair.participant_id, DisagreementPair.position)
+    )
+    return [
+        _record(study_id, flags, "disagreement", pid, ext, ids, None, None, a, b, a_left, w, ms, at)
+        for pid, ext, ids, a, b, a_left, w, ms, at in rows
+    ]
+
+
+def _record(
+    study_id: int,
+    flags: dict[int, list[str]],
+    kind: str,
+    pid: int,
+    ext: str | None,
+    ext_ids: dict[str, str] | None,
+    mid: int | None,
+    rnd: int | None,
+    a: int,
+    b: int,
+    a_left: bool,
+    winner: int,
+    ms: int | None,
+    at: datetime,
+) -> dict[str, Any]:
+    """One row of :data:`COLUMNS`."""
+    labelled = as_utc(at)
+    shown = None if ms is None else labelled - timedelta(milliseconds=ms)
+    left = a if a_left else b
+    return {
+        "study_id": study_id,
+        "participant_id": pid,
+        "external_id": ext,
+        "external_ids": ext_ids or {},
+        "kind": kind,
+        "match_id": mid,
+        "round": rnd,
+        "left": left,
+        "right": b if a_left else a,
+        "winner": winner,
+        "side": "left" if winner == left else "right",
+        "response_ms": ms,
+        "shown_at": None if shown is None else shown.isoformat(),
+        "labelled_at": labelled.isoformat(),
+        "flags": flags.get(pid, []),
+    }
 
 
 def to_jsonl(rows: list[dict[str, Any]]) -> str:
@@ -125,6 +177,7 @@ def to_parquet(rows: list[dict[str, Any]]) -> bytes:
             ("participant_id", pa.int64()),
             ("external_id", pa.string()),
             ("external_ids", pa.string()),
+            ("kind", pa.string()),
             ("match_id", pa.int64()),
             ("round", pa.int64()),
             ("left", pa.int64()),

@@ -24,7 +24,9 @@ from app.models import BracketSlot, Candidate, Study
 from app.services.errors import ConflictError, NotFoundError
 from app.services.images import ImageSize, render_candidates
 from app.services.study_baseline import (
+    baseline_returns,
     baseline_run,
+    needs_baseline,
     no_baseline_message,
     study_baseline_id,
     study_policy,
@@ -32,6 +34,7 @@ from app.services.study_baseline import (
 from engine import candidates as engine_candidates
 from engine.bracket import FirstRound, make_first_round
 from engine.candidates import SamplingMode
+from engine.disagreement import MAX_PAIRS
 from engine.envs import check_env_id
 from engine.errors import InputError
 from engine.render import RenderService
@@ -52,6 +55,7 @@ def create_study(
     seed: int,
     sampling: str,
     instructions: str,
+    disagreement_pairs: int = 0,
 ) -> Study:
     """Validate and store a new study (status ``preparing``).
 
@@ -67,6 +71,7 @@ def create_study(
         seed=seed,
         sampling=sampling,
         instructions=instructions,
+        disagreement_pairs=disagreement_pairs,
     )
     study = Study(
         name=name.strip(),
@@ -76,6 +81,7 @@ def create_study(
         seed=seed,
         sampling=sampling,
         instructions=instructions,
+        disagreement_pairs=disagreement_pairs,
         status="preparing",
     )
     with writing(session):
@@ -93,6 +99,7 @@ def _check_params(
     seed: int,
     sampling: str,
     instructions: str,
+    disagreement_pairs: int,
 ) -> None:
     if not name.strip() or len(name) > MAX_NAME_CHARS:
         raise InputError(f"name must be 1..{MAX_NAME_CHARS} characters")
@@ -110,6 +117,8 @@ def _check_params(
             f"sampling must be one of {', '.join(engine_candidates.SAMPLING_MODES)}"
             f", got {sampling!r}"
         )
+    if not 0 <= disagreement_pairs <= MAX_PAIRS:
+        raise InputError(f"disagreement_pairs must be in 0..{MAX_PAIRS}, got {disagreement_pairs}")
     if len(instructions) > MAX_INSTRUCTIONS_CHARS:
         raise InputError(f"instructions must be at most {MAX_INSTRUCTIONS_CHARS} characters")
     try:
@@ -118,9 +127,9 @@ def _check_params(
         raise
     except Exception as exc:  # registered but unusable here (missing extras, ...)
         raise InputError(f"env {env_id!r} cannot be made: {type(exc).__name__}: {exc}") from exc
-    needs_baseline = sampling in engine_candidates.BASELINE_MODES
-    if needs_baseline and baseline_run(session, env_id=env_id) is None:
-        raise InputError(no_baseline_message(env_id))
+    needs = needs_baseline(sampling=sampling, disagreement_pairs=disagreement_pairs)
+    if needs and baseline_run(session, env_id=env_id) is None:
+        raise InputError(no_baseline_message(env_id, needs=needs))
 
 
 def check_text(**fields: str | None) -> None:
@@ -153,13 +162,15 @@ def prepare_study(
     if study is None or study.status != "preparing":
         return
     try:  # the slow part holds no database connection
-        policy = study_policy(study, baseline, runs_dir or data_dir / "runs")
+        runs = runs_dir or data_dir / "runs"
+        policy = study_policy(study, baseline, runs)
         cands, bracket = _sample(study, policy)
+        returns = baseline_returns(study, baseline, cands, runs, policy)
         paths = render_candidates(
             renderer, data_dir=data_dir, env_id=study.env_id, candidates=cands
         )
         with sessions() as session:
-            _store(session, study_id, cands, bracket, paths)
+            _store(session, study_id, cands, bracket, paths, returns)
     except Exception as exc:  # any failure must end up on the study, not in a thread's log
         log.exception("preparing study %d failed", study_id)
         with sessions() as session, writing(session):  # unless another process finished it
@@ -192,6 +203,7 @@ def _store(
     cands: list[engine_candidates.Candidate],
     bracket: FirstRound,
     paths: list[dict[ImageSize, str]],
+    returns: list[float] | None,
 ) -> None:
     with writing(session):
         session.add_all(
@@ -203,14 +215,19 @@ def _store(
                 env_reward=float(c.env_reward),
                 image_path=path["full"],
                 thumb_path=path["thumb"],
+                baseline_return=ret,
             )
-            for c, path in zip(cands, paths, strict=True)
+            for c, path, ret in zip(cands, paths, _or_nones(returns, len(cands)), strict=True)
         )
         session.flush()  # candidates before the slots that reference them
         session.add_all(
             BracketSlot(study_id=study_id, slot=k, a=a, b=b) for k, (a, b) in enumerate(bracket)
         )
         session.execute(update(Study).where(Study.id == study_id).values(status="ready"))
+
+
+def _or_nones(values: list[float] | None, n: int) -> list[float | None]:
+    return [None] * n if values is None else list(values)
 
 
 def list_studies(session: Session) -> list[Study]:

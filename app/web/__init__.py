@@ -16,6 +16,7 @@ from app.web import (
     crowd_study_pages,
     downloads,
     experiment_pages,
+    pair_pages,
     participant_pages,
     runs_pages,
     studies_pages,
@@ -26,6 +27,7 @@ from app.web import (
 router = APIRouter()
 router.include_router(auth_pages.router)
 router.include_router(participant_pages.router)
+router.include_router(pair_pages.router)
 router.include_router(downloads.router)
 router.include_router(studies_pages.router)
 router.include_router(runs_pages.router)

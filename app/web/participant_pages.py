@@ -15,7 +15,16 @@ from sqlalchemy.orm import Session
 
 from app.api.deps import SessionDep
 from app.models import Participant
-from app.services import auth, crowd, crowd_check, members, participants, recruiting, studies
+from app.services import (
+    auth,
+    crowd,
+    crowd_check,
+    disagreement,
+    members,
+    participants,
+    recruiting,
+    studies,
+)
 from app.services.errors import AuthError, NotFoundError
 from app.web.guards import PageParticipant
 from app.web.rendering import PageRoute, RedirectTo, is_https, redirect, render, thumb_template
@@ -25,6 +34,7 @@ router = APIRouter(route_class=PageRoute, include_in_schema=False)
 INSTRUCTIONS = "/participate"
 LABEL = "/participate/label"
 THANKS = "/participate/thanks"
+PAIRS = "/participate/pairs"
 
 
 def where_next(progress: participants.Progress) -> str:
@@ -80,6 +90,8 @@ def thanks(request: Request, session: SessionDep, person: PageParticipant) -> Re
     context = _context(session, person)
     if not context["progress"].finished:
         raise RedirectTo(LABEL)
+    if disagreement.pending(session, participant=person) is not None:
+        raise RedirectTo(PAIRS)
     if crowd_check.pending_pair(session, participant=person) is not None:
         raise RedirectTo("/participate/check")
     context["crowd"] = recruiting.completion(session, crowd.LINK, member=person)

@@ -24,6 +24,7 @@ from app.web.csrf import CsrfChecked, FormFields
 from app.web.guards import ResearcherPage
 from app.web.rendering import PageRoute, redirect, render, thumb_template
 from engine.candidates import MAX_CANDIDATES, SAMPLING_MODES
+from engine.disagreement import MAX_PAIRS
 from engine.envs import DEFAULT_ENV_ID
 from engine.errors import InputError
 
@@ -51,6 +52,7 @@ FORM_DEFAULTS = {
     "p": "0.9",
     "seed": "0",
     "sampling": "uniform",
+    "disagreement_pairs": "0",
     "instructions": DEFAULT_INSTRUCTIONS,
 }
 
@@ -73,6 +75,7 @@ def _form_page(
             "envs": SUGGESTED_ENVS,
             "sampling_modes": SAMPLING_MODES,
             "max_candidates": MAX_CANDIDATES,
+            "max_pairs": MAX_PAIRS,
         },
         status_code=status_code,
     )

@@ -76,6 +76,11 @@ def test_create_invite_simulate_list(run, tmp_path) -> None:
             ["study", "create", "--name", "x", "--env", "Hopper-v5", "--sampling", "informative"],
             "informative sampling needs a finished no-advice ppo run on Hopper-v5; train one first",
         ),
+        (
+            ["study", "create", "--name", "x", "--env", "Hopper-v5", "--disagreement-pairs", "2"],
+            "disagreement pairs need a finished no-advice ppo run on Hopper-v5; train one first",
+        ),
+        (["study", "create", "--name", "x", "--disagreement-pairs", "11"], "disagreement_pairs"),
         (["participant", "add", "--study", "424242"], "study 424242 not found"),
         (["simulate", "--study", "424242"], "study 424242 not found"),
         (
