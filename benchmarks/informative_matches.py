@@ -13,14 +13,20 @@ bracket), for each sampling mode, teacher and p. The matches of the teacher's br
 split as the verdict splits them (:func:`engine.verdict.split_matches`, default margins: 5%
 of the advice scores' and of the judge scores' spread): *contested* (informative, and the
 judge's winner is not the advice's), *agreed* (informative, same winner) and uninformative.
-Issue 25's target: at least 8 contested as the minimum over the 5 bracket seeds, on both envs.
+Issue 25's target: at least 8 contested as the minimum over the 5 bracket seeds, on both envs,
+bracket and disagreement pairs together: after the bracket, up to ``--pairs`` pairs where the
+teacher's tree (its heights, as a study knows a participant's) and the *sampling* baseline's
+return disagree most clearly (:mod:`engine.disagreement`, as a study with
+``disagreement_pairs`` picks them), which the teacher answers by its own score; the judge
+baseline then splits bracket and pairs together, as an experiment's verdict does.
 
     PYTHONPATH=. .venv/bin/python -m benchmarks.informative_matches --env Hopper-v5 \\
         --env Humanoid-v5 [--seeds 0 1 2 3 4] [--teachers standing orthogonal] \\
-        [--p 0.9 0] [--baseline-steps 100000] [--cache /tmp/informative]
+        [--p 0.9 0] [--pairs 10] [--baseline-steps 100000] [--cache /tmp/informative]
 
 It prints one row per env, teacher, mode and p: the contested count per seed, its minimum and
-median, and the informative (contested + agreed) minimum and median; the last line is JSON.
+median, the informative (contested + agreed) minimum and median, then the contested count per
+seed with the disagreement pairs and its minimum; the last line is JSON.
 """
 
 from __future__ import annotations
@@ -34,8 +40,10 @@ from typing import Any
 import numpy as np
 
 from engine.candidates import Policy, sample_candidates
+from engine.disagreement import disagreement_pairs
 from engine.pipeline import teacher_bracket
-from engine.verdict import VerdictOptions, advice_scores, bracket_pairs, split_matches
+from engine.treefile import TreeDocument
+from engine.verdict import Pair, VerdictOptions, advice_scores, bracket_pairs, split_matches
 
 TARGET = 8
 
@@ -82,15 +90,23 @@ def measure(args: argparse.Namespace) -> list[dict[str, Any]]:
                 qpos, qvel = np.stack([c.qpos for c in cands]), np.stack([c.qvel for c in cands])
                 # the return judge's scores (engine.rl.returns.return_scores, uncached)
                 pilot = state_returns(judge, env_id, qpos, qvel, ReturnOptions()).mean(axis=1)
+                study_baseline = _sampler_returns(cands, sampler, env_id, qpos, qvel)
                 for teacher in args.teachers:
                     for p in args.p:
                         rng.bit_generator.state = after_sampling  # as a study with this p
                         doc = teacher_bracket(env_id, cands, rng, p=p, seed=0, teacher=teacher)
-                        split = split_matches(
+                        bracket = split_matches(
                             advice_scores(doc), pilot, bracket_pairs(doc), VerdictOptions()
                         )
+                        matches = bracket_pairs(doc) + answered_pairs(doc, study_baseline, args)
+                        both = split_matches(advice_scores(doc), pilot, matches, VerdictOptions())
                         counts.setdefault((teacher, mode, p), []).append(
-                            (len(split.contested), len(split.contested) + len(split.agreed))
+                            (
+                                len(bracket.contested),
+                                len(bracket.contested) + len(bracket.agreed),
+                                len(both.contested),
+                                len(matches) - len(bracket_pairs(doc)),
+                            )
                         )
                 print(
                     f"{env_id} seed {seed} {mode}: sampled in {sample_s:.1f} s, "
@@ -98,8 +114,9 @@ def measure(args: argparse.Namespace) -> list[dict[str, Any]]:
                     flush=True,
                 )
         for (teacher, mode, p), per_seed in counts.items():
-            contested = [c for c, _ in per_seed]
-            informative = [i for _, i in per_seed]
+            contested = [c for c, _, _, _ in per_seed]
+            informative = [i for _, i, _, _ in per_seed]
+            with_pairs = [w for _, _, w, _ in per_seed]
             rows.append(
                 {
                     "env": env_id,
@@ -111,10 +128,39 @@ def measure(args: argparse.Namespace) -> list[dict[str, Any]]:
                     "contested_median": float(np.median(contested)),
                     "informative_min": min(informative),
                     "informative_median": float(np.median(informative)),
-                    "target_met": min(contested) >= TARGET,
+                    "pairs_asked": [n for _, _, _, n in per_seed],
+                    "contested_with_pairs": with_pairs,
+                    "contested_with_pairs_min": min(with_pairs),
+                    "target_met_by_the_bracket": min(contested) >= TARGET,
+                    "target_met": min(with_pairs) >= TARGET,
                 }
             )
     return rows
+
+
+def _sampler_returns(
+    cands: list[Any], sampler: Policy, env_id: str, qpos: np.ndarray, qvel: np.ndarray
+) -> np.ndarray:
+    """The sampling baseline's return from each candidate, as a study stores it
+    (``app.services.study_baseline.baseline_returns``): the ``informative`` estimate where
+    sampling made one, else the return judge's rollouts."""
+    from engine.rl.returns import ReturnOptions, state_returns
+
+    if all(c.seed_score is not None for c in cands):
+        return np.array([c.seed_score for c in cands], dtype=float)
+    return state_returns(sampler, env_id, qpos, qvel, ReturnOptions()).mean(axis=1)
+
+
+def answered_pairs(
+    doc: TreeDocument, study_baseline: np.ndarray, args: argparse.Namespace
+) -> tuple[Pair, ...]:
+    """The disagreement pairs a study would ask after this bracket, answered by the teacher's
+    own score (the tree records it; a tie keeps the advice's pick)."""
+    heights = np.array([doc.tree.nodes[c.id].height for c in doc.candidates], dtype=float)
+    played = [(a, b) for a, b, _ in bracket_pairs(doc)]
+    pairs = disagreement_pairs(heights, study_baseline, k=args.pairs, played=played)
+    score = advice_scores(doc)
+    return tuple((a, b, b if score[b] > score[a] else a) for a, b in pairs)
 
 
 def main() -> None:
@@ -125,6 +171,7 @@ def main() -> None:
     parser.add_argument("--modes", nargs="+", default=["uniform", "informative"])
     parser.add_argument("--p", type=float, nargs="+", default=[0.9, 0.0])
     parser.add_argument("--candidates", type=int, default=16)
+    parser.add_argument("--pairs", type=int, default=10, help="disagreement pairs (0..10)")
     parser.add_argument("--baseline-steps", type=int, default=100_000)
     parser.add_argument("--cache", type=Path, default=Path("/tmp/informative"))
     parser.add_argument("--judge-same", action="store_true")
@@ -133,14 +180,16 @@ def main() -> None:
     print()
     print(
         f"{'env':<12} {'teacher':<10} {'mode':<11} {'p':>4}  {'contested per seed':<22}"
-        f"{'min':>4} {'median':>7}  {'informative min/median':>22}"
+        f"{'min':>4} {'median':>7}  {'informative min/median':>22}  "
+        f"{'with pairs per seed':<22}{'min':>4}"
     )
     for r in rows:
         print(
             f"{r['env']:<12} {r['teacher']:<10} {r['mode']:<11} {r['p']:>4g}  "
             f"{' '.join(map(str, r['contested'])):<22}{r['contested_min']:>4} "
             f"{r['contested_median']:>7g}  "
-            f"{r['informative_min']:>15} / {r['informative_median']:g}"
+            f"{r['informative_min']:>15} / {r['informative_median']:<4g}  "
+            f"{' '.join(map(str, r['contested_with_pairs'])):<22}{r['contested_with_pairs_min']:>4}"
         )
     print(json.dumps({"target": TARGET, "rows": rows}))
 

@@ -57,6 +57,10 @@ FORM_DEFAULTS = {
 }
 
 
+#: Fields a posted form may leave out (a form from before they existed): their defaults.
+OPTIONAL_FIELDS = {"disagreement_pairs": "0"}
+
+
 @router.get("/studies")
 def study_list(request: Request, session: SessionDep) -> HTMLResponse:
     """Every study, newest first."""
@@ -91,7 +95,7 @@ def create_study(
     request: Request, session: SessionDep, runtime: RuntimeDep, fields: FormFields
 ) -> Response:
     """Validate like ``POST /api/studies``; errors are shown next to the form's fields."""
-    values = {k: fields.get(k, "") for k in FORM_DEFAULTS}
+    values = {k: fields.get(k, OPTIONAL_FIELDS.get(k, "")) for k in FORM_DEFAULTS}
     try:
         body = StudyCreate.model_validate(
             {k: v.strip() if k != "instructions" else v for k, v in values.items()},

@@ -305,6 +305,7 @@ def test_exports_have_one_row_per_label(client, four) -> None:
         "participant_id",
         "external_id",
         "external_ids",
+        "kind",
         "match_id",
         "round",
         "left",
@@ -316,6 +317,7 @@ def test_exports_have_one_row_per_label(client, four) -> None:
         "labelled_at",
         "flags",
     }
+    assert {r["kind"] for r in mine} == {"bracket"}  # this study asks no disagreement pairs
     assert all(r["response_ms"] == 500 and r["shown_at"] < r["labelled_at"] for r in mine)
     assert all(r["side"] == ("left" if r["winner"] == r["left"] else "right") for r in mine)
     table = list(csv.DictReader(io.StringIO(client.get(base + ".csv", headers=ADMIN).text)))

@@ -19,7 +19,7 @@ from engine.treefile import tree_from_json
 from engine.verdict import advice_scores
 from tests.app.conftest import ADMIN, Player, new_study, wait_ready
 from tests.app.runs_support import TINY, create_run, run_app, wait_run
-from tests.support.web import browser, csrf_token
+from tests.support.web import browser, csrf_token, logged_in
 
 pytestmark = pytest.mark.training
 
@@ -99,6 +99,20 @@ def test_refused_until_a_no_advice_baseline_has_finished(client: TestClient) -> 
     for bad in (-1, 11, True, 2.5, "3"):
         answer = client.post("/api/studies", json=BODY | {"disagreement_pairs": bad}, headers=ADMIN)
         assert answer.status_code == 422 and "disagreement_pairs" in answer.text, bad
+
+
+def test_the_form_says_why_and_keeps_the_input(client: TestClient) -> None:
+    """Before any baseline (this module's second test): the form refuses, with the reason."""
+    page = logged_in(client)
+    fields = {k: str(v) for k, v in BODY.items()} | {"sampling": "uniform", "instructions": ""}
+    for pairs, reason in (("2", NO_BASELINE), ("11", "less than or equal to 10")):
+        token = csrf_token(page, "/studies/new")
+        refused = page.post(
+            "/studies", data=fields | {"disagreement_pairs": pairs, "csrf_token": token}
+        )
+        assert refused.status_code == 422 and reason in refused.text, pairs
+        assert 'name="disagreement_pairs" type="number" min="0"' in refused.text
+        assert f'max="10" value="{pairs}"' in refused.text  # the input kept
 
 
 def test_candidates_carry_the_baseline_return(returns: np.ndarray) -> None:
