@@ -28,7 +28,10 @@ from engine.envs import env_model
 from engine.judges import JUDGES
 from engine.teachers import standing_score
 from tests.support.a11y import assert_accessible
-from tests.support.browser import SETTLE_TIMEOUT_MS  # noqa: F401 (sets expect's timeout)
+from tests.support.browser import (  # noqa: F401 (SETTLE_TIMEOUT_MS sets expect's timeout)
+    SETTLE_TIMEOUT_MS,
+    wait_until_still,
+)
 from tests.support.labelling import label_bracket, wait_until_prepared
 from tests.support.server import acv_serve, clean_env
 from tests.support.wait import wait_for
@@ -268,4 +271,16 @@ def test_new_run_without_a_study_picks_one(
     p.click("text=New run…")
     p.wait_for_url(re.compile(rf"/runs/new\?study_id={finished_run['study_id']}$"))
     expect(p.locator("form[action='/runs'] #timesteps")).to_be_visible()
+    assert errors == []
+
+
+def test_the_html_report_is_accessible(
+    server: str, finished_run: dict, page: tuple[Page, list[str]]
+) -> None:
+    """The report the compare page exports, opened as a researcher would open the link."""
+    p, errors = page
+    p.goto(f"{server}/api/runs/{finished_run['id']}/report.html?judge=return&checkpoint=1024")
+    expect(p.locator("h1")).to_contain_text(f"run {finished_run['id']}")
+    wait_until_still(p)
+    assert_accessible(p, "HTML report")
     assert errors == []
