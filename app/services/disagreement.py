@@ -5,8 +5,10 @@ A study with ``disagreement_pairs = k > 0`` asks each participant up to ``k`` su
 their bracket is finished. The pairs are chosen on the first look after the bracket, from
 the participant's tree (its heights are their advice's scores) and the baseline's return
 stored with each candidate, leaving out pairs the bracket already played; they are stored
-with the side each shows on the left. They never enter the tree. Their answers are exported
-with the labels (:mod:`app.services.label_export`) and counted by the experiment verdict as
+with the side each shows on the left. Undoing a bracket label drops the pairs still
+unanswered: they are chosen again from the new tree once the bracket is finished again
+(unless some pair was answered). They never enter the tree. Their answers are exported with
+the labels (:mod:`app.services.label_export`) and counted by the experiment verdict as
 matches of the participant's advice (:func:`answered`).
 """
 

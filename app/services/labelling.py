@@ -18,11 +18,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from sqlalchemy import func, select, update
+from sqlalchemy import delete, func, select, update
 from sqlalchemy.orm import Session
 
 from app.db import writing
-from app.models import Label, Match, Participant, utcnow
+from app.models import DisagreementPair, Label, Match, Participant, utcnow
 from app.services.errors import ConflictError, NotFoundError
 from app.services.label_flow import (
     MAX_RESPONSE_MS,
@@ -124,6 +124,14 @@ def undo_label(
         session.delete(label)
         session.execute(
             update(Participant).where(Participant.id == participant.id).values(finished_at=None)
+        )
+        # Disagreement pairs still to answer were chosen from the tree this undo changes;
+        # answered ones stay (they are labels).
+        session.execute(
+            delete(DisagreementPair).where(
+                DisagreementPair.participant_id == participant.id,
+                DisagreementPair.winner.is_(None),
+            )
         )
     return match
 

@@ -153,6 +153,26 @@ def test_pairs_come_after_the_bracket_and_never_enter_the_tree(
     assert client.get(tree_url, headers=ADMIN).json() == tree
 
 
+def test_undoing_the_final_label_chooses_the_pairs_again(
+    client: TestClient, study: dict[str, Any], returns: np.ndarray
+) -> None:
+    player = _invite(client, study)
+    player.play(_against(returns))
+    assert len(_pairs(player)) > 0
+    undone = client.post("/api/participants/me/undo", headers=player.headers)
+    assert undone.status_code == 200, undone.text
+    assert _pairs(player) == []  # unfinished again: nothing is asked
+    final = player.next_match()
+    assert final is not None
+    keeps = _against(returns)(final)
+    other = final["a"]["candidate_id"] + final["b"]["candidate_id"] - keeps
+    assert player.label(final["match_id"], other).status_code == 201  # the other way now
+    doc = tree_from_json(client.get(f"/api/participants/{player.id}/tree", headers=ADMIN).json())
+    played = [(m.a, m.b) for m, _ in doc.matches]
+    expected = disagreement_pairs(advice_scores(doc), returns, k=K, played=played)
+    assert [{p["left"], p["right"]} for p in _pairs(player)] == [set(e) for e in expected]
+
+
 def test_answers_are_exported_and_counted_by_the_power_estimate(
     client: TestClient, study: dict[str, Any], returns: np.ndarray
 ) -> None:
