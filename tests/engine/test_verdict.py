@@ -10,6 +10,7 @@ import json
 import numpy as np
 import pytest
 
+from engine.disagreement import disagreement_pairs
 from engine.errors import InputError
 from engine.verdict import (
     Pair,
@@ -51,21 +52,29 @@ def _inputs(
     k_pilot: int = 3,
     noise: float = 1.0,
     circular: bool = False,
+    pairs: int = 0,
+    pairs_circular: bool = False,
 ) -> VerdictInputs:
     """Synthetic judges: advised runs are pulled ``shift`` toward the advice; the pilot runs
-    are fresh no-advice seeds, or the evaluation baseline itself when ``circular``."""
+    are fresh no-advice seeds, or the evaluation baseline itself when ``circular``. With
+    ``pairs``, the bracket is followed by that many disagreement pairs, answered as the advice
+    prefers, picked with a study baseline of its own (a fresh no-advice seed), or with the
+    evaluation baseline's mean when ``pairs_circular``."""
     advice, latent = rng.normal(size=N), rng.normal(size=N)
 
     def runs(n: int, pull: float = 0.0) -> np.ndarray:
         return latent + pull * advice + noise * rng.normal(size=(n, N))
 
-    baseline = runs(k)
+    baseline, bracket = runs(k), _bracket(advice)
+    study_baseline = baseline.mean(axis=0) if pairs_circular else runs(1)[0]
+    played = [(a, b) for a, b, _ in bracket]
+    asked = disagreement_pairs(advice, study_baseline, k=pairs, played=played)
     return VerdictInputs(
         advice=advice,
         advised=runs(k, shift),
         baseline=baseline,
         pilot=baseline if circular else runs(k_pilot),
-        matches=_bracket(advice),
+        matches=bracket + tuple((a, b, a) for a, b in asked),
     )
 
 
@@ -84,6 +93,22 @@ def test_false_positives_stay_at_alpha_when_pilot_seeds_pick_the_matches() -> No
     assert fired <= 0.065
     assert abs(np.nanmean(deltas)) < 0.02  # no bias: same distribution, Δ about 0
     assert (outcomes == "no-different").mean() > 0.5  # the designs mostly could tell
+
+
+def test_disagreement_pairs_from_a_baseline_of_their_own_keep_false_positives_at_alpha() -> None:
+    """Pairs picked by the study's baseline (never an evaluation run) add contested matches
+    without biasing Δ; picked by the evaluation baseline, they would."""
+    rng = np.random.default_rng(3)
+    with_pairs = [classify(_inputs(rng, noise=NOISY, pairs=10)) for _ in range(200)]
+    bracket_only = [classify(_inputs(rng, noise=NOISY)) for _ in range(200)]
+    assert np.mean([len(c.contested) for c in with_pairs]) > 1.5 * np.mean(
+        [len(c.contested) for c in bracket_only]
+    )
+    outcomes, deltas = _simulate(1000, seed=4, noise=NOISY, pairs=10)
+    assert np.isin(outcomes, ["used", "against"]).mean() <= 0.065
+    assert abs(np.nanmean(deltas)) < 0.02
+    _, circular = _simulate(300, seed=4, noise=NOISY, pairs=10, pairs_circular=True)
+    assert np.nanmean(circular) > 0.03  # the evaluation baseline loses the pairs chosen on it
 
 
 def test_picking_the_matches_on_the_evaluation_seeds_biases_every_delta_up() -> None:
