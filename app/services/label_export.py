@@ -72,7 +72,6 @@ def records(session: Session, *, study_id: int) -> list[dict[str, Any]]:
         .where(Participant.study_id == study_id)
         .order_by(Label.id)
     )
-    out = []
     out = [
         _record(study_id, flags, "bracket", pid, ext, ext_ids, mid, rnd, a, b, a_left, w, ms, at)
         | {"side": _side(chose_left)}  # None for labels stored before sides were recorded
