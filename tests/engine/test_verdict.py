@@ -66,9 +66,11 @@ def _inputs(
         return latent + pull * advice + noise * rng.normal(size=(n, N))
 
     baseline, bracket = runs(k), _bracket(advice)
-    study_baseline = baseline.mean(axis=0) if pairs_circular else runs(1)[0]
-    played = [(a, b) for a, b, _ in bracket]
-    asked = disagreement_pairs(advice, study_baseline, k=pairs, played=played)
+    asked: list[tuple[int, int]] = []
+    if pairs:  # draws nothing more otherwise: the other tests keep their random designs
+        study_baseline = baseline.mean(axis=0) if pairs_circular else runs(1)[0]
+        played = [(a, b) for a, b, _ in bracket]
+        asked = disagreement_pairs(advice, study_baseline, k=pairs, played=played)
     return VerdictInputs(
         advice=advice,
         advised=runs(k, shift),
