@@ -12,6 +12,7 @@ import httpx
 import pytest
 from playwright.sync_api import Browser, Page, expect
 
+from tests.app.runs_support import FINAL, TINY
 from tests.app.test_browser import (  # noqa: F401 (fixtures)
     ADMIN_TOKEN,
     DESKTOP,
@@ -26,7 +27,6 @@ from tests.support.labelling import label_bracket, wait_until_prepared
 from tests.support.wait import wait_for
 
 pytestmark = pytest.mark.browser
-TINY = {"n_envs": 1, "num_steps": 128, "num_minibatches": 4, "update_epochs": 2}
 PAIRS = 3
 
 
@@ -50,7 +50,7 @@ def study(api: httpx.Client) -> dict[str, Any]:
     assert run.status_code == 202, run.text
     done = wait_for(
         lambda: api.get(f"/api/runs/{run.json()['id']}").json(),
-        lambda got: got["status"] in ("succeeded", "failed", "cancelled", "interrupted"),
+        lambda got: got["status"] in FINAL,
         what="the baseline run to end",
         timeout_s=180,
     )
