@@ -18,16 +18,16 @@ from fastapi.staticfiles import StaticFiles
 from starlette.middleware.gzip import GZipMiddleware
 from uvicorn.middleware.proxy_headers import ProxyHeadersMiddleware
 
-from app.api import api_router, errors, health
-from app.api.credentials_first import CredentialsFirst
-from app.api.docs import docs_router
+from app.http import errors, health
+from app.http.access_log import install_access_log_filter
+from app.http.credentials_first import CredentialsFirst
+from app.http.docs import docs_router
+from app.http.ratelimit import JOINS_PER_MINUTE, LOGIN_FAILURES, OPEN_LINK_JOINS, LoginLimiter
 from app.jobs.worker import start_app_worker
 from app.middleware import BodySizeLimit, SecurityHeaders
+from app.routes import api_router, pages_router
 from app.runtime import Runtime
 from app.settings import Settings
-from app.web import router as pages_router
-from app.web.access_log import install_access_log_filter
-from app.web.ratelimit import JOINS_PER_MINUTE, LOGIN_FAILURES, OPEN_LINK_JOINS, LoginLimiter
 
 STATIC_DIR = Path(__file__).resolve().parents[1] / "static"
 

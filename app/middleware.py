@@ -1,8 +1,8 @@
 """ASGI middleware for every response: a request-body size limit and security headers.
 
 Both are plain ASGI wrappers (no per-request task or body copy on the hot paths). Pages,
-``/docs`` and the run report carry their own policy (:data:`app.web.rendering.CSP`,
-:mod:`app.api.docs`); everything else (the JSON API, images, static files) gets
+``/docs`` and the run report carry their own policy (:data:`app.http.rendering.CSP`,
+:mod:`app.http.docs`); everything else (the JSON API, images, static files) gets
 ``X-Content-Type-Options: nosniff``, no framing, and a policy that allows nothing at all.
 """
 

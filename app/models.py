@@ -170,7 +170,7 @@ class Participant(Base):
     """Someone labelling a study's bracket, known only by their invite token.
 
     Requests are matched by ``token_hash`` and then the token itself is compared in
-    constant time (:func:`app.services.members.resolve`): an index lookup's timing
+    constant time (:func:`app.recruiting.members.resolve`): an index lookup's timing
     can tell an attacker about the hash of their guess, never about a real token.
     """
 
@@ -265,7 +265,7 @@ def open_link_counts() -> CheckConstraint:
 
 
 class CrowdSettings(OpenLink, Base):
-    """A study's open link ``/s/<slug>`` and its crowd options (app.services.crowd)."""
+    """A study's open link ``/s/<slug>`` and its crowd options (app.studies.crowd)."""
 
     __tablename__ = "crowd_settings"
     __table_args__ = (
@@ -418,7 +418,7 @@ class CheckpointArtefact(Base):
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
 
 
-# --- Tree-reading surveys (the paper's user study; app.services.surveys) ---------------------
+# --- Tree-reading surveys (the paper's user study; app.surveys.service) ---------------------
 
 SURVEY_ASSIGNMENTS = ("all", "round_robin")
 SURVEY_EXCLUSIONS = ("none", "attention_check")
@@ -498,7 +498,7 @@ class SurveyRespondent(Base):
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
     started_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), default=None)
     finished_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), default=None)
-    #: Whether they came through the survey's open link (app.services.survey_crowd), and
+    #: Whether they came through the survey's open link (app.surveys.crowd), and
     #: their crowd platform's ids (the first external parameter resumes them).
     via_link: Mapped[bool] = mapped_column(Boolean, default=False)
     external_id: Mapped[str | None] = mapped_column(String(200), default=None)
@@ -511,7 +511,7 @@ class SurveyRespondent(Base):
 
 
 class SurveyCrowdSettings(OpenLink, Base):
-    """A survey's open link ``/q/<slug>`` (app.services.survey_crowd)."""
+    """A survey's open link ``/q/<slug>`` (app.surveys.crowd)."""
 
     __tablename__ = "survey_crowd_settings"
     __table_args__ = (open_link_counts(),)

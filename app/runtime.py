@@ -12,12 +12,12 @@ from concurrent.futures import Future, ThreadPoolExecutor
 
 from sqlalchemy.orm import Session, sessionmaker
 
+from app.core.auth import ensure_admin_token
 from app.db import make_engine, make_sessions
 from app.jobs.settings import JobSettings
 from app.preflight import check_data_dir
-from app.services.auth import ensure_admin_token
-from app.services.studies import prepare_study, preparing_study_ids
 from app.settings import Settings
+from app.studies.service import prepare_study, preparing_study_ids
 from engine.render import RenderCache, RenderService
 
 log = logging.getLogger(__name__)

@@ -6,7 +6,7 @@
   URLs use the psycopg 3 driver.
 - ``ACV_ADMIN_TOKEN``: the researcher's bearer token, at least 32 characters; unset means one
   is generated on first start and kept in the data dir (see
-  :func:`app.services.auth.ensure_admin_token`).
+  :func:`app.core.auth.ensure_admin_token`).
 - ``ACV_SESSION_HOURS`` (default 12): how long a researcher login (the cookie) lasts; the
   server refuses older cookies whatever the browser keeps.
 - ``ACV_PUBLIC_URL``: the base of links printed outside a request (by the CLI; default

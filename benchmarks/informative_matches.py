@@ -142,7 +142,7 @@ def _sampler_returns(
     cands: list[Any], sampler: Policy, env_id: str, qpos: np.ndarray, qvel: np.ndarray
 ) -> np.ndarray:
     """The sampling baseline's return from each candidate, as a study stores it
-    (``app.services.study_baseline.baseline_returns``): the ``informative`` estimate where
+    (``app.studies.baseline.baseline_returns``): the ``informative`` estimate where
     sampling made one, else the return judge's rollouts."""
     from engine.rl.returns import ReturnOptions, state_returns
 

@@ -157,7 +157,9 @@ def test_the_web_runs_several_workers_of_the_app_factory() -> None:
     assert args[:3] == ["uvicorn", "--factory", "app.main:create_app"]
     assert re.fullmatch(r"\$\{WEB_WORKERS:-[2-9]\d*\}|[2-9]\d*", args[args.index("--workers") + 1])
     assert "/healthz" in " ".join(SERVICES["web"]["healthcheck"]["test"])
-    assert {r.path for r in importlib.import_module("app.api.health").router.routes} == {"/healthz"}
+    assert {r.path for r in importlib.import_module("app.http.health").router.routes} == {
+        "/healthz"
+    }
 
 
 def test_migrations_run_once_before_the_web_and_the_worker() -> None:

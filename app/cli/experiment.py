@@ -11,8 +11,8 @@ import typer
 
 from app.cli.root import cli, fail
 from app.cli.serve import cli_runtime
-from app.services import experiments
-from app.services.experiments import DEFAULT_PILOT_SEEDS, DEFAULT_SEEDS, ExperimentSpec
+from app.runs import experiments
+from app.runs.experiments import DEFAULT_PILOT_SEEDS, DEFAULT_SEEDS, ExperimentSpec
 from engine.judges import DEFAULT_JUDGE
 
 Opt = typer.Option

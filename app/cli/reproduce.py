@@ -78,9 +78,9 @@ def _participant_tree(config: ReproduceConfig) -> TreeDocument | None:
     if config.participant_id is None:
         return None
     from app.cli.serve import cli_runtime
+    from app.core.errors import NotFoundError
     from app.models import Participant
-    from app.services.errors import NotFoundError
-    from app.services.trees import participant_tree
+    from app.studies.trees import participant_tree
 
     with cli_runtime() as runtime, runtime.sessions() as session:
         doc = participant_tree(session, participant_id=config.participant_id)

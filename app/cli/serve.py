@@ -5,7 +5,7 @@ building its app with :func:`worker_app`) that share the listening socket. The w
 must happen once happens in the supervisor, before and beside them: the migrations, the
 admin token, resuming half-prepared studies, and the training-run worker (a thread). The
 server processes share the database (SQLite in WAL mode, writers queued on a file lock; see
-:mod:`app.db`) and the failed-login counts (:mod:`app.web.ratelimit`); researcher and
+:mod:`app.db`) and the failed-login counts (:mod:`app.http.ratelimit`); researcher and
 participant cookies are signed or looked up, never kept in a process.
 """
 
@@ -26,17 +26,17 @@ from pydantic import ValidationError
 from sqlalchemy.exc import ArgumentError, SQLAlchemyError
 
 from app.cli.root import cli, fail
+from app.core.auth import ADMIN_TOKEN_FILE
+from app.core.errors import ServiceError
 from app.db import upgrade
 from app.jobs.settings import JobSettings
 from app.jobs.worker import Worker, WorkerThread, make_executor
+from app.labelling.participants import invite_url
 from app.main import create_app
 from app.preflight import check_data_dir
 from app.runtime import Runtime
-from app.services.auth import ADMIN_TOKEN_FILE
-from app.services.demo import ensure_demo
-from app.services.errors import ServiceError
-from app.services.participants import invite_url
 from app.settings import Settings
+from app.studies.demo import ensure_demo
 from engine.errors import InputError
 
 

@@ -10,9 +10,11 @@ import typer
 
 from app.cli.root import cli, fail
 from app.cli.serve import cli_runtime
-from app.services import participants, studies, trees
-from app.services import simulate as simulation
-from app.services.participants import invite_url
+from app.labelling import participants
+from app.labelling.participants import invite_url
+from app.studies import service as studies
+from app.studies import simulate as simulation
+from app.studies import trees
 from engine.candidates import SAMPLING_MODES
 from engine.disagreement import MAX_PAIRS
 from engine.envs import DEFAULT_ENV_ID

@@ -10,10 +10,12 @@ from typing import Annotated, Literal
 import typer
 from pydantic import ValidationError
 
-from app.api.survey_schemas import SurveyCreate
 from app.cli.root import cli, fail
 from app.cli.serve import cli_runtime
-from app.services import survey_respond, survey_results, surveys
+from app.surveys import respond as survey_respond
+from app.surveys import results as survey_results
+from app.surveys import service as surveys
+from app.surveys.schemas import SurveyCreate
 
 survey_cli = typer.Typer(
     help="Tree-reading surveys (the paper's user study).", no_args_is_help=True

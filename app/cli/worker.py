@@ -14,7 +14,7 @@ from app.cli.serve import migrated_settings, service_errors
 from app.db import make_engine, make_sessions
 from app.jobs.settings import JobSettings
 from app.jobs.worker import Worker, make_backfiller, make_executor
-from app.services import artefacts
+from app.runs import artefacts
 
 
 @cli.command()

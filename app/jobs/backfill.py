@@ -5,7 +5,7 @@ stopping stays quick), nor, of course, those of runs that ended before artefacts
 whose judging failed. An idle worker therefore looks now and then for ended runs with
 unjudged checkpoints and, if there are any, starts ``python -m app.jobs.backfill`` to judge
 them: a process of its own, because judging loads torch and MuJoCo, which the web process that
-hosts the worker thread must never import (:mod:`app.services.artefacts`).
+hosts the worker thread must never import (:mod:`app.runs.artefacts`).
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from pathlib import Path
 from sqlalchemy.orm import Session, sessionmaker
 
 from app.db import ROOT, make_engine, make_sessions
-from app.services import artefacts
+from app.runs import artefacts
 
 log = logging.getLogger(__name__)
 

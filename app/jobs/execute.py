@@ -3,7 +3,7 @@
 The run's row says what to train (config, advice tree or pool of trees, resume flag);
 :func:`execute_run` calls :func:`engine.rl.runner.train` in the run directory, stores every
 metrics row as the run's progress, judges every checkpoint once and stores the result as the
-checkpoint's artefact (:mod:`app.services.artefacts`; the web tier only reads it), polls for a
+checkpoint's artefact (:mod:`app.runs.artefacts`; the web tier only reads it), polls for a
 cancel (or for the run being taken away, e.g. marked ``interrupted`` after a restart) after
 every update, and sets the final state. A stop always writes a checkpoint first (``train``
 does), so an interrupted or cancelled run can resume.
@@ -27,7 +27,7 @@ from sqlalchemy.orm import Session, sessionmaker
 from app.db import make_engine, make_sessions
 from app.jobs import queue
 from app.models import Run
-from app.services import artefacts
+from app.runs import artefacts
 from engine.errors import InputError
 
 log = logging.getLogger(__name__)

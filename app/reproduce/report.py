@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 from PIL import Image
 
+from app.core import figures
 from app.reproduce.analysis import bent_share, posture_classes
 from app.reproduce.checkpoints import BRACKETS, bracket_trees, compute_reports, report_path
 from app.reproduce.figures import conformance_bands
@@ -27,7 +28,6 @@ from app.reproduce.markdown import readme
 from app.reproduce.plan import ARMS, Arm, ReproduceConfig
 from app.reproduce.predictions import predictions
 from app.reproduce.summary import arm_entry
-from app.services import figures
 from engine.rl.plot import plot_runs
 from engine.treefile import TreeDocument, tree_from_json
 

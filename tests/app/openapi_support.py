@@ -7,8 +7,8 @@ from typing import Any
 
 from fastapi import FastAPI
 
-from app.api import api_router
-from app.api.errors import install
+from app.http.errors import install
+from app.routes import api_router
 
 
 def api_openapi() -> dict[str, Any]:

@@ -26,10 +26,11 @@ from fastapi.routing import iter_route_contexts
 from fastapi.testclient import TestClient
 from sqlalchemy import text
 
-from app.api.deps import AJAX_HEADER
+from app.core import auth
 from app.db import make_engine, make_sessions, upgrade
+from app.http.deps import AJAX_HEADER
 from app.models import Experiment, ExperimentRun
-from app.services import auth, members
+from app.recruiting import members
 from tests.app.conftest import ADMIN, ADMIN_TOKEN, Player
 from tests.app.runs_support import TINY, create_run, wait_run
 from tests.support.postgres import BACKENDS, empty_database

@@ -21,7 +21,7 @@ from sqlalchemy import update
 from app.db import make_engine, make_sessions
 from app.middleware import MAX_BODY_BYTES
 from app.models import Candidate, Run
-from app.services import artefacts
+from app.runs import artefacts
 from engine.rl.checkpoint import checkpoint_path
 from tests.app.conftest import ADMIN, ADMIN_TOKEN
 from tests.app.runs_support import run_app

@@ -14,10 +14,10 @@ import pytest
 from fastapi.testclient import TestClient
 from sqlalchemy import text
 
+from app.core.auth import PARTICIPANT_COOKIE
 from app.db import make_engine, upgrade
-from app.services.auth import PARTICIPANT_COOKIE
-from app.services.sides import a_on_left
-from app.web.ratelimit import LoginLimiter
+from app.http.ratelimit import LoginLimiter
+from app.labelling.sides import a_on_left
 from tests.app.conftest import ADMIN, Player
 from tests.support.postgres import empty_database
 

@@ -12,8 +12,8 @@ from urllib.parse import urlencode
 import pytest
 from fastapi.testclient import TestClient
 
-from app.services.csv_export import csv_text, safe_cell
-from app.web.ratelimit import LoginLimiter
+from app.core.csv_export import csv_text, safe_cell
+from app.http.ratelimit import LoginLimiter
 from tests.app.conftest import ADMIN
 from tests.app.test_crowd_api import configure, joined_player, visit
 
@@ -58,7 +58,7 @@ def test_no_module_but_the_one_writer_writes_csv() -> None:
         for p in APP.rglob("*.py")
         if re.search(r"\bcsv\.(writer|DictWriter)\b", p.read_text())
     ]
-    assert writers == ["services/csv_export.py"]
+    assert writers == ["core/csv_export.py"]
 
 
 @pytest.mark.parametrize("external_id", FORMULAS)

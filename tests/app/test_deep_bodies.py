@@ -19,7 +19,7 @@ from fastapi.testclient import TestClient
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from app.web.ratelimit import LoginLimiter
+from app.http.ratelimit import LoginLimiter
 from tests.app.openapi_support import JsonOperation, api_openapi, json_operations
 from tests.app.surveys_support import scheme_headers
 

@@ -10,8 +10,8 @@ import pytest
 from fastapi.testclient import TestClient
 
 from app.cli.serve import _demo_lines
-from app.services.demo import DEMO_RUN, ensure_demo
-from app.services.participants import invite_url
+from app.labelling.participants import invite_url
+from app.studies.demo import DEMO_RUN, ensure_demo
 from tests.app.conftest import ADMIN
 from tests.app.runs_support import run_app
 

@@ -18,7 +18,7 @@ import pytest
 from playwright.sync_api import Browser, expect
 
 from app.db import make_engine, make_sessions
-from app.services import artefacts
+from app.runs import artefacts
 from tests.support.a11y import assert_accessible
 from tests.support.artefacts import report_body
 from tests.support.labelling import wait_until_prepared

@@ -21,7 +21,7 @@ from typer.testing import CliRunner
 
 from app.cli.root import cli
 from app.models import Run
-from app.services import artefacts, comparison
+from app.runs import artefacts, comparison
 from tests.app.conftest import ADMIN, new_study
 from tests.app.runs_support import TINY, run_app
 from tests.support.artefacts import report_body

@@ -14,9 +14,9 @@ import pytest
 from fastapi.testclient import TestClient
 from pydantic import ValidationError
 
+from app.http.ratelimit import FAILED_LOGINS_PER_MINUTE, LoginLimiter
 from app.main import create_app
 from app.settings import Settings
-from app.web.ratelimit import FAILED_LOGINS_PER_MINUTE, LoginLimiter
 from tests.app.conftest import ADMIN_TOKEN
 from tests.app.test_crowd_api import configure
 from tests.support.server import acv_serve, clean_env

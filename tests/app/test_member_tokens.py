@@ -1,5 +1,5 @@
 """One token lookup for both kinds of collection (issue 26): every check that
-:func:`app.services.members.resolve` makes, run against a study's participants and a survey's
+:func:`app.recruiting.members.resolve` makes, run against a study's participants and a survey's
 respondents alike, through the API and the database (SQLite and PostgreSQL), and proof that
 both kinds resolve their tokens through that one function."""
 
@@ -13,11 +13,13 @@ import pytest
 from fastapi.testclient import TestClient
 from sqlalchemy import delete, update
 
+from app.core import auth
+from app.core.errors import AuthError
+from app.http.ratelimit import LoginLimiter
 from app.models import token_digest
-from app.services import auth, members, survey_respond
-from app.services.errors import AuthError
-from app.services.members import STUDY, SURVEY, CollectionKind
-from app.web.ratelimit import LoginLimiter
+from app.recruiting import members
+from app.recruiting.members import STUDY, SURVEY, CollectionKind
+from app.surveys import respond as survey_respond
 from tests.app.conftest import ADMIN, Player
 from tests.app.surveys_support import (
     Respondent,

@@ -23,7 +23,7 @@ from pathlib import Path
 import httpx
 import pytest
 
-from app.web.ratelimit import FAILED_LOGINS_PER_MINUTE
+from app.http.ratelimit import FAILED_LOGINS_PER_MINUTE
 from tests.app.conftest import ADMIN, ADMIN_TOKEN
 from tests.support.net import free_port
 from tests.support.wait import wait_for

@@ -15,9 +15,9 @@ from urllib.parse import urlsplit
 import pytest
 from fastapi.testclient import TestClient
 
-from app.services.auth import PARTICIPANT_COOKIE
-from app.services.survey_respond import RESPONDENT_COOKIE
-from app.web.ratelimit import LoginLimiter
+from app.core.auth import PARTICIPANT_COOKIE
+from app.http.ratelimit import LoginLimiter
+from app.surveys.respond import RESPONDENT_COOKIE
 from tests.app.conftest import ADMIN, Player
 from tests.app.surveys_support import paper_body, participant_trees
 from tests.support.web import browser, csrf_token

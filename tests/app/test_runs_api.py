@@ -22,9 +22,11 @@ from sqlalchemy.orm import Session, sessionmaker
 from typer.testing import CliRunner, Result
 
 from app.cli import cli
+from app.core import figures
 from app.db import make_engine, make_sessions
 from app.models import CheckpointArtefact, Experiment, ExperimentRun
-from app.services import artefacts, figures, run_report
+from app.runs import artefacts
+from app.runs import report as run_report
 from engine.conformance import compare
 from engine.pipeline import replay_with_teacher
 from engine.rl.agent_judge import JUDGES

@@ -14,7 +14,8 @@ import pytest
 from fastapi.testclient import TestClient
 
 from app.db import make_engine, make_sessions
-from app.services import artefacts, runs
+from app.runs import artefacts
+from app.runs import service as runs
 from engine.conformance import compare
 from engine.pooling import pooled_tree
 from engine.rl.agent_judge import JUDGES

@@ -27,7 +27,7 @@ from schemathesis.generation.drivers import CoverageGenerator
 from schemathesis.generation.feedback import FeedbackSources
 from schemathesis.generation.overrides import Override
 
-from app.web.ratelimit import LoginLimiter
+from app.http.ratelimit import LoginLimiter
 from tests.app.conftest import ADMIN
 from tests.app.surveys_support import finished, paper_body
 from tests.app.surveys_support import invite as invite_respondents

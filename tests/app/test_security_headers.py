@@ -17,10 +17,10 @@ import pytest
 from fastapi.routing import iter_route_contexts
 from fastapi.testclient import TestClient
 
-from app.api.deps import AJAX_HEADER
+from app.core import auth
+from app.http.deps import AJAX_HEADER
+from app.http.ratelimit import FAILED_LOGINS_PER_MINUTE
 from app.middleware import MAX_BODY_BYTES
-from app.services import auth
-from app.web.ratelimit import FAILED_LOGINS_PER_MINUTE
 from tests.app.conftest import ADMIN, ADMIN_TOKEN, Player
 from tests.support.web import browser, csrf_token, logged_in
 

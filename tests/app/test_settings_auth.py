@@ -7,7 +7,7 @@ import time
 
 import pytest
 
-from app.services.auth import (
+from app.core.auth import (
     ADMIN_TOKEN_FILE,
     MIN_ADMIN_TOKEN_CHARS,
     bearer_token,

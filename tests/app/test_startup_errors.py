@@ -27,8 +27,8 @@ from app.cli import cli
 from app.db import make_engine, make_sessions, upgrade
 from app.models import Candidate, Study
 from app.runtime import Runtime
-from app.services.studies import create_study
 from app.settings import Settings
+from app.studies.service import create_study
 from tests.app.conftest import ADMIN_TOKEN
 from tests.support.net import free_port, listening
 from tests.support.postgres import BACKENDS, empty_database
@@ -205,7 +205,7 @@ def test_concurrent_migrations_of_a_fresh_database(request, tmp_path: Path, back
 @pytest.mark.process
 def test_concurrent_processes_agree_on_one_admin_token(tmp_path: Path) -> None:
     code = (
-        "from app.services.auth import ensure_admin_token\n"
+        "from app.core.auth import ensure_admin_token\n"
         "from app.settings import Settings\n"
         "settings = Settings(data_dir=sys.argv[2])\n"
         "time.sleep(max(0.0, START - time.time()))\n"

@@ -8,11 +8,11 @@ from enum import StrEnum
 
 import pytest
 
-from app.api.run_schemas import RunCreate, RunOut
-from app.api.schemas import StudyOut
 from app.models import RUN_STATUSES, STUDY_STATUSES, Run, RunStatus, Study, StudyStatus
-from app.services.artefacts import ENDED
-from app.services.runs import FINAL, RESUMABLE
+from app.runs.artefacts import ENDED
+from app.runs.schemas import RunCreate, RunOut
+from app.runs.service import FINAL, RESUMABLE
+from app.studies.schemas import StudyOut
 from engine.rl.config import ADVICE_MODES, ALGOS
 from engine.teachers import TEACHERS
 

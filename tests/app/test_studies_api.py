@@ -11,7 +11,7 @@ from PIL import Image
 
 from app.main import create_app
 from app.runtime import Runtime
-from app.services.studies import create_study
+from app.studies.service import create_study
 from engine.bracket import make_first_round
 from engine.candidates import sample_candidates
 from tests.app.conftest import wait_ready
@@ -184,7 +184,7 @@ def test_participant_token_is_not_a_researcher_token(client, study, invite) -> N
 
 
 def test_researcher_cookie_from_services_is_accepted(client, study) -> None:
-    from app.services.auth import RESEARCHER_COOKIE, researcher_cookie_value
+    from app.core.auth import RESEARCHER_COOKIE, researcher_cookie_value
 
     cookie = researcher_cookie_value(admin_token=client.app.state.runtime.admin_token)
     response = client.get("/api/studies", headers={"Cookie": f"{RESEARCHER_COOKIE}={cookie}"})
@@ -231,7 +231,7 @@ def test_failed_preparation_is_reported_not_raised(client, admin, make_study, mo
     def broken(*_args, **_kwargs):
         raise RuntimeError("no OpenGL here\nsecond line")
 
-    monkeypatch.setattr("app.services.studies.render_candidates", broken)
+    monkeypatch.setattr("app.studies.service.render_candidates", broken)
     failed = make_study(n_candidates=3)
     assert (failed["status"], failed["error"]) == ("failed", "RuntimeError: no OpenGL here")
     refused = client.post(f"/api/studies/{failed['id']}/participants", headers=admin)

@@ -13,8 +13,8 @@ from typing import Any
 import pytest
 from fastapi.testclient import TestClient
 
-from app.services.survey_respond import RESPONDENT_COOKIE
-from app.web.ratelimit import LoginLimiter
+from app.http.ratelimit import LoginLimiter
+from app.surveys.respond import RESPONDENT_COOKIE
 from tests.app.conftest import ADMIN
 from tests.app.surveys_support import (
     Respondent,

@@ -15,8 +15,10 @@ from sqlalchemy import text
 
 from app.db import make_engine, upgrade
 from app.models import SurveyRespondent
-from app.services import recruiting, survey_crowd, survey_respond
-from app.services.survey_respond import AnswerIn
+from app.recruiting import service as recruiting
+from app.surveys import crowd as survey_crowd
+from app.surveys import respond as survey_respond
+from app.surveys.respond import AnswerIn
 from tests.app.conftest import ADMIN, BACKENDS
 from tests.app.surveys_support import invite, paper_body, participant_trees
 from tests.support.postgres import empty_database

@@ -15,7 +15,7 @@ from fastapi.testclient import TestClient
 from scipy.stats import binomtest
 
 from app.models import Survey, SurveyScreen
-from app.services.survey_respond import plan_screens, respondent_rng
+from app.surveys.respond import plan_screens, respondent_rng
 from tests.app.conftest import ADMIN
 from tests.app.surveys_support import finished, invite, paper_answers
 

@@ -9,8 +9,8 @@ from typing import Any
 import pytest
 from fastapi.testclient import TestClient
 
-from app.services.survey_respond import RESPONDENT_COOKIE
-from app.web.access_log import mask_invite_tokens
+from app.http.access_log import mask_invite_tokens
+from app.surveys.respond import RESPONDENT_COOKIE
 from tests.app.conftest import ADMIN, ADMIN_TOKEN
 from tests.app.surveys_support import finished, invite, paper_answers, paper_body
 from tests.app.test_pages import audit, browser, logged_in

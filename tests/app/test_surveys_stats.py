@@ -8,7 +8,7 @@ from math import comb
 
 import pytest
 
-from app.services.survey_stats import mean, median, paper_figures, proportion, versus_neutral
+from app.surveys.stats import mean, median, paper_figures, proportion, versus_neutral
 
 
 def _tail_at_least(k: int, n: int, p: float) -> float:

@@ -1,0 +1,209 @@
+"""Credentials: the researcher's admin token, participants' invite tokens, and cookies.
+
+Researchers send ``Authorization: Bearer <admin token>`` to the API; pages use an HttpOnly
+SameSite cookie holding a login time and a random nonce signed with a key derived from the
+admin token (never the token itself), accepted for ``ACV_SESSION_HOURS``. Participants send
+``Authorization: Bearer <invite token>``, or carry the cookie that ``/p/<token>`` sets; their
+tokens are checked by :func:`app.recruiting.members.resolve`, as respondents' are.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import hmac
+import os
+import secrets
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from fastapi import Response
+from sqlalchemy import Connection
+from sqlalchemy.orm import Session
+
+from app.recruiting import members
+from app.settings import Settings
+from engine.errors import InputError
+
+ADMIN_TOKEN_FILE = "admin_token"
+RESEARCHER_COOKIE = "acv_researcher"
+PARTICIPANT_COOKIE = members.STUDY.cookie
+#: How long a member's browser remembers their invitation, so they can resume.
+MEMBER_COOKIE_MAX_AGE_S = 90 * 24 * 3600
+#: Shortest admin token accepted: ~190 bits as URL-safe base64, beyond brute force.
+MIN_ADMIN_TOKEN_CHARS = 32
+#: Seconds a researcher cookie may claim to come from the future (clocks of several hosts).
+CLOCK_SKEW_S = 60
+_MAX_TOKEN_CHARS = 256
+
+
+def new_token() -> str:
+    """A fresh unguessable token (256 bits, URL-safe)."""
+    return secrets.token_urlsafe(32)
+
+
+def ensure_admin_token(settings: Settings) -> str:
+    """``ACV_ADMIN_TOKEN``, else the token kept in the data dir, made on first call.
+
+    The file appears complete or not at all (written aside with mode 0600, then hard-linked
+    into place, which fails if it exists), so processes starting together (several web
+    workers) agree on one token and none reads a half-written file.
+
+    Raises:
+        InputError: the token is empty or shorter than :data:`MIN_ADMIN_TOKEN_CHARS` (it
+            could be guessed, and the cookies and CSRF tokens are keyed by it).
+    """
+    if settings.admin_token is not None:
+        token = settings.admin_token.get_secret_value().strip()
+        where = "ACV_ADMIN_TOKEN"
+    else:
+        path = settings.data_dir / ADMIN_TOKEN_FILE
+        path.parent.mkdir(parents=True, exist_ok=True)
+        if not path.exists():
+            _publish(path, new_token())
+        token, where = path.read_text(encoding="utf-8").strip(), str(path)
+    if not token:
+        raise InputError(f"the admin token in {where} is empty")
+    if len(token) < MIN_ADMIN_TOKEN_CHARS:
+        raise InputError(
+            f"the admin token in {where} has {len(token)} characters; use at least "
+            f"{MIN_ADMIN_TOKEN_CHARS}, e.g. python3 -c 'import secrets; "
+            f"print(secrets.token_urlsafe(32))'"
+        )
+    return token
+
+
+def _publish(path: Path, token: str) -> None:
+    """Create ``path`` holding ``token`` atomically, unless another process did first."""
+    aside = path.with_name(f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}")
+    fd = os.open(aside, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            f.write(token + "\n")
+            f.flush()
+            os.fsync(f.fileno())
+        with contextlib.suppress(FileExistsError):  # someone else's token won: use theirs
+            os.link(aside, path)
+    finally:
+        aside.unlink(missing_ok=True)
+
+
+def same_secret(given: str | None, expected: str) -> bool:
+    """Constant-time comparison that also accepts non-ASCII input (as bytes)."""
+    if not given or len(given) > _MAX_TOKEN_CHARS:
+        return False
+    return secrets.compare_digest(given.encode(), expected.encode())
+
+
+def bearer_token(authorization: str | None) -> str | None:
+    """The token of an ``Authorization: Bearer <token>`` header, or ``None``."""
+    if not authorization:
+        return None
+    scheme, _, token = authorization.partition(" ")
+    if scheme.lower() != "bearer":
+        return None
+    return token.strip() or None
+
+
+def _session_key(admin_token: str) -> bytes:
+    return hmac.new(admin_token.encode(), b"acv-researcher-session", hashlib.sha256).digest()
+
+
+def _sign(admin_token: str, payload: str) -> str:
+    return hmac.new(_session_key(admin_token), payload.encode(), hashlib.sha256).hexdigest()
+
+
+def researcher_cookie_value(*, admin_token: str, issued_at: float | None = None) -> str:
+    """A new researcher cookie: ``<login time>.<nonce>.<signature>``, never the token; the
+    nonce makes every login's cookie different."""
+    issued = int(time.time() if issued_at is None else issued_at)
+    payload = f"{issued}.{secrets.token_urlsafe(12)}"
+    return f"{payload}.{_sign(admin_token, payload)}"
+
+
+def valid_researcher_cookie(
+    *, cookie: str | None, admin_token: str, max_age_s: float, now: float | None = None
+) -> bool:
+    """Whether ``cookie`` was signed with this admin token less than ``max_age_s`` ago."""
+    if not cookie or len(cookie) > _MAX_TOKEN_CHARS or cookie.count(".") != 2:
+        return False
+    issued, nonce, signature = cookie.split(".")
+    if not (issued.isascii() and issued.isdigit() and len(issued) <= 12) or not same_secret(
+        signature, _sign(admin_token, f"{issued}.{nonce}")
+    ):
+        return False
+    age = (time.time() if now is None else now) - int(issued)
+    return -CLOCK_SKEW_S <= age <= max_age_s
+
+
+def is_researcher(
+    *,
+    admin_token: str,
+    bearer: str | None = None,
+    cookie: str | None = None,
+    max_age_s: float | None = None,
+) -> bool:
+    """Whether a bearer token, or a researcher cookie younger than ``max_age_s`` (the
+    session length; without it no cookie counts), proves the researcher."""
+    return same_secret(bearer, admin_token) or (
+        max_age_s is not None
+        and valid_researcher_cookie(cookie=cookie, admin_token=admin_token, max_age_s=max_age_s)
+    )
+
+
+@dataclass(frozen=True)
+class ParticipantRef:
+    """A participant as the labelling hot path knows them (no row object, no session)."""
+
+    id: int
+    study_id: int
+    token: str
+
+
+def participant_ref(db: Session | Connection, *, token: str | None) -> ParticipantRef:
+    """The participant holding invite ``token`` (:func:`app.recruiting.members.resolve`, which
+    remembers known tokens in this process, so the hot path needs no query for them).
+
+    Raises:
+        AuthError: missing or unknown token.
+    """
+    ref = members.resolve(db, members.STUDY, token=token)
+    return ParticipantRef(ref.id, ref.collection_id, ref.token)
+
+
+def set_researcher_cookie(
+    response: Response, *, admin_token: str, max_age_s: int, secure: bool
+) -> None:
+    """Log the browser in as the researcher for ``max_age_s`` (HttpOnly, SameSite=Lax; the
+    server enforces the age too, see :func:`valid_researcher_cookie`)."""
+    response.set_cookie(
+        RESEARCHER_COOKIE,
+        researcher_cookie_value(admin_token=admin_token),
+        max_age=max_age_s,
+        httponly=True,
+        samesite="lax",
+        secure=secure,
+    )
+
+
+def set_member_cookie(
+    response: Response, kind: members.CollectionKind[Any], *, token: str, secure: bool
+) -> None:
+    """Remember a participant or respondent in this browser, so they can resume (HttpOnly,
+    SameSite=Lax)."""
+    response.set_cookie(
+        kind.cookie,
+        token,
+        max_age=MEMBER_COOKIE_MAX_AGE_S,
+        httponly=True,
+        samesite="lax",
+        secure=secure,
+    )
+
+
+def clear_cookies(response: Response) -> None:
+    """Log out both roles."""
+    response.delete_cookie(RESEARCHER_COOKIE)
+    response.delete_cookie(PARTICIPANT_COOKIE)

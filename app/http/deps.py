@@ -1,0 +1,271 @@
+"""FastAPI dependencies as ``Annotated`` aliases: runtime, settings, session and callers.
+
+``ResearcherDep`` accepts ``Authorization: Bearer <admin token>`` or the researcher cookie;
+``ParticipantDep`` accepts ``Authorization: Bearer <invite token>`` or the participant
+cookie; ``ViewerDep`` accepts either and says which. A bearer token that is neither the admin
+token nor an invite token counts as a failed login of the client's address
+(:mod:`app.http.ratelimit`); past the limit, researcher bearer tokens are refused with 429
+before being compared.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import AsyncIterator
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Annotated
+
+import anyio.to_thread
+from fastapi import Cookie, Depends, Path, Request
+from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
+from sqlalchemy.orm import Session
+
+from app.core import auth
+from app.core.errors import AuthError, ForbiddenError, TooManyAttemptsError
+from app.db import POOL_CAPACITY
+from app.models import Participant
+from app.recruiting import members
+from app.runtime import Runtime
+from app.settings import Settings
+
+if TYPE_CHECKING:  # ratelimit is built at startup; only its type is needed here
+    from app.http.ratelimit import LoginLimiter
+
+log = logging.getLogger(__name__)
+
+_admin_bearer = HTTPBearer(
+    auto_error=False,
+    scheme_name="AdminToken",
+    description="The researcher's admin token (ACV_ADMIN_TOKEN).",
+)
+_invite_bearer = HTTPBearer(
+    auto_error=False, scheme_name="InviteToken", description="A participant's invite token."
+)
+_Credentials = HTTPAuthorizationCredentials | None
+#: The bearer token, documented in OpenAPI as the researcher's scheme.
+AdminCredentials = Annotated[_Credentials, Depends(_admin_bearer)]
+#: The same bearer token, documented as a participant's scheme: an operation that takes both
+#: depends on both, so its OpenAPI ``security`` lists both (as alternatives).
+InviteCredentials = Annotated[_Credentials, Depends(_invite_bearer)]
+
+#: Requests holding a database session at once: below the pool's capacity
+#: (:data:`app.db.POOL_CAPACITY`), leaving connections for background jobs.
+MAX_SESSIONS = POOL_CAPACITY - 8
+#: Largest database id: ids are positive 32-bit integers (larger ones cannot exist).
+MAX_DB_ID = 2**31 - 1
+#: Database ids in paths.
+DbId = Annotated[int, Path(ge=1, le=MAX_DB_ID)]
+#: Candidate ids in paths: ``0 .. N-1`` with ``N <= 128``.
+CandidateId = Annotated[int, Path(ge=0, le=127)]
+#: Header the pages' scripts send on every JSON call (``static/js/api.js``). A cross-site
+#: form cannot set it, so a cookie-authenticated write without it may be forged (CSRF).
+AJAX_HEADER = ("X-Requested-With", "acv")
+_SAFE_METHODS = frozenset({"GET", "HEAD", "OPTIONS"})
+
+
+def check_cookie_write(request: Request) -> None:
+    """Refuse a state-changing call authenticated by a cookie without :data:`AJAX_HEADER`.
+
+    Bearer-token calls are exempt: browsers never attach those on their own.
+    """
+    name, value = AJAX_HEADER
+    if request.method not in _SAFE_METHODS and request.headers.get(name) != value:
+        raise ForbiddenError(
+            f"a {request.method} authenticated by a cookie must send the header {name}: {value}"
+        )
+
+
+async def get_runtime(request: Request) -> Runtime:  # async: no thread hop for a lookup
+    return request.app.state.runtime
+
+
+RuntimeDep = Annotated[Runtime, Depends(get_runtime)]
+
+
+async def get_settings(runtime: RuntimeDep) -> Settings:
+    return runtime.settings
+
+
+SettingsDep = Annotated[Settings, Depends(get_settings)]
+
+
+async def get_session(runtime: RuntimeDep) -> AsyncIterator[Session]:
+    """One session per request; services commit their own writes.
+
+    At most :data:`MAX_SESSIONS` requests hold a session at a time; the others wait without
+    a worker thread. A request holds its connection while it waits for worker threads (to
+    run the handler, then to validate the response), so without this bound a burst of
+    requests can take every pooled connection while the threads wait for one: a deadlock.
+    """
+    session = runtime.sessions()
+    try:
+        yield session
+    finally:
+        session.close()
+
+
+SessionDep = Annotated[
+    Session, Depends(get_session, scope="function", max_concurrency=MAX_SESSIONS)
+]
+
+
+@dataclass(frozen=True)
+class Viewer:
+    """Who is asking: the researcher, a participant, or (for ``ViewerDep``) either."""
+
+    researcher: bool
+    participant: Participant | None = None
+
+
+def _token(credentials: _Credentials) -> str | None:
+    return credentials.credentials if credentials is not None else None
+
+
+_RESEARCHER_REQUIRED = "researcher credentials required (Authorization: Bearer <admin token>)"
+
+
+def _limiter(request: Request) -> tuple[LoginLimiter, str]:
+    """The app's failed-login limiter and the client's address (as the login form counts)."""
+    return request.app.state.login_limiter, request.client.host if request.client else "unknown"
+
+
+def _too_many(limiter: LoginLimiter, address: str) -> TooManyAttemptsError:
+    return TooManyAttemptsError(
+        "too many failed researcher credentials from this address; try again later",
+        retry_after_s=limiter.retry_after_s(address),
+    )
+
+
+def _failed(limiter: LoginLimiter, address: str) -> None:
+    limiter.failed(address)
+    log.warning("failed researcher bearer token from %s", address)
+
+
+def _is_invite_token(runtime: Runtime, token: str) -> bool:
+    with runtime.sessions() as session:
+        return members.is_member_token(session, token=token)
+
+
+async def require_researcher(
+    request: Request,
+    runtime: RuntimeDep,
+    credentials: Annotated[_Credentials, Depends(_admin_bearer)],
+    cookie: Annotated[str | None, Cookie(alias=auth.RESEARCHER_COOKIE)] = None,
+) -> Viewer:
+    """The researcher, or 401 (429 after too many failed bearer tokens from this address;
+    403 for a cookie write without :data:`AJAX_HEADER`). A bearer token, when sent, decides."""
+    if (token := _token(credentials)) is not None:
+        limiter, address = _limiter(request)
+        if limiter.blocked(address):  # refused before comparing, or guessing would go on
+            raise _too_many(limiter, address)
+        if auth.is_researcher(admin_token=runtime.admin_token, bearer=token):
+            return Viewer(researcher=True)
+        # A participant's own invite token is a credential of another role, not a guess.
+        if not await anyio.to_thread.run_sync(_is_invite_token, runtime, token):
+            _failed(limiter, address)
+        raise AuthError(_RESEARCHER_REQUIRED)
+    if not auth.is_researcher(
+        admin_token=runtime.admin_token, cookie=cookie, max_age_s=runtime.settings.session_max_age_s
+    ):
+        raise AuthError(_RESEARCHER_REQUIRED)
+    check_cookie_write(request)
+    return Viewer(researcher=True)
+
+
+ResearcherDep = Annotated[Viewer, Depends(require_researcher)]
+
+
+async def researcher_gate(request: Request) -> None:
+    """:func:`require_researcher`, on a request whose body is not read yet
+    (:mod:`app.http.credentials_first`)."""
+    await require_researcher(
+        request,
+        request.app.state.runtime,
+        await _admin_bearer(request),
+        request.cookies.get(auth.RESEARCHER_COOKIE),
+    )
+
+
+async def invite_token(
+    request: Request,
+    credentials: Annotated[_Credentials, Depends(_invite_bearer)],
+    cookie: Annotated[str | None, Cookie(alias=auth.PARTICIPANT_COOKIE)] = None,
+) -> str | None:
+    """The invite token sent (bearer first, then the cookie), not yet checked."""
+    if (token := _token(credentials)) is not None:
+        return token
+    if cookie:
+        check_cookie_write(request)
+    return cookie
+
+
+#: The unchecked invite token, for hot paths that check it in their own worker thread
+#: (``auth.participant_ref``) rather than in a thread hop of its own.
+InviteTokenDep = Annotated[str | None, Depends(invite_token)]
+
+
+def require_participant(session: SessionDep, token: InviteTokenDep) -> auth.ParticipantRef:
+    """The participant whose invite token is sent (known tokens without a query), or 401."""
+    participant = auth.participant_ref(session, token=token)
+    session.commit()  # hand the connection back while the request waits for the handler
+    return participant
+
+
+ParticipantDep = Annotated[auth.ParticipantRef, Depends(require_participant)]
+
+
+async def participant_gate(request: Request) -> None:
+    """:func:`require_participant`, on a request whose body is not read yet
+    (:mod:`app.http.credentials_first`); a token this process knows needs no thread hop,
+    which keeps the labelling hot path as it was."""
+    token = await invite_token(
+        request, await _invite_bearer(request), request.cookies.get(auth.PARTICIPANT_COOKIE)
+    )
+    runtime: Runtime = request.app.state.runtime
+    if not members.known(runtime.engine, members.STUDY, token=token):
+        await anyio.to_thread.run_sync(_check_participant, runtime, token)
+
+
+def _check_participant(runtime: Runtime, token: str | None) -> None:
+    with runtime.engine.connect() as conn:
+        auth.participant_ref(conn, token=token)
+
+
+def get_viewer(
+    request: Request,
+    runtime: RuntimeDep,
+    session: SessionDep,
+    credentials: AdminCredentials,
+    _as_invite: InviteCredentials,
+    researcher_cookie: Annotated[str | None, Cookie(alias=auth.RESEARCHER_COOKIE)] = None,
+    participant_cookie: Annotated[str | None, Cookie(alias=auth.PARTICIPANT_COOKIE)] = None,
+) -> Viewer:
+    """The researcher if their credentials are sent, else the participant, else 401. A
+    bearer token, when sent, decides; past the failed-login limit only invite tokens work."""
+    if (token := _token(credentials)) is not None:
+        limiter, address = _limiter(request)
+        blocked = limiter.blocked(address)
+        if not blocked and auth.is_researcher(admin_token=runtime.admin_token, bearer=token):
+            return Viewer(researcher=True)
+        try:
+            participant = members.member_by_token(session, members.STUDY, token=token)
+        except AuthError:
+            if blocked:
+                raise _too_many(limiter, address) from None
+            _failed(limiter, address)
+            raise
+    else:
+        if researcher_cookie or participant_cookie:
+            check_cookie_write(request)
+        if auth.is_researcher(
+            admin_token=runtime.admin_token,
+            cookie=researcher_cookie,
+            max_age_s=runtime.settings.session_max_age_s,
+        ):
+            return Viewer(researcher=True)
+        participant = members.member_by_token(session, members.STUDY, token=participant_cookie)
+    session.commit()  # as in require_participant
+    return Viewer(researcher=False, participant=participant)
+
+
+ViewerDep = Annotated[Viewer, Depends(get_viewer)]

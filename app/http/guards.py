@@ -1,0 +1,75 @@
+"""Who may see a page: the researcher (cookie set by the login page) or a participant
+(cookie set by their invite link ``/p/<token>``)."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+from fastapi import Cookie, Depends, Request
+from sqlalchemy.orm import Session
+
+from app.core import auth
+from app.core.errors import AuthError
+from app.http.deps import RuntimeDep, SessionDep
+from app.http.rendering import RedirectTo, login_url
+from app.models import Participant
+from app.recruiting import members
+from app.recruiting.members import CollectionKind, Member
+
+DEFAULT_NEXT = "/studies"
+ResearcherCookie = Annotated[str | None, Cookie(alias=auth.RESEARCHER_COOKIE)]
+ParticipantCookie = Annotated[str | None, Cookie(alias=auth.PARTICIPANT_COOKIE)]
+
+
+def researcher_page(request: Request, runtime: RuntimeDep, cookie: ResearcherCookie = None) -> None:
+    """Let the researcher through; send anyone else to the login page (and back after)."""
+    if not auth.is_researcher(
+        admin_token=runtime.admin_token, cookie=cookie, max_age_s=runtime.settings.session_max_age_s
+    ):
+        raise RedirectTo(login_url(request.url.path))
+
+
+ResearcherPage = Depends(researcher_page)
+
+
+def page_member(
+    session: Session, kind: CollectionKind[Member], cookie: str | None, *, lost: str
+) -> Member:
+    """The member of ``kind`` whose invite cookie this browser holds.
+
+    Raises:
+        AuthError: ``lost`` (what to do, for the error page), when there is no cookie or its
+            token is no longer valid.
+    """
+    try:
+        return members.member_by_token(session, kind, token=cookie)
+    except AuthError:
+        raise AuthError(lost) from None
+
+
+def page_participant(session: SessionDep, cookie: ParticipantCookie = None) -> Participant:
+    """The participant whose invite cookie this browser holds (:func:`page_member`)."""
+    return page_member(
+        session,
+        members.STUDY,
+        cookie,
+        lost="This browser has no valid invitation. Open the invite link you "
+        "were sent (it looks like /p/...) to start or continue.",
+    )
+
+
+PageParticipant = Annotated[Participant, Depends(page_participant)]
+
+
+def safe_next(target: str | None) -> str:
+    """``target`` if it is a path on this site, else the study list (no open redirects)."""
+    if (
+        not target
+        or not target.startswith("/")
+        or target.startswith("//")
+        or "\\" in target
+        or not target.isprintable()
+        or len(target) > 500
+    ):
+        return DEFAULT_NEXT
+    return target

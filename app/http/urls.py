@@ -1,0 +1,19 @@
+"""URLs the API hands out: root-relative image URLs and absolute invite links."""
+
+from __future__ import annotations
+
+from fastapi import Request
+
+from app.labelling.participants import invite_url as _invite_url
+from app.studies.images import ImageSize
+
+
+def image_url(study_id: int, candidate_id: int, size: ImageSize = "full") -> str:
+    """Where a candidate's image is served (see ``candidate_image``)."""
+    base = f"/api/studies/{study_id}/candidates/{candidate_id}/image"
+    return base if size == "full" else f"{base}?size={size}"
+
+
+def invite_url(request: Request, token: str) -> str:
+    """The invite link under the base URL this request came in on."""
+    return _invite_url(str(request.base_url), token)

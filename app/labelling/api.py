@@ -1,0 +1,193 @@
+"""``/api/participants``: a participant's own bracket, and any participant's tree."""
+
+from __future__ import annotations
+
+from typing import Annotated, Any
+
+from fastapi import APIRouter, Path, Request, Response
+from fastapi.responses import JSONResponse
+from starlette.concurrency import run_in_threadpool
+
+from app.core import auth
+from app.core.errors import ForbiddenError
+from app.http.deps import (
+    DbId,
+    InviteTokenDep,
+    ParticipantDep,
+    ResearcherDep,
+    RuntimeDep,
+    SessionDep,
+    ViewerDep,
+)
+from app.http.urls import image_url
+from app.labelling import disagreement, participants
+from app.labelling import service as labelling
+from app.runtime import Runtime
+from app.studies import service as studies
+from app.studies import trees
+from app.studies.api import participant_out
+from app.studies.schemas import (
+    BracketCellOut,
+    BracketOut,
+    LabelIn,
+    MeOut,
+    NextMatchOut,
+    PairOut,
+    ParticipantOut,
+    ProgressOut,
+    UndoOut,
+)
+from engine.disagreement import MAX_PAIRS
+from engine.treefile import tree_to_json
+
+router = APIRouter(prefix="/participants", tags=["participants"])
+
+
+def progress_out(progress: participants.Progress) -> ProgressOut:
+    return ProgressOut(done=progress.done, total=progress.total)
+
+
+@router.get("/me")
+def me(person: ParticipantDep, session: SessionDep) -> MeOut:
+    """The participant's study, instructions and progress."""
+    study = studies.get_study(session, study_id=person.study_id)
+    progress = participants.progress(session, participant=person)
+    return MeOut(
+        id=person.id,
+        study_id=study.id,
+        study_name=study.name,
+        instructions=study.instructions,
+        progress=progress_out(progress),
+        finished=progress.finished,
+        can_undo=labelling.can_undo(session, participant=person),
+    )
+
+
+@router.get(
+    "/me/next-match",
+    response_model=NextMatchOut,
+    responses={204: {"description": "The bracket is finished."}},
+)
+async def next_match(token: InviteTokenDep, runtime: RuntimeDep) -> Response:
+    """The next match to decide, or 204 when every match is decided."""
+    # Hot path: authentication and one query in one worker-thread hop, with a session of
+    # its own (held only while the thread runs), and the JSON written without a validation
+    # layer (the body is built from typed rows; the schema is NextMatchOut).
+    body = await run_in_threadpool(_next_match, runtime, token)
+    return Response(status_code=204) if body is None else JSONResponse(body)
+
+
+def _next_match(runtime: Runtime, token: str | None) -> dict[str, Any] | None:
+    with runtime.engine.connect() as conn:
+        person = auth.participant_ref(conn, token=token)
+        upcoming = labelling.next_match(conn, participant=person)
+    return None if upcoming is None else next_match_body(person.study_id, upcoming)
+
+
+def next_match_body(study_id: int, upcoming: labelling.NextMatch) -> dict[str, Any]:
+    """The JSON of :class:`NextMatchOut`, built directly (the hot path skips pydantic)."""
+    m = upcoming.match
+    return {
+        "match_id": m.id,
+        "round": m.round,
+        "n_rounds": upcoming.n_rounds,
+        "match_number": upcoming.number,
+        "matches_in_round": upcoming.in_round,
+        "a": _side(study_id, m.a),
+        "b": _side(study_id, m.b),
+        "left": m.left,
+        "progress": {"done": upcoming.progress.done, "total": upcoming.progress.total},
+    }
+
+
+def _side(study_id: int, candidate_id: int) -> dict[str, Any]:
+    return {
+        "candidate_id": candidate_id,
+        "image_url": image_url(study_id, candidate_id),
+        "thumb_url": image_url(study_id, candidate_id, "thumb"),
+    }
+
+
+@router.post("/me/undo")
+def undo(person: ParticipantDep, session: SessionDep) -> UndoOut:
+    """Take back the participant's latest label; 409 when there is none."""
+    match = labelling.undo_label(session, participant=person)
+    return UndoOut(
+        match_id=match.id,
+        round=match.round,
+        progress=progress_out(participants.progress(session, participant=person)),
+    )
+
+
+@router.get("/me/bracket")
+def bracket(person: ParticipantDep, session: SessionDep) -> BracketOut:
+    """The whole bracket as decided so far, round by round (for the live bracket view)."""
+    rounds = labelling.bracket_view(session, participant=person)
+    return BracketOut(rounds=[[BracketCellOut(**vars(c)) for c in cells] for cells in rounds])
+
+
+@router.get("/me/pairs")
+def disagreement_pairs(person: ParticipantDep, session: SessionDep) -> list[PairOut]:
+    """The participant's disagreement pairs, asked after the bracket (empty until it is
+    finished, and when the study asks none)."""
+    found = disagreement.pairs(session, participant=person)
+    return [pair_out(person.study_id, p) for p in found]
+
+
+@router.post(
+    "/me/pairs/{position}/label",
+    status_code=201,
+    responses={
+        200: {"description": "The same answer was already stored (idempotent).", "model": PairOut},
+        404: {"description": "No such pair for this participant (or the bracket is unfinished)."},
+        409: {"description": "The pair is already answered the other way."},
+        422: {"description": "The winner is not one of the pair."},
+    },
+)
+def label_pair(
+    position: Annotated[int, Path(ge=0, le=MAX_PAIRS)],
+    body: LabelIn,
+    person: ParticipantDep,
+    session: SessionDep,
+    response: Response,
+) -> PairOut:
+    """Store the participant's preferred candidate of a disagreement pair."""
+    pair, created = disagreement.answer(
+        session,
+        participant=person,
+        position=position,
+        winner=body.winner,
+        response_ms=body.response_ms,
+    )
+    if not created:
+        response.status_code = 200
+    return pair_out(person.study_id, pair)
+
+
+def pair_out(study_id: int, pair: disagreement.PairView) -> PairOut:
+    return PairOut(
+        **vars(pair),
+        left_image_url=image_url(study_id, pair.left),
+        right_image_url=image_url(study_id, pair.right),
+    )
+
+
+@router.get("/{participant_id}")
+def get_participant(
+    participant_id: DbId, request: Request, session: SessionDep, _: ResearcherDep
+) -> ParticipantOut:
+    person = participants.get_participant(session, participant_id=participant_id)
+    return participant_out(request, person, participants.progress(session, participant=person))
+
+
+@router.get("/{participant_id}/tree")
+def participant_tree(
+    participant_id: DbId, session: SessionDep, viewer: ViewerDep
+) -> dict[str, Any]:
+    """The participant's Human Preference Tree as an ``acv.tree/1`` document (researcher,
+    or that participant); 409 until the bracket is finished."""
+    if not viewer.researcher and (
+        viewer.participant is None or viewer.participant.id != participant_id
+    ):
+        raise ForbiddenError("a participant may only see their own tree")
+    return tree_to_json(trees.participant_tree(session, participant_id=participant_id))

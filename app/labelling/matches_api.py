@@ -1,0 +1,87 @@
+"""``/api/matches``: storing a participant's decision."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from fastapi import APIRouter, Response
+from fastapi.responses import JSONResponse
+from starlette.concurrency import run_in_threadpool
+
+from app.core import auth
+from app.http.deps import DbId, InviteTokenDep, ParticipantDep, RuntimeDep, SessionDep
+from app.labelling import participants
+from app.labelling import service as labelling
+from app.labelling.api import next_match_body, progress_out
+from app.runtime import Runtime
+from app.studies.schemas import LabelIn, LabelOut, UndoOut
+
+router = APIRouter(prefix="/matches", tags=["matches"])
+
+
+@router.post(
+    "/{match_id}/label",
+    status_code=201,
+    response_model=LabelOut,
+    responses={
+        200: {"description": "The same label was already stored (idempotent).", "model": LabelOut},
+        404: {"description": "No such match among this participant's."},
+        409: {"description": "The match is already decided the other way."},
+        422: {"description": "The winner did not play this match."},
+    },
+)
+async def label_match(
+    match_id: DbId, body: LabelIn, token: InviteTokenDep, runtime: RuntimeDep
+) -> Response:
+    """Store the participant's preferred candidate of a match. The answer carries the next
+    match to decide (``next``, ``null`` once the bracket is finished), so a participant
+    needs one round trip per decision."""
+    # Hot path: one worker-thread hop with a session of its own, as in ``next-match``.
+    result, study_id = await run_in_threadpool(_label, runtime, token, match_id, body)
+    return JSONResponse(label_body(result, study_id), status_code=201 if result.created else 200)
+
+
+def _label(
+    runtime: Runtime, token: str | None, match_id: int, body: LabelIn
+) -> tuple[labelling.LabelResult, int]:
+    with runtime.engine.connect() as conn:
+        person = auth.participant_ref(conn, token=token)
+        result = labelling.submit_label(
+            conn,
+            participant=person,
+            match_id=match_id,
+            winner=body.winner,
+            response_ms=body.response_ms,
+            with_next=True,
+        )
+    return result, person.study_id
+
+
+def label_body(result: labelling.LabelResult, study_id: int) -> dict[str, Any]:
+    """The JSON of :class:`LabelOut`, built directly (the hot path skips pydantic)."""
+    return {
+        "match_id": result.match_id,
+        "winner": result.winner,
+        "created": result.created,
+        "progress": {"done": result.progress.done, "total": result.progress.total},
+        "finished": result.progress.finished,
+        "next": None if result.next is None else next_match_body(study_id, result.next),
+    }
+
+
+@router.delete(
+    "/{match_id}/label",
+    responses={
+        404: {"description": "No such match among this participant's."},
+        409: {"description": "Not labelled, or a later match already depends on it."},
+    },
+)
+def undo_label(match_id: DbId, person: ParticipantDep, session: SessionDep) -> UndoOut:
+    """Take back the label of one of the participant's matches, while the next-round match
+    containing its winner is undecided."""
+    match = labelling.undo_label(session, participant=person, match_id=match_id)
+    return UndoOut(
+        match_id=match.id,
+        round=match.round,
+        progress=progress_out(participants.progress(session, participant=person)),
+    )

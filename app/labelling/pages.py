@@ -1,0 +1,95 @@
+"""Participant pages: the invite link, instructions, one match at a time, and thank you.
+
+``/p/<token>`` stores the invite token in an HttpOnly cookie and sends the participant to
+where they left off; the labelling page (``static/js/label.js``) then talks to the REST API
+(``/api/participants/me/...``, ``/api/matches/{id}/label``) with that cookie.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from fastapi import APIRouter, Request, Response
+from fastapi.responses import HTMLResponse, RedirectResponse
+from sqlalchemy.orm import Session
+
+from app.core import auth
+from app.core.errors import AuthError, NotFoundError
+from app.http.deps import SessionDep
+from app.http.guards import PageParticipant
+from app.http.rendering import PageRoute, RedirectTo, is_https, redirect, render, thumb_template
+from app.labelling import check as crowd_check
+from app.labelling import disagreement, participants
+from app.models import Participant
+from app.recruiting import members
+from app.recruiting import service as recruiting
+from app.studies import crowd
+from app.studies import service as studies
+
+router = APIRouter(route_class=PageRoute, include_in_schema=False)
+
+INSTRUCTIONS = "/participate"
+LABEL = "/participate/label"
+THANKS = "/participate/thanks"
+PAIRS = "/participate/pairs"
+
+
+def where_next(progress: participants.Progress) -> str:
+    """Where a participant continues: instructions, the next match, or the thank-you page."""
+    if progress.finished:
+        return THANKS
+    return LABEL if progress.done else INSTRUCTIONS
+
+
+@router.get("/p/{token}")
+def invite_link(token: str, request: Request, session: SessionDep) -> RedirectResponse:
+    """Remember the invitation in this browser and continue where the participant left off."""
+    try:
+        person = members.member_by_token(session, members.STUDY, token=token)
+    except AuthError:
+        raise NotFoundError(
+            "This invite link is not valid. Check that you copied all of it, "
+            "or ask the researcher for a new one."
+        ) from None
+    response = redirect(where_next(participants.progress(session, participant=person)))
+    auth.set_member_cookie(response, members.STUDY, token=token, secure=is_https(request))
+    return response
+
+
+def _context(session: Session, person: Participant) -> dict[str, Any]:
+    study = studies.get_study(session, study_id=person.study_id)
+    return {
+        "study": study,
+        "participant": person,
+        "thumb_template": thumb_template(study.id),
+        "progress": participants.progress(session, participant=person),
+    }
+
+
+@router.get(INSTRUCTIONS)
+def instructions(request: Request, session: SessionDep, person: PageParticipant) -> HTMLResponse:
+    """The study's instructions and a start (or continue) button."""
+    return render(request, "instructions.html", _context(session, person))
+
+
+@router.get(LABEL)
+def label_page(request: Request, session: SessionDep, person: PageParticipant) -> Response:
+    """One match at a time (the page's script fetches and stores the matches)."""
+    context = _context(session, person)
+    if context["progress"].finished:
+        raise RedirectTo(THANKS)
+    return render(request, "label.html", context)
+
+
+@router.get(THANKS)
+def thanks(request: Request, session: SessionDep, person: PageParticipant) -> Response:
+    """Thank you, with the participant's Preference Tree (drawn by ``tree.js``)."""
+    context = _context(session, person)
+    if not context["progress"].finished:
+        raise RedirectTo(LABEL)
+    if disagreement.pending(session, participant=person) is not None:
+        raise RedirectTo(PAIRS)
+    if crowd_check.pending_pair(session, participant=person) is not None:
+        raise RedirectTo("/participate/check")
+    context["crowd"] = recruiting.completion(session, crowd.LINK, member=person)
+    return render(request, "thanks.html", context)

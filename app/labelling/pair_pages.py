@@ -1,0 +1,38 @@
+"""Disagreement pairs after the bracket (issue 25 §5): one pair a page, a plain form with two
+picture buttons, then the consistency check or the thank-you page
+(:mod:`app.labelling.disagreement`)."""
+
+from __future__ import annotations
+
+from fastapi import APIRouter, Request, Response
+
+from app.http.csrf import CsrfChecked, FormFields
+from app.http.deps import SessionDep
+from app.http.guards import PageParticipant
+from app.http.rendering import PageRoute, RedirectTo, redirect, render
+from app.labelling import disagreement
+from app.labelling.pages import PAIRS, THANKS
+from app.studies import service as studies
+
+router = APIRouter(route_class=PageRoute, include_in_schema=False)
+
+
+@router.get(PAIRS)
+def pair_page(request: Request, session: SessionDep, person: PageParticipant) -> Response:
+    """The next pair still to answer; the thank-you page once none is left."""
+    pair = disagreement.pending(session, participant=person)
+    if pair is None:
+        raise RedirectTo(THANKS)
+    study = studies.get_ready_study(session, study_id=person.study_id)
+    return render(request, "pair.html", {"study": study, "pair": pair})
+
+
+@router.post(PAIRS, dependencies=[CsrfChecked])
+def pair_answer(session: SessionDep, person: PageParticipant, fields: FormFields) -> Response:
+    """Store the answer to the pair the form showed, then the next one."""
+    try:
+        position, winner = int(fields.get("position", "")), int(fields.get("winner", ""))
+    except ValueError:
+        position, winner = -1, -1
+    disagreement.answer(session, participant=person, position=position, winner=winner)
+    return redirect(PAIRS)

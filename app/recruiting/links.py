@@ -1,0 +1,276 @@
+"""Open links (issue 14), shared by studies (``/s/<slug>``, :mod:`app.studies.crowd`) and
+surveys (``/q/<slug>``, :mod:`app.surveys.crowd`): the options, the external ids a
+crowd platform appends, and the seat count.
+
+Each new visitor of an open link becomes a person of their own. ``joined`` on the link's
+row is incremented by one ``UPDATE ... WHERE joined < max_participants`` in the same
+transaction that creates the person (:func:`take_seat`), so concurrent first visits never
+pass the maximum (the row lock on PostgreSQL, the single writer on SQLite, and a CHECK
+constraint behind both).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import re
+import secrets
+import unicodedata
+from collections.abc import Callable
+from dataclasses import dataclass
+from datetime import datetime
+from typing import Protocol, TypeVar
+
+from sqlalchemy import ColumnElement, select, update
+from sqlalchemy.orm import Session
+
+from app.core.errors import AuthError, ConflictError, NotFoundError, ServiceError
+from app.db import writing
+from app.models import CrowdSettings, Participant, SurveyCrowdSettings, SurveyRespondent
+from app.recruiting import members
+from app.recruiting.members import CollectionKind
+from app.studies.service import check_text
+from engine.errors import InputError
+
+DEFAULT_EXTERNAL_PARAMS = ("PROLIFIC_PID", "STUDY_ID", "SESSION_ID")
+MAX_PARTICIPANTS = 100_000
+MAX_EXTERNAL_CHARS = 200
+_PARAM_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]{0,63}")
+#: Where an open link may send people: an http(s) URL (the API documents this pattern, and
+#: the forms check it here). ECMA-262 and Rust regex syntax both: no inline flags.
+REDIRECT_URL_PATTERN = r"^[Hh][Tt][Tt][Pp][Ss]?://[^\s/?#][^\s]*$"
+
+#: Unicode categories an external id must not hold: control, format, line and paragraph
+#: separators, and lone surrogates (bytes that were not UTF-8, see :func:`external_ids`).
+_UNPRINTABLE = frozenset({"Cc", "Cf", "Zl", "Zp", "Cs"})
+ALREADY_TOOK_PART = (
+    "This id has already taken part, from another browser. If it is yours, go back to the "
+    "browser you started in, or open the link from your study platform again."
+)
+
+Link = TypeVar("Link", CrowdSettings, SurveyCrowdSettings)
+Person = TypeVar("Person", Participant, SurveyRespondent)
+
+
+class LinkFullError(ConflictError):
+    """The open link reached its largest number of people."""
+
+
+class LinkClosedError(ServiceError):
+    """The researcher closed the open link: it takes no new people (410); those who joined
+    before go on (their cookie resumes them, their token still works)."""
+
+    status_code = 410
+    title = "This link is closed"
+
+
+class AlreadyTookPartError(ConflictError):
+    """An external id that joined before, from a browser that is not theirs (409)."""
+
+    title = "This id has already taken part"
+
+
+@dataclass(frozen=True)
+class LinkOptions:
+    """What the researcher sets for an open link."""
+
+    enabled: bool = False
+    max_participants: int = 100
+    external_params: tuple[str, ...] = DEFAULT_EXTERNAL_PARAMS
+    consent_text: str | None = None
+    completion_code: str | None = None
+    redirect_url: str | None = None
+
+
+def check_options(options: LinkOptions) -> None:
+    """Refuse a bad option with an :class:`InputError` that names it."""
+    if not 1 <= options.max_participants <= MAX_PARTICIPANTS:
+        raise InputError(f"max_participants must be in 1..{MAX_PARTICIPANTS}")
+    if not 1 <= len(options.external_params) <= 10 or not all(
+        _PARAM_NAME.fullmatch(p) for p in options.external_params
+    ):
+        raise InputError("external_params must be 1..10 names of letters, digits and _")
+    if len(set(options.external_params)) != len(options.external_params):
+        raise InputError("external_params must not repeat a name")
+    if options.redirect_url is not None and not re.fullmatch(
+        REDIRECT_URL_PATTERN, options.redirect_url
+    ):
+        raise InputError("redirect_url must be an http(s) URL")
+    check_text(
+        consent_text=options.consent_text,
+        completion_code=options.completion_code,
+        redirect_url=options.redirect_url,
+    )
+
+
+def save(
+    session: Session, row: Link | None, make: Callable[[], Link], options: LinkOptions
+) -> Link:
+    """Store ``options`` (those of a subclass too) on the link ``row``, or on a new one from
+    ``make`` with a fresh slug (kept afterwards).
+
+    Raises:
+        InputError: a maximum below the people who already joined.
+    """
+    if row is None:
+        row = make()
+        row.slug, row.joined, row.declines = secrets.token_urlsafe(9), 0, 0
+    elif options.max_participants < row.joined:
+        raise InputError(f"max_participants must be at least the {row.joined} who already joined")
+    for field, value in vars(options).items():
+        setattr(row, field, list(value) if field == "external_params" else value)
+    with writing(session):
+        session.add(row)
+    return row
+
+
+def find(session: Session, model: type[Link], *, slug: str, what: str) -> Link:
+    """The open link ``slug`` of ``model``'s table, open or closed (a closed one still
+    resumes the people who joined; :func:`check_open` turns new ones away).
+
+    Raises:
+        NotFoundError: no such link.
+    """
+    row = session.scalar(select(model).where(model.slug == slug)) if len(slug) <= 64 else None
+    if row is None:
+        raise NotFoundError(f"There is no such {what} link. Check the link, or ask the researcher.")
+    return row
+
+
+def check_open(link: CrowdSettings | SurveyCrowdSettings, *, what: str) -> None:
+    """Refuse a new person on a closed link, as Prolific does with a paused or completed study:
+    closing stops new people joining, and those already in can finish.
+
+    Raises:
+        LinkClosedError: the researcher closed the link.
+    """
+    if not link.enabled:
+        raise LinkClosedError(
+            f"This {what} is closed: it is not taking new people. If you already started, "
+            "open the link in the browser you started in."
+        )
+
+
+def external_ids(params: list[str], query: dict[str, str]) -> dict[str, str]:
+    """The parameters ``params`` found in ``query`` (trimmed, at most 200 characters).
+
+    Raises:
+        InputError: a value is too long, or holds a control or format character, a line or
+            paragraph separator, or a lone surrogate (a query decoded with
+            ``surrogateescape``, whose bytes were not UTF-8).
+    """
+    found = {}
+    for name in params:
+        raw = query.get(name, "")
+        value = raw.strip(" ")  # before any other strip: str.strip() drops U+0085 and U+2028
+        if len(value) > MAX_EXTERNAL_CHARS or any(
+            unicodedata.category(c) in _UNPRINTABLE for c in raw
+        ):
+            raise InputError(
+                f"{name} must be at most {MAX_EXTERNAL_CHARS} printable characters of UTF-8"
+            )
+        if value:
+            found[name] = value
+    return found
+
+
+class Joiner(Protocol):
+    """A person an open link may have brought in: a study participant or a survey respondent."""
+
+    @property
+    def id(self) -> int: ...
+    @property
+    def via_link(self) -> bool: ...
+    @property
+    def finished_at(self) -> datetime | None: ...
+    @property
+    def external_ids(self) -> dict | None: ...
+
+
+def completion(session: Session, model: type[Link], key: int, person: Joiner) -> Link | None:
+    """The open link (of ``model``, primary key ``key``) whose completion code and redirect
+    ``person`` gets: only someone who came through that link, once they finish. An invited
+    person never gets them (the code is what a crowd platform pays against)."""
+    if not person.via_link or person.finished_at is None:
+        return None
+    return session.get(model, key)
+
+
+def returning(
+    session: Session,
+    kind: CollectionKind[Person],
+    *,
+    owner_id: int,
+    params: list[str],
+    ids: dict[str, str],
+    token: str | None,
+) -> Person | None:
+    """The member of ``kind`` in the collection ``owner_id`` this visitor already is, or
+    ``None`` for a new one.
+
+    Without an external id, the member whose cookie ``token`` (checked by
+    :func:`app.recruiting.members.member_by_token`) the browser holds. With one that joined
+    before, that person only in the browser that joined (its cookie), or where every other
+    external parameter (the platform's per-attempt ids, such as ``SESSION_ID``) was stored
+    and matches: an id alone is public enough (it is in every URL the platform makes) that
+    it must not hand over someone's session.
+
+    Raises:
+        AlreadyTookPartError: the id joined before, and neither the cookie nor the
+            per-attempt ids say this is the same person.
+    """
+    cookie = None
+    if token:  # a cookie of another collection, or no longer valid, is no cookie here
+        with contextlib.suppress(AuthError):
+            cookie = members.member_by_token(session, kind, token=token, collection_id=owner_id)
+    key = ids.get(params[0])
+    if key is None:
+        return cookie
+    model = kind.member
+    known = session.scalar(
+        select(model).where(getattr(model, kind.owner) == owner_id, model.external_id == key)
+    )
+    if known is None:
+        return None
+    if cookie is not None and cookie.id == known.id:
+        return known
+    if _same_attempt(params[1:], ids, known.external_ids or {}):
+        return known
+    raise AlreadyTookPartError(ALREADY_TOOK_PART)
+
+
+def _same_attempt(params: list[str], ids: dict[str, str], stored: dict[str, str]) -> bool:
+    """Every per-attempt id was stored at the first visit and comes back the same."""
+    return bool(params) and all(
+        p in stored
+        and p in ids
+        and secrets.compare_digest(ids[p].encode(), str(stored[p]).encode())
+        for p in params
+    )
+
+
+def is_full(link: CrowdSettings | SurveyCrowdSettings) -> bool:
+    return link.joined >= link.max_participants
+
+
+def take_seat(
+    session: Session, model: type[Link], owner: ColumnElement[bool], *, full: LinkFullError
+) -> None:
+    """Count one more person on the link ``owner`` selects, inside the caller's write
+    transaction (atomic: ``UPDATE ... WHERE joined < max_participants``).
+
+    Raises:
+        LinkFullError: ``full``, when every seat is taken.
+    """
+    taken = session.execute(
+        update(model)
+        .where(owner, model.joined < model.max_participants)
+        .values(joined=model.joined + 1)
+    ).rowcount  # type: ignore[attr-defined]
+    if taken == 0:
+        raise full
+
+
+def count_decline(session: Session, model: type[Link], owner: ColumnElement[bool]) -> None:
+    """Count a declined consent; nothing else about the visitor is stored."""
+    with writing(session):
+        session.execute(update(model).where(owner).values(declines=model.declines + 1))

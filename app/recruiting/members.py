@@ -1,0 +1,210 @@
+"""Members of a collection, and the one lookup of their invite tokens.
+
+A *collection* is a study (bracket labelling; its members are participants, invited by
+``/p/<token>``) or a survey (tree reading; respondents, ``/r/<token>``). Both kinds of
+member are known only by an invite token, and :func:`resolve` is the one function that says
+whom a raw token names, for either kind. It makes every check that the two earlier lookups
+(``auth.participant_by_token`` and ``survey_respond.respondent_by_token``) made between them:
+
+1. a token is sent, else "... invite token is required";
+2. it has the shape of the tokens we issue (:func:`app.core.auth.new_token`): 1..256
+   characters of URL-safe base64, hence ASCII. The study lookup checked this alphabet, the
+   survey lookup only ASCII and the length; anything else is refused before any query;
+3. the member is looked up by the token's SHA-256 digest (``token_hash``), never by the
+   token itself, so an index's timing tells a guesser about the hash of a guess only;
+4. the stored token is compared with the one sent in constant time;
+5. where the caller names a collection, the member belongs to it (open links resume only
+   their own collection's members; a survey's pages serve only its own respondents).
+
+Neither lookup checked more, and this one adds nothing else on purpose: tokens neither
+expire nor are revoked (no column says so), a finished member must still resolve (their
+thank-you page, tree and completion code), a declined consent makes no member at all, and a
+member exists only for a collection that can take one (a study's participants are made once
+it is ready; a survey is open from its creation). A member whose row is gone (its
+collection was deleted) is unknown.
+"""
+
+from __future__ import annotations
+
+import functools
+import re
+import secrets
+import weakref
+from dataclasses import dataclass
+from typing import Generic, TypeVar
+
+from sqlalchemy import Connection, Engine, Select, bindparam, select
+from sqlalchemy.orm import Session
+
+from app.core.errors import AuthError
+from app.db import engine_of
+from app.models import Participant, Study, Survey, SurveyRespondent, token_digest
+
+#: What invite tokens look like (URL-safe base64); anything else is not looked up at all.
+TOKEN_SHAPE = re.compile(r"[A-Za-z0-9_-]{1,256}")
+#: Members remembered per process (see :func:`resolve`); past this the memory starts over.
+MAX_KNOWN = 100_000
+
+Member = TypeVar("Member", Participant, SurveyRespondent)
+
+
+@dataclass(frozen=True)
+class CollectionKind(Generic[Member]):
+    """A kind of collection (studies, surveys) as the people code needs to know it."""
+
+    #: The collection's noun (``study``), its table's model, and its members' model.
+    noun: str
+    collection: type[Study] | type[Survey]
+    member: type[Member]
+    #: Where an invite link points (this prefix and the token), and the cookie it sets.
+    invite_prefix: str
+    cookie: str
+    #: What a caller is told: no token sent; a token that names nobody of this kind.
+    missing: str
+    unknown: str
+
+    @property
+    def owner(self) -> str:
+        """The member's column that holds their collection's id (``study_id``)."""
+        return f"{self.noun}_id"
+
+    def invite_path(self, token: str) -> str:
+        """The path of a member's invite link."""
+        return f"{self.invite_prefix}{token}"
+
+
+STUDY = CollectionKind(
+    noun="study",
+    collection=Study,
+    member=Participant,
+    invite_prefix="/p/",
+    cookie="acv_participant",
+    missing="a participant invite token is required",
+    unknown="unknown invite token",
+)
+SURVEY = CollectionKind(
+    noun="survey",
+    collection=Survey,
+    member=SurveyRespondent,
+    invite_prefix="/r/",
+    cookie="acv_respondent",
+    missing="a survey invite token is required",
+    unknown="unknown survey invite token",
+)
+
+
+@dataclass(frozen=True)
+class MemberRef:
+    """A member as a token names them: no row object, no session (the hot path's key)."""
+
+    id: int
+    collection_id: int
+    token: str
+
+
+#: Members already resolved in this process, by database (engine), kind and token digest:
+#: tokens never change and a member keeps their collection, so a known token needs no query
+#: (a row deleted since is caught where it is read, see :func:`member_by_token`).
+_known: weakref.WeakKeyDictionary[Engine, dict[tuple[str, str], MemberRef]] = (
+    weakref.WeakKeyDictionary()
+)
+
+
+@functools.cache
+def _by_digest(kind: CollectionKind[Member]) -> Select[int, int, str]:
+    model = kind.member
+    return select(model.id, getattr(model, kind.owner), model.token).where(
+        model.token_hash == bindparam("digest")
+    )
+
+
+def resolve(
+    db: Session | Connection,
+    kind: CollectionKind[Member],
+    *,
+    token: str | None,
+    collection_id: int | None = None,
+) -> MemberRef:
+    """The member of ``kind`` whose invite ``token`` this is, after every check listed in
+    the module's docstring; ``collection_id``, when given, is the collection they must be in.
+
+    Raises:
+        AuthError: no token, or one that names no member of ``kind`` (of that collection).
+    """
+    ref = _lookup(db, kind, _digest(kind, token))
+    if not _same(token, ref) or (collection_id is not None and ref.collection_id != collection_id):
+        raise AuthError(kind.unknown)
+    return ref
+
+
+def _lookup(db: Session | Connection, kind: CollectionKind[Member], digest: str) -> MemberRef:
+    """The member whose token has ``digest``: from this process's memory, else by a query
+    (then remembered)."""
+    remembered = _known.setdefault(engine_of(db), {})
+    if (ref := remembered.get((kind.noun, digest))) is not None:
+        return ref
+    row = db.execute(_by_digest(kind), {"digest": digest}).one_or_none()
+    if row is None:
+        raise AuthError(kind.unknown)
+    if len(remembered) >= MAX_KNOWN:  # bounded memory; the busy ones come back at once
+        remembered.clear()
+    member_id, collection_id, token = row
+    ref = remembered[(kind.noun, digest)] = MemberRef(member_id, collection_id, token)
+    return ref
+
+
+def _digest(kind: CollectionKind[Member], token: str | None) -> str:
+    """The digest ``token`` is looked up by, once it is sent and has the shape of ours."""
+    if not token:
+        raise AuthError(kind.missing)
+    if not TOKEN_SHAPE.fullmatch(token):
+        raise AuthError(kind.unknown)
+    return token_digest(token)
+
+
+def _same(token: str | None, ref: MemberRef) -> bool:
+    """The token sent is the member's, compared in constant time."""
+    return token is not None and secrets.compare_digest(token.encode(), ref.token.encode())
+
+
+def known(engine: Engine, kind: CollectionKind[Member], *, token: str | None) -> bool:
+    """Whether :func:`resolve` accepts ``token`` from this process's memory alone (no query:
+    the hot path checks a credential it has seen without a thread hop)."""
+    if not token or not TOKEN_SHAPE.fullmatch(token):
+        return False
+    ref = _known.get(engine, {}).get((kind.noun, token_digest(token)))
+    return ref is not None and _same(token, ref)
+
+
+def member_by_token(
+    session: Session,
+    kind: CollectionKind[Member],
+    *,
+    token: str | None,
+    collection_id: int | None = None,
+) -> Member:
+    """The row of the member :func:`resolve` finds.
+
+    Raises:
+        AuthError: as :func:`resolve`; or the member's row is gone.
+    """
+    ref = resolve(session, kind, token=token, collection_id=collection_id)
+    member = session.get(kind.member, ref.id)
+    if member is None:  # deleted with their collection since this process remembered them
+        _known.get(engine_of(session), {}).pop((kind.noun, token_digest(ref.token)), None)
+        raise AuthError(kind.unknown)
+    return member
+
+
+def is_member_token(db: Session | Connection, *, token: str) -> bool:
+    """Whether ``token`` is some member's invite token, of any kind (a credential of another
+    role, not a guess)."""
+    return _accepts(db, STUDY, token) or _accepts(db, SURVEY, token)
+
+
+def _accepts(db: Session | Connection, kind: CollectionKind[Member], token: str) -> bool:
+    try:
+        resolve(db, kind, token=token)
+    except AuthError:
+        return False
+    return True

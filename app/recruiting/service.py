@@ -1,0 +1,180 @@
+"""Recruiting through an open link, written once for both kinds of collection (issues 14 and
+26): a study's ``/s/<slug>`` (:data:`app.studies.crowd.LINK`) and a survey's ``/q/<slug>``
+(:data:`app.surveys.crowd.LINK`).
+
+A new visitor joins as a member of their own, a returning one resumes (their cookie, or their
+first external id with the per-attempt ids), a declined consent is only counted, and a member
+who came through the link and finished gets its completion code. The seat count, the options
+and the external ids are :mod:`app.recruiting.links`; whom a cookie names is
+:func:`app.recruiting.members.resolve`. What differs between the kinds is a :class:`LinkKind`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Generic, TypeVar
+
+from sqlalchemy import ColumnElement
+from sqlalchemy.exc import IntegrityError
+from sqlalchemy.orm import Session
+
+from app.core.auth import new_token
+from app.db import writing
+from app.models import CrowdSettings, SurveyCrowdSettings
+from app.recruiting import links as open_links
+from app.recruiting.links import LinkFullError, LinkOptions
+from app.recruiting.members import CollectionKind, Member
+
+Link = TypeVar("Link", CrowdSettings, SurveyCrowdSettings)
+
+
+@dataclass(frozen=True)
+class LinkKind(Generic[Link, Member]):
+    """A kind of collection's open link: its members, table and path, and what joining takes."""
+
+    members: CollectionKind[Member]
+    link: type[Link]
+    #: The link's path is this prefix and its slug (``/s/``, ``/q/``).
+    prefix: str
+    #: What the collection's members are called (``participants``), and the error raised
+    #: when every seat is taken.
+    people: str
+    full_error: type[LinkFullError]
+    #: Refuses (raises) a collection that cannot take people now: a study not ready yet.
+    check_collection: Callable[[Session, int], object]
+    #: Adds a new member inside the join's write transaction (a participant's first round
+    #: of matches is made with them).
+    stage: Callable[[Session, Member], None]
+
+    @property
+    def full(self) -> tuple[str, str]:
+        """What a visitor is told when every seat is taken: a title and a sentence."""
+        noun = self.members.noun
+        return (
+            f"This {noun} is full",
+            f"This {noun} has all the {self.people} it needs. Thank you for your interest.",
+        )
+
+    def open_path(self, slug: str) -> str:
+        """The path of the open link ``slug``."""
+        return f"{self.prefix}{slug}"
+
+    def owner_id(self, link: Link) -> int:
+        """The id of the collection that owns ``link``."""
+        return int(getattr(link, self.members.owner))
+
+    def owner_is(self, owner_id: int) -> ColumnElement[bool]:
+        """The condition that selects the link row of collection ``owner_id``."""
+        return getattr(self.link, self.members.owner) == owner_id
+
+
+def settings(session: Session, kind: LinkKind[Link, Member], owner_id: int) -> Link | None:
+    """The collection's open link and options, or ``None`` when never set."""
+    return session.get(kind.link, owner_id)
+
+
+def configure(
+    session: Session, kind: LinkKind[Link, Member], owner_id: int, options: LinkOptions
+) -> Link:
+    """Set the collection's open link and options (the slug is made once and kept); a
+    subclass's options (a study's quality checks) are stored too, checked by the caller.
+
+    Raises:
+        InputError: a bad option, or a maximum below the people already joined.
+        NotFoundError, ConflictError: no such collection, or it cannot take people now.
+    """
+    open_links.check_options(options)
+    kind.check_collection(session, owner_id)
+    return open_links.save(
+        session,
+        session.get(kind.link, owner_id),
+        lambda: kind.link(**{kind.members.owner: owner_id}),
+        options,
+    )
+
+
+def open_link(session: Session, kind: LinkKind[Link, Member], slug: str) -> Link:
+    """The open link ``slug``, open or closed (:func:`open_links.find`).
+
+    Raises:
+        NotFoundError: no such link.
+    """
+    return open_links.find(session, kind.link, slug=slug, what=kind.members.noun)
+
+
+def external_ids(
+    link: CrowdSettings | SurveyCrowdSettings, query: dict[str, str]
+) -> dict[str, str]:
+    """The link's external parameters found in ``query`` (see :func:`open_links.external_ids`)."""
+    return open_links.external_ids(link.external_params, query)
+
+
+def returning(
+    session: Session,
+    kind: LinkKind[Link, Member],
+    *,
+    link: Link,
+    ids: dict[str, str],
+    token: str | None,
+) -> Member | None:
+    """The member this visitor already is (:func:`open_links.returning`): by the cookie the
+    browser holds for this collection, or by the first external id with the per-attempt ids;
+    ``None`` for a new visitor.
+
+    Raises:
+        AlreadyTookPartError: the external id joined before, from another browser.
+    """
+    return open_links.returning(
+        session,
+        kind.members,
+        owner_id=kind.owner_id(link),
+        params=link.external_params,
+        ids=ids,
+        token=token,
+    )
+
+
+def join(
+    session: Session, kind: LinkKind[Link, Member], *, link: Link, ids: dict[str, str]
+) -> Member:
+    """A new member for this visitor, or the one their first external id names (two first
+    visits of one id at once: the ``UNIQUE (collection, external_id)`` index settles it).
+
+    Raises:
+        LinkClosedError: the researcher closed the link.
+        LinkFullError: ``kind.full_error``, when the link has its largest number of people.
+    """
+    open_links.check_open(link, what=kind.members.noun)
+    owner_id = kind.owner_id(link)
+    kind.check_collection(session, owner_id)
+    person = kind.members.member(
+        **{kind.members.owner: owner_id},
+        token=new_token(),
+        external_id=ids.get(link.external_params[0]),
+        external_ids=ids or None,
+        via_link=True,
+    )
+    try:
+        with writing(session):
+            full = kind.full_error(": ".join(kind.full))
+            open_links.take_seat(session, kind.link, kind.owner_is(owner_id), full=full)
+            kind.stage(session, person)
+    except IntegrityError:  # the same external id joined at the same moment: resume it
+        existing = returning(session, kind, link=link, ids=ids, token=None)
+        if existing is None:
+            raise
+        return existing
+    return person
+
+
+def decline(session: Session, kind: LinkKind[Link, Member], *, link: Link) -> None:
+    """Count a declined consent; nothing else about the visitor is stored."""
+    open_links.count_decline(session, kind.link, kind.owner_is(kind.owner_id(link)))
+
+
+def completion(session: Session, kind: LinkKind[Link, Member], *, member: Member) -> Link | None:
+    """The link whose completion code and redirect a finished open-link member gets; ``None``
+    before they finish, or for an invited member."""
+    owner_id = int(getattr(member, kind.members.owner))
+    return open_links.completion(session, kind.link, owner_id, member)

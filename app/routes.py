@@ -1,0 +1,58 @@
+"""Every route of the app, mounted by :func:`app.main.create_app`: the REST API under
+``/api`` (one router per resource, shown in ``/docs``) and the HTML pages.
+
+The routers live with their feature (``app/<feature>/api.py``, ``pages.py``); this module
+only fixes the order in which they are matched.
+"""
+
+from __future__ import annotations
+
+from fastapi import APIRouter
+
+from app.http import auth_pages, errors
+from app.labelling import api as participants_api
+from app.labelling import crowd_pages as study_link_pages
+from app.labelling import matches_api, pair_pages
+from app.labelling import pages as participant_pages
+from app.runs import advisors_api, experiment_pages, experiments_api
+from app.runs import api as runs_api
+from app.runs import pages as runs_pages
+from app.studies import api as studies_api
+from app.studies import crowd_api as study_crowd_api
+from app.studies import crowd_pages as study_crowd_pages
+from app.studies import downloads
+from app.studies import pages as studies_pages
+from app.surveys import api as surveys_api
+from app.surveys import crowd_api as survey_crowd_api
+from app.surveys import crowd_pages as survey_link_pages
+from app.surveys import pages as surveys_pages
+
+api_router = APIRouter(prefix="/api", responses=errors.RESPONSES)
+for _api in (
+    studies_api,
+    participants_api,
+    matches_api,
+    runs_api,
+    advisors_api,
+    experiments_api,
+    surveys_api,
+    study_crowd_api,
+    survey_crowd_api,
+):
+    api_router.include_router(_api.router)
+
+pages_router = APIRouter()
+for _pages in (
+    auth_pages,
+    participant_pages,
+    pair_pages,
+    downloads,
+    studies_pages,
+    runs_pages,
+    experiment_pages,
+    surveys_pages,
+    study_link_pages,
+    study_crowd_pages,
+    survey_link_pages,
+):
+    pages_router.include_router(_pages.router)

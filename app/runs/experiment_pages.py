@@ -1,0 +1,57 @@
+"""The experiment page: its runs by role and seed, live, and the verdict for a judge.
+
+The page is rendered with the state of the moment; ``static/js/experiment.js`` then polls
+``/api/experiments/{id}`` and its verdict until every run has ended.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+from fastapi import APIRouter, Query, Request
+from fastapi.responses import HTMLResponse
+
+from app.http.deps import DbId, SessionDep
+from app.http.guards import ResearcherPage
+from app.http.rendering import PageRoute, render
+from app.runs import experiments
+from app.runs import service as runs
+from app.runs.pages import JUDGE_LABELS
+from app.runs.schemas import Judge
+from app.studies import service as studies
+from engine.errors import InputError
+from engine.judges import DEFAULT_JUDGE, judge_name
+
+router = APIRouter(route_class=PageRoute, include_in_schema=False, dependencies=[ResearcherPage])
+
+
+@router.get("/experiments/{experiment_id}")
+def experiment_page(
+    experiment_id: DbId,
+    request: Request,
+    session: SessionDep,
+    judge: Annotated[Judge, Query()] = DEFAULT_JUDGE,
+) -> HTMLResponse:
+    experiment = experiments.get_experiment(session, experiment_id=experiment_id)
+    members = experiments.members(session, experiment_id=experiment_id)
+    advised = next(run for role, run in members if role == "advised")
+    try:
+        found = experiments.experiment_verdict(session, experiment_id=experiment_id, judge=judge)
+        problem = None
+    except InputError as exc:  # checkpoints judged before this judge existed
+        found, problem = None, str(exc)
+    return render(
+        request,
+        "experiment.html",
+        {
+            "experiment": experiment,
+            "study": studies.get_study(session, study_id=experiment.study_id),
+            "members": members,
+            "advice": runs.advice_label(advised),
+            "algo": advised.algo,
+            "judge": judge_name(judge),
+            "judges": JUDGE_LABELS,
+            "found": found,
+            "problem": problem,
+        },
+    )

@@ -1,0 +1,188 @@
+"""``/api/experiments``: advised runs on k seeds with a matched no-advice baseline, and the
+verdict that compares them (docs/method.md §2.11).
+
+``POST`` queues the runs (202); the verdict answers 202 ``{"status": "pending"}`` until enough
+runs of every role have a judged checkpoint, then the verdict at the latest such step.
+"""
+
+from __future__ import annotations
+
+from datetime import datetime
+from typing import Annotated, Any, Literal
+
+from fastapi import APIRouter, Query, Response
+from fastapi.responses import JSONResponse
+from pydantic import BaseModel, ConfigDict, Field
+
+from app.core.csv_export import csv_text
+from app.http.deps import DbId, ResearcherDep, SessionDep
+from app.models import Experiment
+from app.runs import experiment_notes, experiments
+from app.runs.experiments import (
+    DEFAULT_PILOT_SEEDS,
+    DEFAULT_SEEDS,
+    MAX_PILOT_SEEDS,
+    MAX_SEEDS,
+    MIN_SEEDS,
+    PILOT_SEED_BASE,
+    ExperimentSpec,
+)
+from app.runs.schemas import Judge, RunCreate
+from app.studies.schemas import JsonInt, ProgressOut, UtcDatetime
+from engine.judges import DEFAULT_JUDGE
+
+router = APIRouter(prefix="/experiments", tags=["experiments"])
+PENDING: dict[int | str, dict[str, Any]] = {
+    202: {"description": 'Not enough runs judged yet: {"status": "pending"}; ask again.'}
+}
+
+
+class ExperimentCreate(RunCreate):
+    """A run request (``/api/runs``'s body, whose ``seed`` is the first evaluation seed)
+    trained on ``seeds`` seeds, with a matched ``ppo`` baseline on the same seeds and
+    ``pilot_seeds`` pilot runs that pick the contested matches."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    seeds: JsonInt = Field(DEFAULT_SEEDS, ge=MIN_SEEDS, le=MAX_SEEDS)
+    pilot_seeds: JsonInt = Field(DEFAULT_PILOT_SEEDS, ge=1, le=MAX_PILOT_SEEDS)
+    seed: JsonInt = Field(0, ge=0, lt=PILOT_SEED_BASE - MAX_SEEDS)
+
+    def spec(self) -> ExperimentSpec:
+        run = self.model_dump(exclude={"seeds", "pilot_seeds", "seed"}, exclude_none=True)
+        if not run.get("all_participants"):
+            run.pop("all_participants", None)
+        return ExperimentSpec(
+            run=run, seeds=self.seeds, first_seed=self.seed, pilot_seeds=self.pilot_seeds
+        )
+
+
+class ExperimentRunOut(BaseModel):
+    id: int
+    role: Literal["advised", "baseline", "pilot"]
+    algo: str
+    seed: int
+    status: str
+    progress: ProgressOut
+
+
+class ExperimentOut(BaseModel):
+    """An experiment: what its runs train, their seeds, and where each run stands."""
+
+    id: int
+    study_id: int
+    spec: dict[str, Any] = Field(description="The advised runs' request, less the seed.")
+    seeds: list[int]
+    pilot_seeds: list[int]
+    created_at: UtcDatetime
+    runs: list[ExperimentRunOut]
+
+
+class VerdictOut(BaseModel):
+    """The verdict of one judge at one checkpoint step (see ``engine.verdict.Verdict``)."""
+
+    judge: str
+    step: int
+    runs: dict[str, list[int]] = Field(description="The run ids it rests on, by role.")
+    verdict: dict[str, Any]
+
+
+def _out(session: SessionDep, experiment: Experiment) -> ExperimentOut:
+    runs = [
+        ExperimentRunOut(
+            id=run.id,
+            role=role,  # type: ignore[arg-type]  # the CHECK constraint keeps it one of three
+            algo=run.algo,
+            seed=run.seed,
+            status=run.status,
+            progress=ProgressOut(done=run.progress, total=run.timesteps),
+        )
+        for role, run in experiments.members(session, experiment_id=experiment.id)
+    ]
+    created: datetime = experiment.created_at
+    return ExperimentOut(
+        id=experiment.id,
+        study_id=experiment.study_id,
+        spec=experiment.spec,
+        seeds=experiment.seeds,
+        pilot_seeds=experiment.pilot_seeds,
+        created_at=created,
+        runs=runs,
+    )
+
+
+@router.post("", status_code=202)
+def create_experiment(
+    body: ExperimentCreate, session: SessionDep, _: ResearcherDep
+) -> ExperimentOut:
+    """Queue the advised runs, and the baseline and pilot runs not trained already (runs of
+    the same study, config and seed are reused)."""
+    experiment = experiments.create_experiment(session, spec=body.spec())
+    return _out(session, experiment)
+
+
+@router.get("")
+def list_experiments(
+    session: SessionDep,
+    _: ResearcherDep,
+    study_id: Annotated[int | None, Query(ge=1, le=2**31 - 1)] = None,
+) -> list[ExperimentOut]:
+    return [_out(session, e) for e in experiments.list_experiments(session, study_id=study_id)]
+
+
+@router.get("/{experiment_id}")
+def get_experiment(experiment_id: DbId, session: SessionDep, _: ResearcherDep) -> ExperimentOut:
+    return _out(session, experiments.get_experiment(session, experiment_id=experiment_id))
+
+
+JudgeQuery = Annotated[Judge, Query(description="How the runs score states.")]
+StepQuery = Annotated[int | None, Query(ge=0, description="Checkpoint (default: latest).")]
+
+
+@router.get("/{experiment_id}/verdict", responses=PENDING)
+def experiment_verdict(
+    experiment_id: DbId,
+    session: SessionDep,
+    response: Response,
+    _: ResearcherDep,
+    judge: JudgeQuery = DEFAULT_JUDGE,
+    step: StepQuery = None,
+) -> VerdictOut | dict[str, str]:
+    """Advised runs against the matched baseline at one checkpoint step, for one judge."""
+    found = experiments.experiment_verdict(
+        session, experiment_id=experiment_id, judge=judge, step=step
+    )
+    if found is None:
+        response.status_code = 202
+        return {"status": "pending"}
+    return VerdictOut(
+        judge=found.judge, step=found.step, runs=found.runs, verdict=found.verdict.to_json()
+    )
+
+
+@router.get(
+    "/{experiment_id}/verdict.csv",
+    response_class=Response,
+    responses={200: {"content": {"text/csv": {}}}, **PENDING},
+)
+def experiment_verdict_csv(
+    experiment_id: DbId,
+    session: SessionDep,
+    _: ResearcherDep,
+    judge: JudgeQuery = DEFAULT_JUDGE,
+    step: StepQuery = None,
+) -> Response:
+    """The verdict as CSV, one row per run it rests on: role, seed and the run's share of the
+    contested matches kept (CA), with Δ, its interval, p, AUC and the outcome on every row."""
+    found = experiments.experiment_verdict(
+        session, experiment_id=experiment_id, judge=judge, step=step
+    )
+    if found is None:
+        return JSONResponse({"status": "pending"}, status_code=202)
+    rows = experiment_notes.verdict_rows(session, experiment_id=experiment_id, found=found)
+    name = f"experiment-{experiment_id}-verdict-{found.judge}-step{found.step}.csv"
+    return Response(
+        csv_text(experiment_notes.CSV_HEADER, rows),
+        media_type="text/csv",
+        headers={"Content-Disposition": f'attachment; filename="{name}"'},
+    )

@@ -1,0 +1,194 @@
+"""What the comparison page, the exports and the self-contained HTML report show of a run.
+
+The rejected advice (the human's matches the agent overturned) is highlighted in both trees:
+in the Human Preference Tree the state the human ruled against (the edge of that match ends
+there), in the Agent Preference Tree the state the human preferred and the agent ruled
+against.
+"""
+
+from __future__ import annotations
+
+import base64
+import math
+from pathlib import Path
+from typing import Any
+
+from jinja2 import Environment, FileSystemLoader, select_autoescape
+from sqlalchemy.orm import Session
+
+from app.core import figures
+from app.models import Run
+from app.runs import comparison
+from app.runs.experiment_notes import notes_of_runs
+from app.runs.service import advice_label, advice_of
+from app.studies import service as studies
+from app.studies.images import SPECS, image_file
+from engine.conformance import Conformance
+from engine.treefile import TreeDocument
+
+REPORT_TEMPLATE = "compare_report.html"
+_templates = Environment(
+    loader=FileSystemLoader(Path(__file__).resolve().parents[2] / "templates"),
+    autoescape=select_autoescape(),
+    trim_blocks=True,
+    lstrip_blocks=True,
+)
+
+
+def who(run: Run) -> str:
+    """Who gave the advice, as the comparison speaks of them: ``you`` (the participant),
+    ``the pool`` (pooled participants: their pooled verdict) or ``the standing teacher``."""
+    if run.advice_pool:
+        return "the pool"
+    return "you" if run.participant_id is not None else f"the {run.teacher} teacher"
+
+
+def whose(run: Run) -> str:
+    """The possessive of :func:`who`: ``your``, ``the pool's`` or ``the standing teacher's``."""
+    return "your" if run.participant_id is not None else f"{who(run)}'s"
+
+
+def rejected_pairs(metrics: Conformance) -> list[dict[str, Any]]:
+    """Each overturned match as ``{round, human, agent, other, contested}`` (``agent`` None
+    for a tie)."""
+    return [
+        {
+            "round": r.round,
+            "human": r.human_winner,
+            "agent": r.agent_winner,
+            "other": r.b if r.human_winner == r.a else r.a,
+            "contested": r.contested,
+        }
+        for r in metrics.rejected
+    ]
+
+
+def thumb_paths(session: Session, *, data_dir: Path, study_id: int) -> dict[int, Path]:
+    """Candidate id -> its thumbnail file."""
+    return {
+        c.id: image_file(data_dir, c.thumb_path)
+        for c in studies.list_candidates(session, study_id=study_id)
+    }
+
+
+def tree_file(
+    doc: TreeDocument, *, thumbs: dict[int, Path], highlight: frozenset[int], title: str, fmt: str
+) -> bytes:
+    """A tree as an SVG or PNG file with thumbnails."""
+    return figures.tree_figure(
+        doc, thumbs=figures.load_thumbs(thumbs), highlight=highlight, title=title, fmt=fmt
+    )
+
+
+def report_context(
+    run: Run, *, session: Session, out: Path, step: int, judge: str, thumbs: dict[int, Path]
+) -> dict[str, Any]:
+    """Everything ``compare_report.html`` shows; images inline, so the file stands alone.
+
+    Raises:
+        PendingError: the checkpoint's artefact is not computed yet.
+    """
+    human = advice_of(run)
+    view = comparison.checkpoint_view(session, run_id=run.id, step=step)
+    agent, metrics = view.tree(judge), view.of(judge)
+    marked_human, marked_agent = comparison.highlights(metrics)
+    svg = {
+        "human": tree_file(
+            human,
+            thumbs=thumbs,
+            highlight=marked_human,
+            title=f"Human Preference Tree ({advice_label(run)})",
+            fmt="svg",
+        ),
+        "agent": tree_file(
+            agent,
+            thumbs=thumbs,
+            highlight=marked_agent,
+            title=f"Agent Preference Tree (step {step})",
+            fmt="svg",
+        ),
+    }
+    curve = comparison.conformance_curve(session, run_id=run.id, out=out, judge=judge)
+    return {
+        "run": run,
+        "advice": advice_label(run),
+        "step": step,
+        "judge": judge,
+        "score_column": comparison.score_column(judge),
+        "metrics": metrics,
+        "verdict": comparison.verdict(view, judge, whose(run)),
+        "experiment_notes": notes_of_runs(session, run_ids=[run.id], judge=judge),
+        "who": who(run),
+        "pairs": rejected_pairs(metrics),
+        "judges": view.conformance,
+        "candidates": view.candidates,
+        "thumbs": {cid: data_uri(path) for cid, path in thumbs.items() if path.is_file()},
+        "human_svg": inline_svg(svg["human"]),
+        "agent_svg": inline_svg(svg["agent"]),
+        "curve_svg": inline_svg(curve_chart(curve)),
+        "learning_svg": inline_svg(learning_chart(comparison.metrics_rows(out))),
+        "curve": curve,
+    }
+
+
+def report_html(
+    run: Run,
+    *,
+    session: Session,
+    study_name: str,
+    out: Path,
+    step: int,
+    judge: str,
+    thumbs: dict[int, Path],
+) -> str:
+    """The self-contained HTML report of a run at a checkpoint (no scripts, no links)."""
+    context = report_context(run, session=session, out=out, step=step, judge=judge, thumbs=thumbs)
+    return _templates.get_template(REPORT_TEMPLATE).render(study_name=study_name, **context)
+
+
+def curve_chart(curve: list[tuple[int, Conformance]], fmt: str = "svg") -> bytes:
+    """Match agreement and Kendall tau-b over training."""
+    steps = [step for step, _ in curve]
+    tau = [math.nan if m.kendall_tau_b is None else m.kendall_tau_b for _, m in curve]
+    return figures.line_chart(
+        [
+            figures.Series("match agreement", steps, [m.match_agreement for _, m in curve]),
+            figures.Series("Kendall tau-b", steps, tau),
+        ],
+        xlabel="timesteps",
+        ylabel="conformance",
+        title="Conformance across training",
+        fmt=fmt,
+        ylim=(-1.05, 1.05),
+    )
+
+
+def learning_chart(rows: list[dict[str, Any]], fmt: str = "svg") -> bytes:
+    """Mean true return of the last 100 episodes, and the mean shaping weight z."""
+    steps = [row["timesteps"] for row in rows]
+
+    def values(key: str) -> list[float]:
+        return [math.nan if row.get(key) is None else row[key] for row in rows]
+
+    return figures.line_chart(
+        [
+            figures.Series("return (last 100 episodes)", steps, values("return_100")),
+            figures.Series("z (mean shaping weight)", steps, values("z_mean")),
+        ],
+        xlabel="timesteps",
+        ylabel="value",
+        title="Learning curve and z",
+        fmt=fmt,
+    )
+
+
+def inline_svg(data: bytes) -> str:
+    """An SVG file's ``<svg>`` element, to place inside HTML."""
+    text = data.decode()
+    return text[text.index("<svg") :]
+
+
+def data_uri(path: Path) -> str:
+    """A small image file as a ``data:`` URI."""
+    encoded = base64.b64encode(path.read_bytes()).decode()
+    return f"data:{SPECS['thumb'].media_type};base64,{encoded}"

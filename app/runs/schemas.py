@@ -1,0 +1,135 @@
+"""Request and response bodies of ``/api/runs`` (pydantic models, shown in ``/docs``)."""
+
+from __future__ import annotations
+
+from typing import Annotated, Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, StrictBool
+
+from app.models import Run, RunStatus
+from app.runs.pools import members
+from app.runs.service import MAX_TIMESTEPS, advice_label
+from app.studies.schemas import JsonFloat, JsonInt, ProgressOut, UtcDatetime
+from engine.rl.config import AdviceMode, Algo, TrainConfig
+from engine.teachers import Teacher
+
+#: engine.judges.JUDGES, and ``value``, the old name of ``shaped-value`` (still accepted).
+Judge = Literal["return", "behaviour", "shaped", "shaping", "shaped-value", "value"]
+DbInt = Annotated[JsonInt, Field(ge=1, le=2**31 - 1)]
+#: Participants one pooled run may name.
+MAX_POOL = 1000
+#: A pool's participant ids: the schema documents the two or more that
+#: :func:`app.runs.pools.pool_ids` enforces, with its message that names the count.
+PoolIds = Annotated[list[DbInt], Field(max_length=MAX_POOL, json_schema_extra={"minItems": 2})]
+
+
+class RunCreate(BaseModel):
+    """A new training run. Advice: ``participant_id`` (a finished participant of the study),
+    ``participant_ids`` (two or more of them, pooled: F is the mean of their trees' F),
+    ``all_participants`` (every finished participant, pooled), ``teacher`` (a simulated
+    teacher over the study's bracket) or none (``ppo`` only)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    study_id: JsonInt = Field(ge=1, le=2**31 - 1)
+    participant_id: JsonInt | None = Field(None, ge=1, le=2**31 - 1)
+    participant_ids: PoolIds | None = Field(
+        None,
+        description="Pooled advice: two or more distinct finished participants of the study.",
+    )
+    all_participants: StrictBool = Field(
+        False, description="Pooled advice: every finished participant of the study."
+    )
+    teacher: Teacher | None = None
+    algo: Algo = Algo.BIPARS_EM
+    timesteps: JsonInt = Field(ge=1, le=MAX_TIMESTEPS, description="Env steps over all envs.")
+    seed: JsonInt = Field(0, ge=0, le=2**31 - 1)
+    n_envs: JsonInt = Field(4, ge=1, le=64)
+    num_steps: JsonInt | None = Field(
+        None, ge=2, le=65_536, description="Steps per env per rollout (default 512)."
+    )
+    num_minibatches: JsonInt | None = Field(None, ge=1, le=4096)
+    update_epochs: JsonInt | None = Field(None, ge=1, le=100)
+    checkpoint_every: JsonInt | None = Field(
+        None,
+        ge=1,
+        le=MAX_TIMESTEPS,
+        description="Env steps between checkpoints (default: about 10 checkpoints).",
+    )
+    advice_scale: JsonFloat | None = Field(
+        None,
+        gt=0,
+        le=100,
+        allow_inf_nan=False,
+        description="Multiplies F(s) before shaping (default 1); 10 lets the advice dominate R.",
+    )
+    advice_mode: AdviceMode | None = Field(
+        None,
+        description="How F is made from the advice tree; ``reward``: F is the env's "
+        "step reward (the tree is still what the agent is compared with).",
+    )
+
+
+class RunCreated(BaseModel):
+    id: int
+    status: RunStatus
+
+
+class RunOut(BaseModel):
+    """A run: what it trains, where it stands, its latest metrics row, its error."""
+
+    id: int
+    study_id: int
+    participant_id: int | None
+    participant_ids: list[int] | None = Field(
+        description="The pooled participants of a run on pooled advice (else null)."
+    )
+    teacher: str | None
+    advice: str
+    algo: str
+    timesteps: int
+    seed: int
+    n_envs: int
+    config: dict[str, Any]
+    status: RunStatus
+    progress: ProgressOut
+    metrics: dict[str, Any] | None
+    error: str | None
+    cancel_requested: bool
+    executor: str | None
+    created_at: UtcDatetime
+    started_at: UtcDatetime | None
+    finished_at: UtcDatetime | None
+
+    @classmethod
+    def of(cls, run: Run) -> RunOut:
+        config = TrainConfig.from_json(run.config)
+        return cls(
+            id=run.id,
+            study_id=run.study_id,
+            participant_id=run.participant_id,
+            participant_ids=members(run),
+            teacher=run.teacher,
+            advice=advice_label(run),
+            algo=run.algo,
+            timesteps=run.timesteps,
+            seed=run.seed,
+            n_envs=run.n_envs,
+            config=run.config,
+            status=RunStatus(run.status),
+            progress=ProgressOut(done=run.progress, total=config.num_updates * config.batch_size),
+            metrics=run.metrics,
+            error=run.error,
+            cancel_requested=run.cancel_requested,
+            executor=run.executor,
+            created_at=run.created_at,
+            started_at=run.started_at,
+            finished_at=run.finished_at,
+        )
+
+
+class CheckpointOut(BaseModel):
+    """A checkpoint and the metrics row of the update that wrote it (when logged)."""
+
+    checkpoint: int
+    metrics: dict[str, Any] | None

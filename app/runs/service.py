@@ -1,0 +1,322 @@
+"""Training runs: creation (with their advice), look-ups, cancel and resume.
+
+A run belongs to a study. Its advice is frozen when it is created: a finished participant's
+Human Preference Tree, several finished participants' trees pooled (:mod:`app.runs.pools`),
+a simulated teacher's tree over the same bracket (the study's candidates and first round), or
+none (``ppo`` only). A ``ppo`` run may still name advice: it
+trains without it, and its Agent Preference Tree is compared with that tree (the baseline of
+a ``bipars-em`` run on the same advice). Workers (:mod:`app.jobs`) execute queued runs.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from sqlalchemy import select
+from sqlalchemy.orm import Session
+
+from app.core.errors import ConflictError, NotFoundError
+from app.db import writing
+from app.jobs.execute import run_dir
+from app.jobs.queue import update_if
+from app.labelling.participants import get_participant
+from app.models import Run, RunStatus, utcnow
+from app.runs import pools
+from app.studies.service import engine_candidates_of, first_round, get_ready_study
+from app.studies.trees import participant_tree
+from engine.bracket import Bracket
+from engine.envs import env_model
+from engine.errors import InputError
+from engine.rl.config import TrainConfig
+from engine.teachers import TEACHERS, make_teacher
+from engine.tournament import play
+from engine.treefile import TreeDocument, make_document, tree_from_json, tree_to_json
+
+RESUMABLE: tuple[RunStatus, ...] = (RunStatus.INTERRUPTED, RunStatus.FAILED, RunStatus.CANCELLED)
+FINAL: tuple[RunStatus, ...] = (RunStatus.SUCCEEDED, RunStatus.FAILED, RunStatus.CANCELLED)
+MAX_TIMESTEPS = 100_000_000
+#: Checkpoints a run writes when the request does not say how often.
+DEFAULT_CHECKPOINTS = 10
+
+
+def create_run(
+    session: Session,
+    *,
+    study_id: int,
+    participant_id: int | None = None,
+    participant_ids: list[int] | None = None,
+    all_participants: bool = False,
+    teacher: str | None = None,
+    algo: str = "bipars-em",
+    timesteps: int,
+    seed: int = 0,
+    n_envs: int = 4,
+    **options: int | float | None,
+) -> Run:
+    """Validate and queue a new run.
+
+    Args:
+        participant_ids: pooled advice: two or more finished participants of the study.
+        all_participants: pooled advice: every finished participant of the study.
+        options: further :class:`TrainConfig` fields (``num_steps``, ``checkpoint_every``,
+            ...); None values are left at their defaults.
+
+    Raises:
+        InputError: bad parameters, two advice sources, or an advised algo without advice.
+        NotFoundError: no such study or participant (or not in this study).
+        ConflictError: the study is not ready, or a participant has not finished.
+    """
+    study = get_ready_study(session, study_id=study_id)
+    if not 0 < timesteps <= MAX_TIMESTEPS:
+        raise InputError(f"timesteps must be in 1..{MAX_TIMESTEPS}, got {timesteps}")
+    config = train_config(
+        env_id=study.env_id, algo=algo, timesteps=timesteps, seed=seed, n_envs=n_envs, **options
+    )
+    pool, advice = _advice_source(
+        session,
+        config=config,
+        study_id=study_id,
+        participant_id=participant_id,
+        participant_ids=participant_ids,
+        all_participants=all_participants,
+        teacher=teacher,
+    )
+    if advice is None and config.uses_advice:
+        raise InputError(
+            f"algo {algo} trains with advice: give participant_id, participant_ids or teacher"
+        )
+    run = Run(
+        study_id=study.id,
+        participant_id=participant_id,
+        teacher=teacher,
+        advice_pool=pool,
+        algo=algo,
+        timesteps=timesteps,
+        seed=seed,
+        n_envs=n_envs,
+        config=config.to_json(),
+        advice=None if advice is None else tree_to_json(advice),
+        status="queued",
+        resume=False,
+        cancel_requested=False,
+        progress=0,
+    )
+    with writing(session):
+        session.add(run)
+    return run
+
+
+def train_config(
+    *,
+    env_id: str,
+    algo: str,
+    timesteps: int,
+    seed: int,
+    n_envs: int,
+    **options: int | float | str | None,
+) -> TrainConfig:
+    """The run's configuration; by default about :data:`DEFAULT_CHECKPOINTS` checkpoints."""
+    given: dict[str, Any] = {k: v for k, v in options.items() if v is not None}
+    base = TrainConfig(
+        algo=algo,
+        env_id=env_id,
+        total_timesteps=timesteps,
+        seed=seed,
+        n_envs=n_envs,
+        **{k: v for k, v in given.items() if k != "checkpoint_every"},
+    )
+    every = given.get("checkpoint_every") or base.batch_size * max(
+        1, base.num_updates // DEFAULT_CHECKPOINTS
+    )
+    return TrainConfig(**{**base.to_json(), "checkpoint_every": every})
+
+
+def _advice_source(
+    session: Session,
+    *,
+    config: TrainConfig,
+    study_id: int,
+    participant_id: int | None,
+    participant_ids: list[int] | None,
+    all_participants: bool,
+    teacher: str | None,
+) -> tuple[pools.Pool | None, TreeDocument | None]:
+    """The run's pool (pooled advice only) and its advice tree (the pooled verdict for a pool).
+
+    Raises:
+        InputError: more than one advice source, or a bad pool.
+    """
+    pooled = participant_ids is not None or all_participants
+    if sum((participant_id is not None, teacher is not None, pooled)) > 1:
+        raise InputError(
+            "give one advice source: participant_id, participant_ids (or all_participants) "
+            "or teacher, not both"
+        )
+    ids = pools.pool_ids(
+        session,
+        study_id=study_id,
+        participant_ids=participant_ids,
+        all_participants=all_participants,
+    )
+    if ids is not None:
+        return pools.pool_of(
+            session, study_id=study_id, ids=ids, tree_options=config.tree_options()
+        )
+    return None, advice_tree(
+        session, study_id=study_id, participant_id=participant_id, teacher=teacher
+    )
+
+
+def advice_tree(
+    session: Session, *, study_id: int, participant_id: int | None, teacher: str | None
+) -> TreeDocument | None:
+    """The advice a run of ``study_id`` would take (None when it takes none)."""
+    if participant_id is not None:
+        person = get_participant(session, participant_id=participant_id)
+        if person.study_id != study_id:
+            raise NotFoundError(f"participant {participant_id} is not in study {study_id}")
+        return participant_tree(session, participant_id=participant_id)
+    if teacher is not None:
+        return teacher_tree(session, study_id=study_id, teacher=teacher)
+    return None
+
+
+def teacher_tree(session: Session, *, study_id: int, teacher: str) -> TreeDocument:
+    """A simulated teacher's tree over the study's bracket (as
+    :func:`engine.pipeline.replay_with_teacher` makes it, without noise)."""
+    if teacher not in TEACHERS:
+        raise InputError(f"unknown teacher {teacher!r}: expected one of {', '.join(TEACHERS)}")
+    study = get_ready_study(session, study_id=study_id)
+    cands = engine_candidates_of(session, study_id=study_id)
+    bracket = first_round(session, study_id=study_id)
+    judge, scores = make_teacher(
+        teacher,
+        cands,
+        env_model(study.env_id),
+        noise=0.0,
+        rng=np.random.default_rng([study.seed, 1]),
+    )
+    results = play(Bracket(bracket), {c.id: c for c in cands}, judge)
+    return make_document(
+        env_id=study.env_id,
+        seed=study.seed,
+        p=study.p,
+        judge=teacher,
+        candidates=cands,
+        first_round=bracket,
+        results=results,
+        scores=scores,
+    )
+
+
+def get_run(session: Session, *, run_id: int) -> Run:
+    """The run, or :class:`NotFoundError`."""
+    run = session.get(Run, run_id)
+    if run is None:
+        raise NotFoundError(f"run {run_id} not found")
+    return run
+
+
+def list_runs(session: Session, *, study_id: int | None = None) -> list[Run]:
+    """Runs (of one study, or all), newest first."""
+    query = select(Run).order_by(Run.id.desc())
+    if study_id is not None:
+        query = query.where(Run.study_id == study_id)
+    return list(session.scalars(query))
+
+
+def same_advice_runs(session: Session, *, run: Run) -> list[Run]:
+    """The runs of ``run``'s study with the same advice source (itself included), oldest
+    first: what the multi-run comparison puts side by side."""
+    source = (
+        Run.participant_id == run.participant_id
+        if run.participant_id is not None
+        else Run.teacher == run.teacher
+        if run.teacher is not None
+        else Run.participant_id.is_(None) & Run.teacher.is_(None)
+    )
+    found = session.scalars(
+        select(Run).where(Run.study_id == run.study_id, source).order_by(Run.id)
+    )
+    # a pool is compared in Python: JSON has no equality in PostgreSQL
+    return [r for r in found if pools.members(r) == pools.members(run)]
+
+
+def advice_of(run: Run) -> TreeDocument:
+    """The run's advice tree (its Human Preference Tree in comparisons).
+
+    Raises:
+        ConflictError: the run has no advice to compare with.
+    """
+    if run.advice is None:
+        raise ConflictError(
+            f"run {run.id} has no advice tree to compare with (it was "
+            "created without participant_id, participant_ids or teacher)"
+        )
+    return tree_from_json(run.advice)
+
+
+def advice_label(run: Run) -> str:
+    """Who gave the advice, for people: ``participant #3``, ``3 participants pooled (#1, #2,
+    #4)``, ``teacher standing``, ``none``."""
+    if (ids := pools.members(run)) is not None:
+        return pools.pool_label(ids)
+    if run.participant_id is not None:
+        return f"participant #{run.participant_id}"
+    return f"teacher {run.teacher}" if run.teacher is not None else "none"
+
+
+def cancel_run(session: Session, *, run_id: int) -> Run:
+    """Cancel a queued run now, or ask a running one to stop (it checkpoints first).
+
+    Raises:
+        ConflictError: the run has already ended.
+    """
+    get_run(session, run_id=run_id)
+    if not update_if(
+        session,
+        (Run.id == run_id, Run.status.in_(("queued", "interrupted"))),
+        status="cancelled",
+        finished_at=utcnow(),
+    ) and not update_if(
+        session, (Run.id == run_id, Run.status == "running"), cancel_requested=True
+    ):
+        raise ConflictError(f"run {run_id} has already ended")
+    return _fresh(session, run_id)
+
+
+def resume_run(session: Session, *, run_id: int, runs_dir: Path) -> Run:
+    """Queue an interrupted, failed or cancelled run again, to continue from its latest
+    checkpoint.
+
+    Raises:
+        ConflictError: the run is queued, running or succeeded, or has no checkpoint.
+    """
+    from app.runs.artefacts import checkpoint_steps  # by file name: no torch in a request
+
+    run = get_run(session, run_id=run_id)
+    if run.status not in RESUMABLE:
+        raise ConflictError(
+            f"run {run_id} is {run.status}; only {', '.join(RESUMABLE)} runs can be resumed"
+        )
+    if not checkpoint_steps(run_dir(runs_dir, run_id)):
+        raise ConflictError(f"run {run_id} has no checkpoint to resume from")
+    if not update_if(
+        session,
+        (Run.id == run_id, Run.status == run.status),
+        status="queued",
+        resume=True,
+        cancel_requested=False,
+        error=None,
+        finished_at=None,
+        worker=None,
+    ):
+        raise ConflictError(f"run {run_id} changed meanwhile; try again")
+    return _fresh(session, run_id)
+
+
+def _fresh(session: Session, run_id: int) -> Run:
+    session.expire_all()
+    return get_run(session, run_id=run_id)

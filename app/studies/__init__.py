@@ -1,0 +1,3 @@
+"""Studies: creation and preparation (sample, seed, render), candidates, trees and label
+exports, crowd options and label quality, and their REST API and pages.
+"""

@@ -1,0 +1,212 @@
+"""``/api/studies``: create and inspect studies, their candidates, participants and exports."""
+
+from __future__ import annotations
+
+from dataclasses import asdict
+from typing import Annotated, Any
+
+from fastapi import APIRouter, Query, Request, Response
+from fastapi.responses import FileResponse
+
+from app.core.errors import NotFoundError
+from app.http.deps import (
+    CandidateId,
+    DbId,
+    ResearcherDep,
+    RuntimeDep,
+    SessionDep,
+    SettingsDep,
+    ViewerDep,
+)
+from app.http.urls import image_url, invite_url
+from app.labelling import participants
+from app.models import Participant
+from app.runs.experiments import DEFAULT_SEEDS, MAX_SEEDS, MIN_SEEDS
+from app.studies import power, trees
+from app.studies import service as studies
+from app.studies.images import MEDIA_TYPE, ImageSize, image_file
+from app.studies.schemas import (
+    AdvicePowerOut,
+    CandidateOut,
+    ParticipantBatchCreate,
+    ParticipantCreate,
+    ParticipantCreated,
+    ParticipantOut,
+    ProgressOut,
+    StudyCreate,
+    StudyOut,
+)
+from engine.treefile import tree_to_json
+
+router = APIRouter(prefix="/studies", tags=["studies"])
+
+
+@router.post("", status_code=201)
+def create_study(
+    body: StudyCreate, session: SessionDep, runtime: RuntimeDep, _: ResearcherDep
+) -> StudyOut:
+    """Create a study; its candidates are sampled and rendered in the background
+    (``status`` goes from ``preparing`` to ``ready``, or ``failed`` with ``error``)."""
+    study = studies.create_study(session, **body.model_dump())
+    runtime.prepare_later(study.id)
+    return StudyOut.model_validate(study)
+
+
+@router.get("")
+def list_studies(session: SessionDep, _: ResearcherDep) -> list[StudyOut]:
+    return [StudyOut.model_validate(s) for s in studies.list_studies(session)]
+
+
+@router.get("/{study_id}")
+def get_study(study_id: DbId, session: SessionDep, _: ResearcherDep) -> StudyOut:
+    return StudyOut.model_validate(studies.get_study(session, study_id=study_id))
+
+
+@router.get("/{study_id}/power")
+def study_power(
+    study_id: DbId,
+    session: SessionDep,
+    _: ResearcherDep,
+    seeds: Annotated[int, Query(ge=MIN_SEEDS, le=MAX_SEEDS)] = DEFAULT_SEEDS,
+) -> list[AdvicePowerOut]:
+    """Can this bracket tell? Per finished participant: the matches that can tell whether an
+    agent used their advice, estimated with R standing in for an agent without it, and the
+    smallest Δ an experiment of ``seeds`` seeds per arm detects (α = 0.05, power 0.8)."""
+    studies.get_study(session, study_id=study_id)
+    found = power.study_power(session, study_id=study_id, seeds=seeds)
+    return [AdvicePowerOut.model_validate(asdict(p)) for p in found]
+
+
+@router.get("/{study_id}/candidates")
+def list_candidates(study_id: DbId, session: SessionDep, _: ResearcherDep) -> list[CandidateOut]:
+    """The candidate states with their images (empty while the study is preparing)."""
+    return [
+        CandidateOut(
+            id=c.id,
+            env_reward=c.env_reward,
+            baseline_return=c.baseline_return,
+            qpos=c.qpos,
+            qvel=c.qvel,
+            image_url=image_url(study_id, c.id),
+            thumb_url=image_url(study_id, c.id, "thumb"),
+        )
+        for c in studies.list_candidates(session, study_id=study_id)
+    ]
+
+
+@router.get(
+    "/{study_id}/candidates/{candidate_id}/image",
+    name="candidate_image",
+    response_class=FileResponse,
+    responses={200: {"content": {MEDIA_TYPE: {}}}},
+)
+def candidate_image(
+    study_id: DbId,
+    candidate_id: CandidateId,
+    session: SessionDep,
+    settings: SettingsDep,
+    viewer: ViewerDep,
+    size: ImageSize = "full",
+) -> FileResponse:
+    """A candidate's rendered image (``size=thumb`` for a small one), for the researcher and
+    the study's participants (``<img>`` tags send the role's cookie)."""
+    if not viewer.researcher and (
+        viewer.participant is None or viewer.participant.study_id != study_id
+    ):
+        raise NotFoundError(f"candidate {candidate_id} of study {study_id} not found")
+    cand = studies.get_candidate(session, study_id=study_id, candidate_id=candidate_id)
+    path = image_file(settings.data_dir, cand.image_path if size == "full" else cand.thumb_path)
+    if not path.is_file():
+        raise NotFoundError(f"the image of candidate {candidate_id} is missing on disk")
+    return FileResponse(
+        path, media_type=MEDIA_TYPE, headers={"Cache-Control": "private, max-age=86400"}
+    )
+
+
+@router.post("/{study_id}/participants", status_code=201)
+def add_participant(
+    study_id: DbId,
+    request: Request,
+    session: SessionDep,
+    _: ResearcherDep,
+    body: ParticipantCreate | None = None,
+) -> ParticipantCreated:
+    """Invite one participant; share ``invite_url`` with them."""
+    (person,) = participants.add_participants(
+        session, study_id=study_id, name=body.name if body else None
+    )
+    return _created(request, person)
+
+
+@router.post("/{study_id}/participants/batch", status_code=201)
+def add_participants(
+    study_id: DbId,
+    body: ParticipantBatchCreate,
+    request: Request,
+    session: SessionDep,
+    _: ResearcherDep,
+) -> list[ParticipantCreated]:
+    """Invite ``count`` participants at once."""
+    people = participants.add_participants(
+        session, study_id=study_id, count=body.count, name=body.name
+    )
+    return [_created(request, p) for p in people]
+
+
+def _created(request: Request, person: Participant) -> ParticipantCreated:
+    return ParticipantCreated(
+        id=person.id,
+        study_id=person.study_id,
+        token=person.token,
+        invite_url=invite_url(request, person.token),
+    )
+
+
+@router.get("/{study_id}/participants")
+def list_participants(
+    study_id: DbId, request: Request, session: SessionDep, _: ResearcherDep
+) -> list[ParticipantOut]:
+    """Participants with their progress and invite links."""
+    return [
+        participant_out(request, s.participant, s.progress)
+        for s in participants.list_participants(session, study_id=study_id)
+    ]
+
+
+def participant_out(
+    request: Request, person: Participant, progress: participants.Progress
+) -> ParticipantOut:
+    return ParticipantOut(
+        id=person.id,
+        study_id=person.study_id,
+        token=person.token,
+        name=person.name,
+        invite_url=invite_url(request, person.token),
+        progress=ProgressOut(done=progress.done, total=progress.total),
+        finished=progress.finished,
+        created_at=person.created_at,
+        finished_at=person.finished_at,
+    )
+
+
+@router.get(
+    "/{study_id}/labels.csv",
+    response_class=Response,
+    responses={200: {"content": {"text/csv": {}}}},
+)
+def labels_csv(study_id: DbId, session: SessionDep, _: ResearcherDep) -> Response:
+    """Every label of the study, one row per label."""
+    return Response(
+        trees.labels_csv(session, study_id=study_id),
+        media_type="text/csv",
+        headers={"Content-Disposition": f'attachment; filename="study-{study_id}-labels.csv"'},
+    )
+
+
+@router.get("/{study_id}/trees")
+def study_trees(study_id: DbId, session: SessionDep, _: ResearcherDep) -> list[dict[str, Any]]:
+    """Every finished participant's Human Preference Tree (``acv.tree/1`` documents)."""
+    return [
+        {"participant_id": pid, "tree": tree_to_json(doc)}
+        for pid, doc in trees.study_trees(session, study_id=study_id)
+    ]

@@ -1,0 +1,124 @@
+"""``/api/studies/{id}/crowd``, ``/quality``, ``/agreement`` and ``/export/labels.*``: a
+study's open link and options, label quality, agreement across participants, and the labels
+for reuse (issue 14). Researcher only."""
+
+from __future__ import annotations
+
+from fastapi import APIRouter, Request, Response
+
+from app.core.errors import NotFoundError
+from app.http.deps import DbId, ResearcherDep, SessionDep
+from app.models import CrowdSettings
+from app.recruiting import service as recruiting
+from app.recruiting.schemas import (
+    AgreementOut,
+    CrowdIn,
+    CrowdOut,
+    PairAgreementOut,
+    ParticipantQualityOut,
+    QualityOut,
+    SideBiasOut,
+    TeacherAgreementOut,
+)
+from app.studies import crowd, crowd_stats, label_export
+
+router = APIRouter(prefix="/studies", tags=["crowd"])
+
+
+def crowd_out(request: Request, row: CrowdSettings) -> CrowdOut:
+    url = str(request.base_url).rstrip("/") + crowd.LINK.open_path(row.slug)
+    return CrowdOut.model_validate(
+        {**{k: getattr(row, k) for k in CrowdOut.model_fields if k != "url"}, "url": url}
+    )
+
+
+@router.put("/{study_id}/crowd")
+def set_crowd(
+    study_id: DbId, body: CrowdIn, request: Request, session: SessionDep, _: ResearcherDep
+) -> CrowdOut:
+    """Set the study's open link ``/s/<slug>`` (on or off, largest number of participants,
+    external id parameters, consent, completion) and its label-quality options."""
+    options = crowd.CrowdOptions(
+        **{**body.model_dump(), "external_params": tuple(body.external_params)}
+    )
+    return crowd_out(request, crowd.configure(session, study_id=study_id, options=options))
+
+
+@router.get("/{study_id}/crowd")
+def get_crowd(study_id: DbId, request: Request, session: SessionDep, _: ResearcherDep) -> CrowdOut:
+    """The study's open link and options; 404 until they are set."""
+    row = recruiting.settings(session, crowd.LINK, study_id)
+    if row is None:
+        raise NotFoundError(f"study {study_id} has no open link")
+    return crowd_out(request, row)
+
+
+def _bias(b: crowd_stats.agreement.SideBias) -> SideBiasOut:
+    return SideBiasOut(labels=b.labels, left=b.left, left_share=b.left_share, p_value=b.p_value)
+
+
+@router.get("/{study_id}/quality")
+def get_quality(study_id: DbId, session: SessionDep, _: ResearcherDep) -> QualityOut:
+    """Position bias (share of left choices, binomial test) per participant and study,
+    median response times with the speed flag, and consistency-check agreement."""
+    q = crowd_stats.quality(session, study_id=study_id)
+    return QualityOut(
+        study_id=study_id,
+        speed_threshold_ms=q.speed_threshold_ms,
+        position_bias=_bias(q.bias),
+        participants=[
+            ParticipantQualityOut(
+                participant_id=p.participant.id,
+                name=p.participant.name,
+                external_id=p.participant.external_id,
+                position_bias=_bias(p.bias),
+                median_response_ms=p.median_response_ms,
+                fast=p.fast,
+                consistency_agrees=p.consistency_agrees,
+                flags=p.flags,
+            )
+            for p in q.participants
+        ],
+    )
+
+
+@router.get("/{study_id}/agreement")
+def get_agreement(study_id: DbId, session: SessionDep, _: ResearcherDep) -> AgreementOut:
+    """Pairwise agreement on shared pairs and its mean, Krippendorff's alpha (nominal), and
+    each participant's agreement with the simulated teachers."""
+    a = crowd_stats.study_agreement(session, study_id=study_id)
+    return AgreementOut(
+        study_id=study_id,
+        participants=a.participants,
+        pairs=[PairAgreementOut(**vars(p)) for p in a.pairs],
+        mean_agreement=a.mean,
+        krippendorff_alpha=a.alpha,
+        shared_pairs=a.shared_pairs,
+        teachers=[TeacherAgreementOut(**vars(t)) for t in a.teachers],
+    )
+
+
+_EXPORTS = {
+    "jsonl": ("application/x-ndjson", label_export.to_jsonl),
+    "csv": ("text/csv", label_export.to_csv),
+    "parquet": ("application/vnd.apache.parquet", label_export.to_parquet),
+}
+
+
+@router.get(
+    "/{study_id}/export/labels.{fmt}",
+    response_class=Response,
+    responses={200: {"content": {t: {} for t, _ in _EXPORTS.values()}}},
+)
+def export_labels(study_id: DbId, fmt: str, session: SessionDep, _: ResearcherDep) -> Response:
+    """One row per label (``jsonl``, ``csv`` or ``parquet``), with external ids, sides,
+    times and the participant's quality flags."""
+    if fmt not in _EXPORTS:
+        raise NotFoundError(f"unknown export format {fmt!r}: expected jsonl, csv or parquet")
+    media_type, write = _EXPORTS[fmt]
+    body = write(label_export.records(session, study_id=study_id))
+    return Response(
+        body,
+        media_type=media_type,
+        headers={"Content-Disposition": f'attachment; filename="study-{study_id}-labels.{fmt}"'},
+    )

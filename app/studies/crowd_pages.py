@@ -1,0 +1,91 @@
+"""The crowd part of a study's page (issue 14): the open-link form, quality flags and the
+agreement heat map (:func:`crowd_context`, rendered by ``templates/study_crowd.html``)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from fastapi import APIRouter, Request, Response
+from sqlalchemy.orm import Session
+
+from app.http.csrf import CsrfChecked, FormFields
+from app.http.deps import DbId, SessionDep
+from app.http.guards import ResearcherPage
+from app.http.rendering import PageRoute, redirect
+from app.recruiting import service as recruiting
+from app.recruiting.pages import link_form, validated, whole
+from app.recruiting.schemas import CrowdIn
+from app.studies import crowd, crowd_stats
+
+router = APIRouter(route_class=PageRoute, include_in_schema=False, dependencies=[ResearcherPage])
+
+
+def _heat(value: float | None) -> str:
+    """A heat-map cell's class: ``heat-0`` .. ``heat-10`` by agreement, ``heat-none``."""
+    return "heat-none" if value is None else f"heat-{round(value * 10)}"
+
+
+def heat_map(agreement: crowd_stats.StudyAgreement) -> list[dict[str, Any]]:
+    """Rows of the participants x participants table: each cell's text, class and title."""
+    by_pair = {(p.a, p.b): p for p in agreement.pairs}
+    rows = []
+    for i in agreement.participants:
+        cells = []
+        for j in agreement.participants:
+            pair = by_pair.get((min(i, j), max(i, j)))
+            if i == j or pair is None:
+                cells.append({"text": "—", "cls": "heat-self", "title": "the same participant"})
+                continue
+            text = "no shared pair" if pair.agreement is None else f"{pair.agreement:.0%}"
+            cells.append(
+                {
+                    "text": text,
+                    "cls": _heat(pair.agreement),
+                    "title": f"#{i} and #{j}: {pair.shared} shared pairs",
+                }
+            )
+        rows.append({"id": i, "cells": cells})
+    return rows
+
+
+def crowd_context(request: Request, session: Session, study_id: int) -> dict[str, Any]:
+    """What ``study_crowd.html`` shows: settings and link, quality, agreement."""
+    row = recruiting.settings(session, crowd.LINK, study_id)
+    agreement = crowd_stats.study_agreement(session, study_id=study_id)
+    teachers: dict[int, dict[str, float | None]] = {}
+    for t in agreement.teachers:
+        teachers.setdefault(t.participant_id, {})[t.teacher] = t.agreement
+    return {
+        "crowd": row,
+        "crowd_defaults": crowd.CrowdOptions(),
+        "open_url": None
+        if row is None
+        else str(request.base_url).rstrip("/") + crowd.LINK.open_path(row.slug),
+        "quality": crowd_stats.quality(session, study_id=study_id),
+        "agreement": agreement,
+        "heat_rows": heat_map(agreement),
+        "teacher_names": crowd_stats.COMPARED_TEACHERS,
+        "teacher_agreement": teachers,
+    }
+
+
+def _options(fields: dict[str, str]) -> crowd.CrowdOptions:
+    """The form's fields, validated like ``PUT /api/studies/{id}/crowd``."""
+    body = validated(
+        CrowdIn,
+        link_form(fields)
+        | {
+            "consistency_check": fields.get("consistency_check") == "on",
+            "speed_threshold_ms": whole(fields, "speed_threshold_ms"),
+        },
+    )
+    return crowd.CrowdOptions(
+        **{**body.model_dump(), "external_params": tuple(body.external_params)}
+    )
+
+
+@router.post("/studies/{study_id}/crowd", dependencies=[CsrfChecked])
+def set_crowd(study_id: DbId, session: SessionDep, fields: FormFields) -> Response:
+    """Save the open-link form, then show the study page's crowd section."""
+    crowd.configure(session, study_id=study_id, options=_options(fields))
+    return redirect(f"/studies/{study_id}#crowd")

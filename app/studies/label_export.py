@@ -1,0 +1,196 @@
+"""Labels for reuse (issue 14): one row per label, as JSONL, CSV and Parquet.
+
+Each row names the study, the participant and their external ids, its ``kind`` (``bracket``,
+or ``disagreement`` for a pair asked after the bracket, which has no match id or round:
+:mod:`app.labelling.disagreement`), the match and its round,
+the candidates shown on the left and on the right, the winner and the side chosen, the
+response time, when the pair was shown and when it was labelled. ``shown_at`` is
+``labelled_at`` minus the response time (the page measures that from both pictures being
+on screen), so it is empty when no response time was stored. Quality flags
+(:mod:`app.studies.crowd_stats`) ride along per participant.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+from datetime import datetime, timedelta
+from typing import Any
+
+from sqlalchemy import select
+from sqlalchemy.orm import Session
+
+from app.core import csv_export
+from app.models import DisagreementPair, Label, Match, Participant, as_utc
+from app.studies.crowd_stats import quality
+from app.studies.service import get_study
+
+COLUMNS = (
+    "study_id",
+    "participant_id",
+    "external_id",
+    "external_ids",
+    "kind",
+    "match_id",
+    "round",
+    "left",
+    "right",
+    "winner",
+    "side",
+    "response_ms",
+    "shown_at",
+    "labelled_at",
+    "flags",
+)
+
+
+def _side(chose_left: bool | None) -> str | None:
+    return None if chose_left is None else ("left" if chose_left else "right")
+
+
+def records(session: Session, *, study_id: int) -> list[dict[str, Any]]:
+    """Every label of the study, in label order, as :data:`COLUMNS` dicts."""
+    get_study(session, study_id=study_id)
+    flags = {q.participant.id: q.flags for q in quality(session, study_id=study_id).participants}
+    rows = session.execute(
+        select(
+            Label.participant_id,
+            Participant.external_id,
+            Participant.external_ids,
+            Label.match_id,
+            Match.round,
+            Match.a,
+            Match.b,
+            Match.a_left,
+            Label.winner,
+            Label.chose_left,
+            Label.response_ms,
+            Label.created_at,
+        )
+        .join(Match, Match.id == Label.match_id)
+        .join(Participant, Participant.id == Label.participant_id)
+        .where(Participant.study_id == study_id)
+        .order_by(Label.id)
+    )
+    out = [
+        _record(study_id, flags, "bracket", pid, ext, ext_ids, mid, rnd, a, b, a_left, w, ms, at)
+        | {"side": _side(chose_left)}  # None for labels stored before sides were recorded
+        for pid, ext, ext_ids, mid, rnd, a, b, a_left, w, chose_left, ms, at in rows
+    ]
+    return out + _pair_records(session, study_id, flags)
+
+
+def _pair_records(
+    session: Session, study_id: int, flags: dict[int, list[str]]
+) -> list[dict[str, Any]]:
+    """The answered disagreement pairs, by participant and position."""
+    rows = session.execute(
+        select(
+            DisagreementPair.participant_id,
+            Participant.external_id,
+            Participant.external_ids,
+            DisagreementPair.a,
+            DisagreementPair.b,
+            DisagreementPair.a_left,
+            DisagreementPair.winner,
+            DisagreementPair.response_ms,
+            DisagreementPair.answered_at,
+        )
+        .join(Participant, Participant.id == DisagreementPair.participant_id)
+        .where(Participant.study_id == study_id, DisagreementPair.winner.is_not(None))
+        .order_by(DisagreementPair.participant_id, DisagreementPair.position)
+    )
+    return [
+        _record(study_id, flags, "disagreement", pid, ext, ids, None, None, a, b, a_left, w, ms, at)
+        for pid, ext, ids, a, b, a_left, w, ms, at in rows
+    ]
+
+
+def _record(
+    study_id: int,
+    flags: dict[int, list[str]],
+    kind: str,
+    pid: int,
+    ext: str | None,
+    ext_ids: dict[str, str] | None,
+    mid: int | None,
+    rnd: int | None,
+    a: int,
+    b: int,
+    a_left: bool,
+    winner: int,
+    ms: int | None,
+    at: datetime,
+) -> dict[str, Any]:
+    """One row of :data:`COLUMNS`."""
+    labelled = as_utc(at)
+    shown = None if ms is None else labelled - timedelta(milliseconds=ms)
+    left = a if a_left else b
+    return {
+        "study_id": study_id,
+        "participant_id": pid,
+        "external_id": ext,
+        "external_ids": ext_ids or {},
+        "kind": kind,
+        "match_id": mid,
+        "round": rnd,
+        "left": left,
+        "right": b if a_left else a,
+        "winner": winner,
+        "side": "left" if winner == left else "right",
+        "response_ms": ms,
+        "shown_at": None if shown is None else shown.isoformat(),
+        "labelled_at": labelled.isoformat(),
+        "flags": flags.get(pid, []),
+    }
+
+
+def to_jsonl(rows: list[dict[str, Any]]) -> str:
+    return "".join(json.dumps(r, sort_keys=False) + "\n" for r in rows)
+
+
+def to_csv(rows: list[dict[str, Any]]) -> str:
+    """CSV with a header; ``external_ids`` as a JSON object, ``flags`` joined by ``;``."""
+    return csv_export.csv_text(
+        COLUMNS,
+        (
+            {
+                **r,
+                "external_ids": json.dumps(r["external_ids"], sort_keys=True),
+                "flags": ";".join(r["flags"]),
+            }
+            for r in rows
+        ),
+    )
+
+
+def to_parquet(rows: list[dict[str, Any]]) -> bytes:
+    """A Parquet file that ``datasets.load_dataset("parquet", ...)`` reads: flat typed
+    columns, ``external_ids`` as a JSON string (its keys differ between studies)."""
+    import pyarrow as pa  # imported here: only this export needs it
+    import pyarrow.parquet as pq
+
+    schema = pa.schema(
+        [
+            ("study_id", pa.int64()),
+            ("participant_id", pa.int64()),
+            ("external_id", pa.string()),
+            ("external_ids", pa.string()),
+            ("kind", pa.string()),
+            ("match_id", pa.int64()),
+            ("round", pa.int64()),
+            ("left", pa.int64()),
+            ("right", pa.int64()),
+            ("winner", pa.int64()),
+            ("side", pa.string()),
+            ("response_ms", pa.int64()),
+            ("shown_at", pa.string()),
+            ("labelled_at", pa.string()),
+            ("flags", pa.list_(pa.string())),
+        ]
+    )
+    flat = [{**r, "external_ids": json.dumps(r["external_ids"], sort_keys=True)} for r in rows]
+    table = pa.Table.from_pylist(flat, schema=schema)
+    buffer = io.BytesIO()
+    pq.write_table(table, buffer)
+    return buffer.getvalue()

@@ -1,0 +1,189 @@
+"""Researcher pages: the study list, the create-study form, a study's page, invitations.
+
+The pages call the same services as the REST API; the study page draws the trees in the
+browser (``static/js/study.js``) from ``GET /api/studies/{id}/trees``.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Any
+
+from fastapi import APIRouter, Query, Request, Response
+from fastapi.responses import HTMLResponse
+from pydantic import ValidationError
+from sqlalchemy.orm import Session
+
+from app.http.csrf import CsrfChecked, FormFields
+from app.http.deps import DbId, RuntimeDep, SessionDep
+from app.http.guards import ResearcherPage
+from app.http.rendering import PageRoute, redirect, render, thumb_template
+from app.http.urls import image_url
+from app.labelling import participants
+from app.labelling.participants import MAX_BATCH
+from app.runs.experiments import DEFAULT_SEEDS
+from app.studies import power as study_power
+from app.studies import service as studies
+from app.studies.crowd_pages import crowd_context
+from app.studies.schemas import FORM_INPUT, StudyCreate
+from engine.candidates import MAX_CANDIDATES, SAMPLING_MODES
+from engine.disagreement import MAX_PAIRS
+from engine.envs import DEFAULT_ENV_ID
+from engine.errors import InputError
+
+router = APIRouter(route_class=PageRoute, include_in_schema=False, dependencies=[ResearcherPage])
+
+#: Suggestions for the env field; any Gymnasium MuJoCo id is accepted.
+SUGGESTED_ENVS = (
+    "Humanoid-v5",
+    "HumanoidStandup-v5",
+    "Walker2d-v5",
+    "Hopper-v5",
+    "HalfCheetah-v5",
+    "Ant-v5",
+    "Swimmer-v5",
+)
+DEFAULT_INSTRUCTIONS = (
+    "You will see two pictures of a simulated robot at a time. Pick the one you would rather "
+    "the robot be in: click it, or press the left or right arrow key. Winners meet again in "
+    "later rounds until one is left."
+)
+FORM_DEFAULTS = {
+    "name": "",
+    "env_id": DEFAULT_ENV_ID,
+    "n_candidates": "16",
+    "p": "0.9",
+    "seed": "0",
+    "sampling": "uniform",
+    "disagreement_pairs": "0",
+    "instructions": DEFAULT_INSTRUCTIONS,
+}
+
+
+#: Fields a posted form may leave out (a form from before they existed): their defaults.
+OPTIONAL_FIELDS = {"disagreement_pairs": "0"}
+
+
+@router.get("/studies")
+def study_list(request: Request, session: SessionDep) -> HTMLResponse:
+    """Every study, newest first."""
+    return render(request, "studies.html", {"studies": studies.list_studies(session)})
+
+
+def _form_page(
+    request: Request, values: dict[str, str], errors: dict[str, str], status_code: int = 200
+) -> HTMLResponse:
+    return render(
+        request,
+        "study_new.html",
+        {
+            "values": values,
+            "errors": errors,
+            "envs": SUGGESTED_ENVS,
+            "sampling_modes": SAMPLING_MODES,
+            "max_candidates": MAX_CANDIDATES,
+            "max_pairs": MAX_PAIRS,
+        },
+        status_code=status_code,
+    )
+
+
+@router.get("/studies/new")
+def new_study_form(request: Request) -> HTMLResponse:
+    return _form_page(request, dict(FORM_DEFAULTS), {})
+
+
+@router.post("/studies", dependencies=[CsrfChecked])
+def create_study(
+    request: Request, session: SessionDep, runtime: RuntimeDep, fields: FormFields
+) -> Response:
+    """Validate like ``POST /api/studies``; errors are shown next to the form's fields."""
+    values = {k: fields.get(k, OPTIONAL_FIELDS.get(k, "")) for k in FORM_DEFAULTS}
+    try:
+        body = StudyCreate.model_validate(
+            {k: v.strip() if k != "instructions" else v for k, v in values.items()},
+            context=FORM_INPUT,
+        )
+        study = studies.create_study(session, **body.model_dump())
+    except ValidationError as exc:
+        errors = {str(e["loc"][0]) if e["loc"] else "form": e["msg"] for e in exc.errors()}
+        return _form_page(request, values, errors, status_code=422)
+    except InputError as exc:
+        return _form_page(request, values, {"form": str(exc)}, status_code=422)
+    runtime.prepare_later(study.id)
+    return redirect(f"/studies/{study.id}")
+
+
+@router.get("/studies/{study_id}")
+def study_page(
+    study_id: DbId,
+    request: Request,
+    session: SessionDep,
+    invited: Annotated[int, Query(ge=0, le=MAX_BATCH)] = 0,
+) -> HTMLResponse:
+    """Candidates, participants with progress and invite links, and finished trees."""
+    study = studies.get_study(session, study_id=study_id)
+    return render(
+        request,
+        "study.html",
+        {
+            "study": study,
+            "invited": invited,
+            "max_batch": MAX_BATCH,
+            "thumb_template": thumb_template(study_id),
+            "candidates": _candidates(session, study_id),
+            "participants": _participants(request, session, study_id),
+            **(crowd_context(request, session, study_id) if study.status == "ready" else {}),
+            **(_power(session, study_id) if study.status == "ready" else {}),
+        },
+    )
+
+
+def _power(session: Session, study_id: int) -> dict[str, Any]:
+    return {
+        "power": study_power.study_power(session, study_id=study_id),
+        "enough": study_power.ENOUGH_MATCHES,
+        "seeds": DEFAULT_SEEDS,
+    }
+
+
+def _candidates(session: Session, study_id: int) -> list[dict[str, Any]]:
+    return [
+        {
+            "id": c.id,
+            "env_reward": c.env_reward,
+            "thumb_url": image_url(study_id, c.id, "thumb"),
+            "image_url": image_url(study_id, c.id),
+        }
+        for c in studies.list_candidates(session, study_id=study_id)
+    ]
+
+
+def _participants(request: Request, session: Session, study_id: int) -> list[dict[str, Any]]:
+    base = str(request.base_url)
+    return [
+        {
+            "id": s.participant.id,
+            "name": s.participant.name,
+            "done": s.progress.done,
+            "total": s.progress.total,
+            "finished": s.progress.finished,
+            "started": s.progress.done > 0,
+            "finished_at": s.participant.finished_at,
+            "invite_url": participants.invite_url(base, s.participant.token),
+        }
+        for s in participants.list_participants(session, study_id=study_id)
+    ]
+
+
+@router.post("/studies/{study_id}/participants", dependencies=[CsrfChecked])
+def invite(study_id: DbId, session: SessionDep, fields: FormFields) -> Response:
+    """Invite one or many participants, then show the study page with their links."""
+    try:
+        count = int(fields.get("count", "1").strip() or "1")
+    except ValueError:
+        raise InputError(
+            f"the number of participants must be a whole number in 1..{MAX_BATCH}"
+        ) from None
+    name = fields.get("name", "").strip()[:200] or None
+    people = participants.add_participants(session, study_id=study_id, count=count, name=name)
+    return redirect(f"/studies/{study_id}?invited={len(people)}#participants")

@@ -1,0 +1,98 @@
+"""Exports: a finished participant's Human Preference Tree (``acv.tree/1``) and label CSVs."""
+
+from __future__ import annotations
+
+from sqlalchemy import select
+from sqlalchemy.orm import Session
+
+from app.core import csv_export
+from app.core.errors import ConflictError
+from app.labelling.participants import get_participant
+from app.labelling.service import results_of
+from app.models import Label, Match, Participant, as_utc
+from app.studies.service import engine_candidates_of, first_round, get_study
+from engine.treefile import TreeDocument, make_document
+
+LABEL_COLUMNS = (
+    "study_id",
+    "participant_id",
+    "match_id",
+    "round",
+    "slot",
+    "a",
+    "b",
+    "winner",
+    "labelled_at",
+    "response_ms",
+)
+
+
+def judge_name(participant_id: int) -> str:
+    """How a participant is named as the judge of their tree."""
+    return f"participant:{participant_id}"
+
+
+def participant_tree(session: Session, *, participant_id: int) -> TreeDocument:
+    """The Human Preference Tree of a participant who finished the bracket.
+
+    Raises:
+        NotFoundError: no such participant.
+        ConflictError: the bracket is not finished yet.
+    """
+    participant = get_participant(session, participant_id=participant_id)
+    study = get_study(session, study_id=participant.study_id)
+    results = results_of(session, participant_id=participant_id)
+    if len(results) < study.n_candidates - 1:
+        raise ConflictError(
+            f"participant {participant_id} has not finished the bracket "
+            f"({len(results)} of {study.n_candidates - 1} matches labelled)"
+        )
+    return make_document(
+        env_id=study.env_id,
+        seed=study.seed,
+        p=study.p,
+        judge=judge_name(participant_id),
+        candidates=engine_candidates_of(session, study_id=study.id),
+        first_round=first_round(session, study_id=study.id),
+        results=results,
+    )
+
+
+def study_trees(session: Session, *, study_id: int) -> list[tuple[int, TreeDocument]]:
+    """``(participant id, tree)`` of every participant of the study who has finished."""
+    get_study(session, study_id=study_id)
+    finished = session.scalars(
+        select(Participant.id)
+        .where(Participant.study_id == study_id, Participant.finished_at.is_not(None))
+        .order_by(Participant.id)
+    )
+    return [(pid, participant_tree(session, participant_id=pid)) for pid in finished]
+
+
+def labels_csv(session: Session, *, study_id: int) -> str:
+    """Every label of the study as CSV (header :data:`LABEL_COLUMNS`), in label order."""
+    get_study(session, study_id=study_id)
+    rows = session.execute(
+        select(
+            Match.participant_id,
+            Label.match_id,
+            Match.round,
+            Match.slot,
+            Match.a,
+            Match.b,
+            Label.winner,
+            Label.created_at,
+            Label.response_ms,
+        )
+        .join(Match, Match.id == Label.match_id)
+        .join(Participant, Participant.id == Match.participant_id)
+        .where(Participant.study_id == study_id)
+        .order_by(Label.id)
+    )
+    return csv_export.csv_text(
+        LABEL_COLUMNS,
+        (
+            (study_id, pid, mid, rnd, slot, a, b, winner, as_utc(at).isoformat(), ms)
+            for pid, mid, rnd, slot, a, b, winner, at, ms in rows
+        ),
+    )
