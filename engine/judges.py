@@ -46,7 +46,7 @@ def current_keys(by_judge: dict[str, T]) -> dict[str, T]:
     return {LEGACY_JUDGES.get(k, k): v for k, v in by_judge.items()}
 
 
-#: The column of a checkpoint report's per-candidate table (``engine.rl.report.CandidateRow``)
+#: The column of a checkpoint report's per-candidate table (``engine.records.CandidateRow``)
 #: that holds each judge's score.
 JUDGE_COLUMNS: dict[str, str] = {
     "return": "env_return",

@@ -17,9 +17,7 @@ import secrets
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
-from fastapi import Response
 from sqlalchemy import Connection
 from sqlalchemy.orm import Session
 
@@ -31,7 +29,6 @@ ADMIN_TOKEN_FILE = "admin_token"
 RESEARCHER_COOKIE = "acv_researcher"
 PARTICIPANT_COOKIE = members.STUDY.cookie
 #: How long a member's browser remembers their invitation, so they can resume.
-MEMBER_COOKIE_MAX_AGE_S = 90 * 24 * 3600
 #: Shortest admin token accepted: ~190 bits as URL-safe base64, beyond brute force.
 MIN_ADMIN_TOKEN_CHARS = 32
 #: Seconds a researcher cookie may claim to come from the future (clocks of several hosts).
@@ -171,39 +168,3 @@ def participant_ref(db: Session | Connection, *, token: str | None) -> Participa
     """
     ref = members.resolve(db, members.STUDY, token=token)
     return ParticipantRef(ref.id, ref.collection_id, ref.token)
-
-
-def set_researcher_cookie(
-    response: Response, *, admin_token: str, max_age_s: int, secure: bool
-) -> None:
-    """Log the browser in as the researcher for ``max_age_s`` (HttpOnly, SameSite=Lax; the
-    server enforces the age too, see :func:`valid_researcher_cookie`)."""
-    response.set_cookie(
-        RESEARCHER_COOKIE,
-        researcher_cookie_value(admin_token=admin_token),
-        max_age=max_age_s,
-        httponly=True,
-        samesite="lax",
-        secure=secure,
-    )
-
-
-def set_member_cookie(
-    response: Response, kind: members.CollectionKind[Any], *, token: str, secure: bool
-) -> None:
-    """Remember a participant or respondent in this browser, so they can resume (HttpOnly,
-    SameSite=Lax)."""
-    response.set_cookie(
-        kind.cookie,
-        token,
-        max_age=MEMBER_COOKIE_MAX_AGE_S,
-        httponly=True,
-        samesite="lax",
-        secure=secure,
-    )
-
-
-def clear_cookies(response: Response) -> None:
-    """Log out both roles."""
-    response.delete_cookie(RESEARCHER_COOKIE)
-    response.delete_cookie(PARTICIPANT_COOKIE)

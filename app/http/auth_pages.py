@@ -16,9 +16,10 @@ from fastapi.responses import HTMLResponse, RedirectResponse
 
 from app.core import auth
 from app.core.errors import AuthError
+from app.http import cookies
 from app.http.csrf import CsrfChecked, FormFields
-from app.http.deps import RuntimeDep, SessionDep
-from app.http.guards import ParticipantCookie, ResearcherCookie, safe_next
+from app.http.deps import ResearcherCookie, RuntimeDep, SessionDep
+from app.http.guards import ParticipantCookie, safe_next
 from app.http.ratelimit import client_address, login_limiter
 from app.http.rendering import PageRoute, is_https, redirect, render
 from app.recruiting import members
@@ -93,7 +94,7 @@ def login(request: Request, runtime: RuntimeDep, fields: FormFields) -> Response
             status_code=401,
         )
     logged_in = redirect(target)
-    auth.set_researcher_cookie(
+    cookies.set_researcher_cookie(
         logged_in,
         admin_token=runtime.admin_token,
         max_age_s=runtime.settings.session_max_age_s,
@@ -106,5 +107,5 @@ def login(request: Request, runtime: RuntimeDep, fields: FormFields) -> Response
 def logout() -> RedirectResponse:
     """Forget both roles in this browser."""
     response = redirect("/login")
-    auth.clear_cookies(response)
+    cookies.clear_cookies(response)
     return response

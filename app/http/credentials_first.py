@@ -21,8 +21,8 @@ from starlette.responses import Response
 from starlette.routing import Match
 from starlette.types import ASGIApp, Receive, Scope, Send
 
-from app.http.deps import participant_gate, researcher_gate
-from app.surveys.api import respondent_gate
+from app.http.deps import researcher_gate
+from app.http.member_auth import participant_gate, respondent_gate
 
 Gate = Callable[[Request], Awaitable[None]]
 #: The check of each security scheme of the OpenAPI document.

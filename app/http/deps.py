@@ -1,8 +1,8 @@
 """FastAPI dependencies as ``Annotated`` aliases: runtime, settings, session and callers.
 
 ``ResearcherDep`` accepts ``Authorization: Bearer <admin token>`` or the researcher cookie;
-``ParticipantDep`` accepts ``Authorization: Bearer <invite token>`` or the participant
-cookie; ``ViewerDep`` accepts either and says which. A bearer token that is neither the admin
+``ViewerDep`` accepts that or a participant's invite token (bearer or cookie) and says which;
+members' own dependencies are :mod:`app.http.member_auth`. A bearer token that is neither the admin
 token nor an invite token counts as a failed login of the client's address
 (:mod:`app.http.ratelimit`); past the limit, researcher bearer tokens are refused with 429
 before being compared.
@@ -38,15 +38,17 @@ _admin_bearer = HTTPBearer(
     scheme_name="AdminToken",
     description="The researcher's admin token (ACV_ADMIN_TOKEN).",
 )
-_invite_bearer = HTTPBearer(
+invite_bearer = HTTPBearer(
     auto_error=False, scheme_name="InviteToken", description="A participant's invite token."
 )
-_Credentials = HTTPAuthorizationCredentials | None
+BearerCredentials = HTTPAuthorizationCredentials | None
 #: The bearer token, documented in OpenAPI as the researcher's scheme.
-AdminCredentials = Annotated[_Credentials, Depends(_admin_bearer)]
+AdminCredentials = Annotated[BearerCredentials, Depends(_admin_bearer)]
 #: The same bearer token, documented as a participant's scheme: an operation that takes both
 #: depends on both, so its OpenAPI ``security`` lists both (as alternatives).
-InviteCredentials = Annotated[_Credentials, Depends(_invite_bearer)]
+InviteCredentials = Annotated[BearerCredentials, Depends(invite_bearer)]
+#: The researcher's login cookie, unchecked.
+ResearcherCookie = Annotated[str | None, Cookie(alias=auth.RESEARCHER_COOKIE)]
 
 #: Requests holding a database session at once: below the pool's capacity
 #: (:data:`app.db.POOL_CAPACITY`), leaving connections for background jobs.
@@ -117,7 +119,8 @@ class Viewer:
     participant: Participant | None = None
 
 
-def _token(credentials: _Credentials) -> str | None:
+def bearer_value(credentials: BearerCredentials) -> str | None:
+    """The token of an ``Authorization: Bearer`` header, if one was sent."""
     return credentials.credentials if credentials is not None else None
 
 
@@ -149,12 +152,12 @@ def _is_invite_token(runtime: Runtime, token: str) -> bool:
 async def require_researcher(
     request: Request,
     runtime: RuntimeDep,
-    credentials: Annotated[_Credentials, Depends(_admin_bearer)],
+    credentials: Annotated[BearerCredentials, Depends(_admin_bearer)],
     cookie: Annotated[str | None, Cookie(alias=auth.RESEARCHER_COOKIE)] = None,
 ) -> Viewer:
     """The researcher, or 401 (429 after too many failed bearer tokens from this address;
     403 for a cookie write without :data:`AJAX_HEADER`). A bearer token, when sent, decides."""
-    if (token := _token(credentials)) is not None:
+    if (token := bearer_value(credentials)) is not None:
         limiter, address = _limiter(request)
         if limiter.blocked(address):  # refused before comparing, or guessing would go on
             raise _too_many(limiter, address)
@@ -186,51 +189,6 @@ async def researcher_gate(request: Request) -> None:
     )
 
 
-async def invite_token(
-    request: Request,
-    credentials: Annotated[_Credentials, Depends(_invite_bearer)],
-    cookie: Annotated[str | None, Cookie(alias=auth.PARTICIPANT_COOKIE)] = None,
-) -> str | None:
-    """The invite token sent (bearer first, then the cookie), not yet checked."""
-    if (token := _token(credentials)) is not None:
-        return token
-    if cookie:
-        check_cookie_write(request)
-    return cookie
-
-
-#: The unchecked invite token, for hot paths that check it in their own worker thread
-#: (``auth.participant_ref``) rather than in a thread hop of its own.
-InviteTokenDep = Annotated[str | None, Depends(invite_token)]
-
-
-def require_participant(session: SessionDep, token: InviteTokenDep) -> auth.ParticipantRef:
-    """The participant whose invite token is sent (known tokens without a query), or 401."""
-    participant = auth.participant_ref(session, token=token)
-    session.commit()  # hand the connection back while the request waits for the handler
-    return participant
-
-
-ParticipantDep = Annotated[auth.ParticipantRef, Depends(require_participant)]
-
-
-async def participant_gate(request: Request) -> None:
-    """:func:`require_participant`, on a request whose body is not read yet
-    (:mod:`app.http.credentials_first`); a token this process knows needs no thread hop,
-    which keeps the labelling hot path as it was."""
-    token = await invite_token(
-        request, await _invite_bearer(request), request.cookies.get(auth.PARTICIPANT_COOKIE)
-    )
-    runtime: Runtime = request.app.state.runtime
-    if not members.known(runtime.engine, members.STUDY, token=token):
-        await anyio.to_thread.run_sync(_check_participant, runtime, token)
-
-
-def _check_participant(runtime: Runtime, token: str | None) -> None:
-    with runtime.engine.connect() as conn:
-        auth.participant_ref(conn, token=token)
-
-
 def get_viewer(
     request: Request,
     runtime: RuntimeDep,
@@ -242,7 +200,7 @@ def get_viewer(
 ) -> Viewer:
     """The researcher if their credentials are sent, else the participant, else 401. A
     bearer token, when sent, decides; past the failed-login limit only invite tokens work."""
-    if (token := _token(credentials)) is not None:
+    if (token := bearer_value(credentials)) is not None:
         limiter, address = _limiter(request)
         blocked = limiter.blocked(address)
         if not blocked and auth.is_researcher(admin_token=runtime.admin_token, bearer=token):

@@ -10,14 +10,13 @@ from sqlalchemy.orm import Session
 
 from app.core import auth
 from app.core.errors import AuthError
-from app.http.deps import RuntimeDep, SessionDep
+from app.http.deps import ResearcherCookie, RuntimeDep, SessionDep
 from app.http.rendering import RedirectTo, login_url
 from app.models import Participant
 from app.recruiting import members
 from app.recruiting.members import CollectionKind, Member
 
 DEFAULT_NEXT = "/studies"
-ResearcherCookie = Annotated[str | None, Cookie(alias=auth.RESEARCHER_COOKIE)]
 ParticipantCookie = Annotated[str | None, Cookie(alias=auth.PARTICIPANT_COOKIE)]
 
 

@@ -10,15 +10,8 @@ from starlette.concurrency import run_in_threadpool
 
 from app.core import auth
 from app.core.errors import ForbiddenError
-from app.http.deps import (
-    DbId,
-    InviteTokenDep,
-    ParticipantDep,
-    ResearcherDep,
-    RuntimeDep,
-    SessionDep,
-    ViewerDep,
-)
+from app.http.deps import DbId, ResearcherDep, RuntimeDep, SessionDep, ViewerDep
+from app.http.member_auth import InviteTokenDep, ParticipantDep
 from app.http.urls import image_url
 from app.labelling import disagreement, participants
 from app.labelling import service as labelling

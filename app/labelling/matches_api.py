@@ -9,7 +9,8 @@ from fastapi.responses import JSONResponse
 from starlette.concurrency import run_in_threadpool
 
 from app.core import auth
-from app.http.deps import DbId, InviteTokenDep, ParticipantDep, RuntimeDep, SessionDep
+from app.http.deps import DbId, RuntimeDep, SessionDep
+from app.http.member_auth import InviteTokenDep, ParticipantDep
 from app.labelling import participants
 from app.labelling import service as labelling
 from app.labelling.api import next_match_body, progress_out

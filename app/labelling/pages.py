@@ -13,8 +13,8 @@ from fastapi import APIRouter, Request, Response
 from fastapi.responses import HTMLResponse, RedirectResponse
 from sqlalchemy.orm import Session
 
-from app.core import auth
 from app.core.errors import AuthError, NotFoundError
+from app.http import cookies
 from app.http.deps import SessionDep
 from app.http.guards import PageParticipant
 from app.http.rendering import PageRoute, RedirectTo, is_https, redirect, render, thumb_template
@@ -52,7 +52,7 @@ def invite_link(token: str, request: Request, session: SessionDep) -> RedirectRe
             "or ask the researcher for a new one."
         ) from None
     response = redirect(where_next(participants.progress(session, participant=person)))
-    auth.set_member_cookie(response, members.STUDY, token=token, secure=is_https(request))
+    cookies.set_member_cookie(response, members.STUDY, token=token, secure=is_https(request))
     return response
 
 

@@ -1,6 +1,7 @@
-"""What the open-link pages of studies (``/s/<slug>``, :mod:`app.labelling.crowd_pages`) and
-surveys (``/q/<slug>``, :mod:`app.surveys.crowd_pages`) share: the rate limit on new
-people, the consent and message pages, and the researcher's open-link form.
+"""The open-link pages, written once for studies (``/s/<slug>``) and surveys (``/q/<slug>``):
+consent, a member per new visitor (rate-limited), resume, "this ... is full", declined; and
+the researcher's open-link form. :func:`open_link_router` builds them for one kind of
+collection (:class:`LinkPages`).
 
 Joining is rate-limited per client address (:mod:`app.http.ratelimit`, the same moving
 window as failed logins, with its own counts, one for both kinds of link); only visits that
@@ -10,18 +11,25 @@ create a person count.
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any, TypeVar
+from dataclasses import dataclass
+from typing import Any, Generic, TypeVar
 from urllib.parse import parse_qsl
 
-from fastapi import Request, Response
+from fastapi import APIRouter, Request, Response
 from pydantic import BaseModel, ValidationError
+from sqlalchemy.orm import Session
 
 from app.core.errors import TooManyAttemptsError
+from app.http.cookies import set_member_cookie
+from app.http.csrf import CsrfChecked, FormFields
+from app.http.deps import SessionDep
 from app.http.ratelimit import client_address
-from app.http.rendering import render
+from app.http.rendering import PageRoute, is_https, redirect, render
 from app.models import CrowdSettings, SurveyCrowdSettings
-from app.recruiting.links import DEFAULT_EXTERNAL_PARAMS
-from app.recruiting.service import LinkKind
+from app.recruiting import service as recruiting
+from app.recruiting.links import DEFAULT_EXTERNAL_PARAMS, check_open, is_full
+from app.recruiting.members import Member
+from app.recruiting.service import Link, LinkKind
 from engine.errors import InputError
 
 T = TypeVar("T")
@@ -63,12 +71,6 @@ def message(request: Request, name: str, title: str, text: str, status_code: int
         {"header_name": name, "title": title, "text": text},
         status_code=status_code,
     )
-
-
-def full(request: Request, name: str, kind: LinkKind[Any, Any]) -> Response:
-    """The page a visitor sees past the link's largest number of people."""
-    title, text = kind.full
-    return message(request, name, title, text)
 
 
 def consent(
@@ -115,3 +117,79 @@ def whole(fields: dict[str, str], name: str) -> int:
         return int(fields.get(name, "").strip())
     except ValueError:
         raise InputError(f"{name} must be a whole number") from None
+
+
+@dataclass(frozen=True)
+class LinkPages(Generic[Link, Member]):
+    """What the open-link pages of one kind of collection need beyond its :class:`LinkKind`."""
+
+    kind: LinkKind[Link, Member]
+    #: The collection's name, shown in the page header (by its id).
+    name_of: Callable[[Session, int], str]
+    #: Where a member goes once they joined or resumed: their next page.
+    next_path: Callable[[Session, Member], str]
+
+    def name(self, session: Session, link: Link) -> str:
+        return self.name_of(session, self.kind.owner_id(link))
+
+    def full(self, request: Request, session: Session, link: Link) -> Response:
+        """The page a visitor sees past the link's largest number of people."""
+        title, text = self.kind.full
+        return message(request, self.name(session, link), title, text)
+
+
+def open_link_router(pages: LinkPages[Any, Any]) -> APIRouter:
+    """The open link's two routes: ``GET`` (consent, or straight on) and ``POST`` (the
+    consent form's agree or decline)."""
+    router = APIRouter(route_class=PageRoute, include_in_schema=False)
+    kind, path = pages.kind, pages.kind.prefix + "{slug}"
+
+    @router.get(path)
+    def open_link(slug: str, request: Request, session: SessionDep) -> Response:
+        """The consent page, or straight on; "full" past the maximum."""
+        link = recruiting.open_link(session, kind, slug)
+        ids = recruiting.external_ids(link, query(request))
+        token = request.cookies.get(kind.members.cookie)
+        if recruiting.returning(session, kind, link=link, ids=ids, token=token) is None:
+            check_open(link, what=kind.members.noun)
+            if is_full(link):
+                return pages.full(request, session, link)
+            if link.consent_text:
+                name, action = pages.name(session, link), kind.open_path(link.slug)
+                return consent(request, name, link, action, ids)
+        return _enter(pages, request, session, link, ids)
+
+    @router.post(path, dependencies=[CsrfChecked])
+    def agree_or_decline(
+        slug: str, request: Request, session: SessionDep, fields: FormFields
+    ) -> Response:
+        """Agree (a member is made) or decline (only the count of declines grows)."""
+        link = recruiting.open_link(session, kind, slug)
+        if fields.get("decision") != "agree":
+            recruiting.decline(session, kind, link=link)
+            return message(request, pages.name(session, link), "You declined", DECLINED)
+        return _enter(pages, request, session, link, recruiting.external_ids(link, fields))
+
+    return router
+
+
+def _enter(
+    pages: LinkPages[Link, Member],
+    request: Request,
+    session: Session,
+    link: Link,
+    ids: dict[str, str],
+) -> Response:
+    """Resume a returning visitor, or make a member of a new one (rate-limited); "full"
+    past the maximum. Their cookie is set on the way to their next page."""
+    kind = pages.kind
+    token = request.cookies.get(kind.members.cookie)
+    person = recruiting.returning(session, kind, link=link, ids=ids, token=token)
+    if person is None:
+        try:
+            person = admit(request, lambda: recruiting.join(session, kind, link=link, ids=ids))
+        except kind.full_error:
+            return pages.full(request, session, link)
+    response = redirect(pages.next_path(session, person))
+    set_member_cookie(response, kind.members, token=person.token, secure=is_https(request))
+    return response

@@ -23,6 +23,7 @@ from app.runs import artefacts
 from engine.conformance import Conformance
 from engine.errors import InputError
 from engine.judges import DEFAULT_JUDGE, JUDGES, LEGACY_JUDGES, current_keys
+from engine.records import CandidateRow
 from engine.treefile import TreeDocument, tree_from_json
 
 #: Columns of the conformance CSV exports (one row per checkpoint).
@@ -51,25 +52,10 @@ _SCORE_COLUMN = {"shaped-value": "value", "return": "env_return"}
 
 
 def score_column(judge: str) -> str:
-    """The :class:`Candidate` field holding ``judge``'s score (``value`` for ``shaped-value``,
-    ``env_return`` for ``return``; else the judge's name)."""
+    """The :class:`~engine.records.CandidateRow` field holding ``judge``'s score (``value``
+    for ``shaped-value``, ``env_return`` for ``return``; else the judge's name)."""
     judge = LEGACY_JUDGES.get(judge, judge)
     return _SCORE_COLUMN.get(judge, judge)
-
-
-@dataclass(frozen=True)
-class Candidate:
-    """One candidate at a checkpoint (the columns of :class:`engine.rl.report.CandidateRow`)."""
-
-    id: int
-    reward: float
-    advice: float
-    z: float
-    shaping: float
-    shaped: float
-    value: float
-    behaviour: float
-    env_return: float | None = None
 
 
 @dataclass(frozen=True)
@@ -79,7 +65,7 @@ class CheckpointView:
     step: int
     trees: dict[str, TreeDocument]
     conformance: dict[str, Conformance]
-    candidates: list[Candidate]
+    candidates: list[CandidateRow]
     #: pooled advice: participant id -> judge -> that participant's tree judged by the agent
     advisors: dict[int, dict[str, Conformance]] = field(default_factory=dict)
 
@@ -151,7 +137,7 @@ def view_of(step: int, body: dict[str, Any]) -> CheckpointView:
         step=step,
         trees={j: tree_from_json(v["tree"]) for j, v in judges.items()},
         conformance={j: Conformance.from_json(v["conformance"]) for j, v in judges.items()},
-        candidates=[Candidate(**row) for row in body.get("candidates") or []],
+        candidates=[CandidateRow(**row) for row in body.get("candidates") or []],
         advisors={
             int(a["participant_id"]): {
                 j: Conformance.from_json(c) for j, c in current_keys(a["judges"]).items()

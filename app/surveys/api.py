@@ -6,12 +6,10 @@ their invite link ``/r/<token>`` sets (a cookie write must send ``X-Requested-Wi
 
 from __future__ import annotations
 
-from typing import Annotated, Any
+from typing import Any
 
-import anyio.to_thread
-from fastapi import APIRouter, Cookie, Depends, Request, Response
+from fastapi import APIRouter, Request, Response
 from fastapi.responses import FileResponse
-from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 
 from app.core import auth
 from app.core.errors import AuthError, NotFoundError
@@ -19,16 +17,16 @@ from app.http.deps import (
     AdminCredentials,
     CandidateId,
     DbId,
+    ResearcherCookie,
     ResearcherDep,
     RuntimeDep,
     SessionDep,
     SettingsDep,
-    check_cookie_write,
 )
+from app.http.member_auth import RespondentCookie, RespondentCredentials, RespondentDep
 from app.models import Survey, SurveyRespondent
 from app.recruiting import members
 from app.recruiting import service as recruiting
-from app.runtime import Runtime
 from app.studies import service as studies
 from app.studies.images import MEDIA_TYPE, image_file
 from app.surveys import crowd as survey_crowd
@@ -46,43 +44,6 @@ from app.surveys.schemas import (
 from app.surveys.sources import source_menus
 
 router = APIRouter(prefix="/surveys", tags=["surveys"])
-_bearer = HTTPBearer(
-    auto_error=False,
-    scheme_name="SurveyInviteToken",
-    description="A survey respondent's invite token.",
-)
-Credentials = Annotated[HTTPAuthorizationCredentials | None, Depends(_bearer)]
-RespondentCookie = Annotated[str | None, Cookie(alias=survey_respond.RESPONDENT_COOKIE)]
-ResearcherCookie = Annotated[str | None, Cookie(alias=auth.RESEARCHER_COOKIE)]
-
-
-def require_respondent(
-    request: Request, session: SessionDep, credentials: Credentials, cookie: RespondentCookie = None
-) -> SurveyRespondent:
-    """The respondent whose invite token is sent (bearer first, then the cookie), or 401."""
-    token = credentials.credentials if credentials is not None else cookie
-    if credentials is None and cookie:
-        check_cookie_write(request)
-    person = members.member_by_token(session, members.SURVEY, token=token)
-    session.commit()
-    return person
-
-
-RespondentDep = Annotated[SurveyRespondent, Depends(require_respondent)]
-
-
-async def respondent_gate(request: Request) -> None:
-    """:func:`require_respondent`, on a request whose body is not read yet
-    (:mod:`app.http.credentials_first`): a query in a worker thread, once per screen."""
-    credentials = await _bearer(request)
-    cookie = request.cookies.get(survey_respond.RESPONDENT_COOKIE)
-    runtime: Runtime = request.app.state.runtime
-
-    def check() -> None:
-        with runtime.sessions() as session:
-            require_respondent(request, session, credentials, cookie)
-
-    await anyio.to_thread.run_sync(check)
 
 
 def survey_out(survey: Survey, stimuli: list[dict[str, Any]] | None = None) -> SurveyOut:
@@ -290,7 +251,7 @@ def thumbnail(
     session: SessionDep,
     settings: SettingsDep,
     runtime: RuntimeDep,
-    credentials: Credentials,
+    credentials: RespondentCredentials,
     _as_admin: AdminCredentials,
     cookie: RespondentCookie = None,
     researcher_cookie: ResearcherCookie = None,

@@ -14,10 +14,11 @@ from fastapi import APIRouter, Request
 from fastapi.responses import HTMLResponse, RedirectResponse
 from sqlalchemy.orm import Session
 
-from app.core import auth
 from app.core.errors import AuthError, NotFoundError
+from app.http import cookies
 from app.http.deps import DbId, SessionDep
 from app.http.guards import ResearcherPage, page_member
+from app.http.member_auth import RespondentCookie
 from app.http.rendering import PageRoute, is_https, redirect, render
 from app.models import Survey, SurveyRespondent
 from app.recruiting import members
@@ -27,7 +28,6 @@ from app.surveys import crowd as survey_crowd
 from app.surveys import respond as survey_respond
 from app.surveys import results as survey_results
 from app.surveys import service as surveys
-from app.surveys.api import RespondentCookie
 from app.surveys.sources import source_menus
 
 router = APIRouter(route_class=PageRoute, include_in_schema=False)
@@ -104,7 +104,7 @@ def survey_invite(token: str, request: Request, session: SessionDep) -> Redirect
             "or ask the researcher for a new one."
         ) from None
     response = redirect(RESPOND)
-    auth.set_member_cookie(response, members.SURVEY, token=token, secure=is_https(request))
+    cookies.set_member_cookie(response, members.SURVEY, token=token, secure=is_https(request))
     return response
 
 

@@ -18,6 +18,7 @@ from typing import Any
 from engine.conformance import Conformance, compare
 from engine.errors import InputError
 from engine.judges import JUDGES, LEGACY_JUDGES
+from engine.records import CandidateRow
 from engine.rl.agent_judge import (
     CandidateTerms,
     TrainedAgent,
@@ -35,35 +36,6 @@ from engine.rl.runner import load_run_advice
 from engine.treefile import TreeDocument, tree_from_json, tree_to_json
 
 SCHEMA = "acv.checkpoint/1"
-
-
-@dataclass(frozen=True)
-class CandidateRow:
-    """One candidate as the agent sees it at a checkpoint.
-
-    Attributes:
-        id: the candidate's id in the bracket.
-        reward: R(s) as the shaped judge uses it: the stored ``env_reward`` minus the control
-            cost of the policy's mean action in s.
-        advice: F(s) after ``advice_scale`` (F = R for advice mode ``reward``; 0 for ``ppo``).
-        z: the shaping weight z_phi(s) (0 for ``ppo``, 1 for ``ppo-shaped``).
-        shaping: ``z * advice``, the ``shaping`` judge's score.
-        shaped: ``reward + shaping``, the ``shaped`` judge's score.
-        value: V(s) of the shaped critic, the ``shaped-value`` judge's score.
-        behaviour: the agent's mean occupancy near s, the ``behaviour`` judge's score.
-        env_return: the mean return-to-go of the agent's policy from s, the ``return``
-            judge's score (None in reports stored before that judge).
-    """
-
-    id: int
-    reward: float
-    advice: float
-    z: float
-    shaping: float
-    shaped: float
-    value: float
-    behaviour: float
-    env_return: float | None = None
 
 
 @dataclass(frozen=True)

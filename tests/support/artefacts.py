@@ -8,7 +8,7 @@ import numpy as np
 
 from engine.rl.report import SCHEMA
 
-#: The per-candidate table's columns (engine.rl.report.CandidateRow).
+#: The per-candidate table's columns (engine.records.CandidateRow).
 COLUMNS = ("reward", "advice", "z", "shaping", "shaped", "value", "behaviour")
 
 

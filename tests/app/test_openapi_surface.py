@@ -1,0 +1,41 @@
+"""The REST API keeps every path, operation and field it had (issue 26's refactor must not
+drop one): the surface recorded in ``openapi_surface.json`` is a subset of today's.
+
+After a deliberate change to the API, write the file again with
+``python -m tests.app.test_openapi_surface`` and say why in the commit.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+from tests.app.openapi_support import api_openapi
+
+SURFACE = Path(__file__).with_name("openapi_surface.json")
+
+
+def surface(openapi: dict[str, Any]) -> dict[str, list[str]]:
+    """Each operation with its parameters, and each schema with its fields, as sorted lists."""
+    found = {
+        f"{method.upper()} {path}": sorted(p["name"] for p in op.get("parameters", []))
+        for path, ops in openapi["paths"].items()
+        for method, op in ops.items()
+    }
+    for name, schema in openapi["components"]["schemas"].items():
+        found[f"schema {name}"] = sorted(schema.get("properties", {}))
+    return found
+
+
+def test_every_path_operation_and_field_is_kept() -> None:
+    recorded = json.loads(SURFACE.read_text())
+    now = surface(api_openapi())
+    missing = {k: v for k, v in recorded.items() if k not in now}
+    assert not missing, f"gone from the API: {sorted(missing)}"
+    dropped = {k: sorted(set(v) - set(now[k])) for k, v in recorded.items() if set(v) - set(now[k])}
+    assert not dropped, f"fields gone from the API: {dropped}"
+
+
+if __name__ == "__main__":
+    SURFACE.write_text(json.dumps(surface(api_openapi()), indent=1, sort_keys=True) + "\n")
