@@ -15,19 +15,15 @@ import hmac
 import os
 import secrets
 import time
-from dataclasses import dataclass
 from pathlib import Path
 
-from sqlalchemy import Connection
-from sqlalchemy.orm import Session
-
-from app.recruiting import members
 from app.settings import Settings
 from engine.errors import InputError
 
 ADMIN_TOKEN_FILE = "admin_token"
 RESEARCHER_COOKIE = "acv_researcher"
-PARTICIPANT_COOKIE = members.STUDY.cookie
+PARTICIPANT_COOKIE = "acv_participant"
+RESPONDENT_COOKIE = "acv_respondent"
 #: How long a member's browser remembers their invitation, so they can resume.
 #: Shortest admin token accepted: ~190 bits as URL-safe base64, beyond brute force.
 MIN_ADMIN_TOKEN_CHARS = 32
@@ -148,23 +144,3 @@ def is_researcher(
         max_age_s is not None
         and valid_researcher_cookie(cookie=cookie, admin_token=admin_token, max_age_s=max_age_s)
     )
-
-
-@dataclass(frozen=True)
-class ParticipantRef:
-    """A participant as the labelling hot path knows them (no row object, no session)."""
-
-    id: int
-    study_id: int
-    token: str
-
-
-def participant_ref(db: Session | Connection, *, token: str | None) -> ParticipantRef:
-    """The participant holding invite ``token`` (:func:`app.recruiting.members.resolve`, which
-    remembers known tokens in this process, so the hot path needs no query for them).
-
-    Raises:
-        AuthError: missing or unknown token.
-    """
-    ref = members.resolve(db, members.STUDY, token=token)
-    return ParticipantRef(ref.id, ref.collection_id, ref.token)

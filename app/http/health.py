@@ -2,12 +2,19 @@
 
 from __future__ import annotations
 
+from typing import Literal
+
 from fastapi import APIRouter
+from pydantic import BaseModel
 from sqlalchemy import text
 
 from app.http.deps import SessionDep
 from app.http.errors import RESPONSES
-from app.studies.schemas import HealthOut
+
+
+class HealthOut(BaseModel):
+    status: Literal["ok"]
+
 
 router = APIRouter(tags=["health"], responses={503: RESPONSES[503]})
 

@@ -42,18 +42,18 @@ async def invite_token(
 
 
 #: The unchecked invite token, for hot paths that check it in their own worker thread
-#: (``auth.participant_ref``) rather than in a thread hop of its own.
+#: (``members.participant_ref``) rather than in a thread hop of its own.
 InviteTokenDep = Annotated[str | None, Depends(invite_token)]
 
 
-def require_participant(session: SessionDep, token: InviteTokenDep) -> auth.ParticipantRef:
+def require_participant(session: SessionDep, token: InviteTokenDep) -> members.ParticipantRef:
     """The participant whose invite token is sent (known tokens without a query), or 401."""
-    participant = auth.participant_ref(session, token=token)
+    participant = members.participant_ref(session, token=token)
     session.commit()  # hand the connection back while the request waits for the handler
     return participant
 
 
-ParticipantDep = Annotated[auth.ParticipantRef, Depends(require_participant)]
+ParticipantDep = Annotated[members.ParticipantRef, Depends(require_participant)]
 
 
 async def participant_gate(request: Request) -> None:
@@ -70,7 +70,7 @@ async def participant_gate(request: Request) -> None:
 
 def _check_participant(runtime: Runtime, token: str | None) -> None:
     with runtime.engine.connect() as conn:
-        auth.participant_ref(conn, token=token)
+        members.participant_ref(conn, token=token)
 
 
 _respondent_bearer = HTTPBearer(

@@ -4,16 +4,16 @@ from __future__ import annotations
 
 from fastapi import Request
 
-from app.labelling.participants import invite_url as _invite_url
-from app.studies.images import ImageSize
+from app.recruiting.members import STUDY
 
 
-def image_url(study_id: int, candidate_id: int, size: ImageSize = "full") -> str:
-    """Where a candidate's image is served (see ``candidate_image``)."""
+def image_url(study_id: int, candidate_id: int, size: str = "full") -> str:
+    """Where a candidate's image is served (see ``candidate_image``; ``size``: ``full`` or
+    ``thumb``)."""
     base = f"/api/studies/{study_id}/candidates/{candidate_id}/image"
     return base if size == "full" else f"{base}?size={size}"
 
 
 def invite_url(request: Request, token: str) -> str:
     """The invite link under the base URL this request came in on."""
-    return _invite_url(str(request.base_url), token)
+    return str(request.base_url).rstrip("/") + STUDY.invite_path(token)

@@ -8,13 +8,13 @@ from fastapi import APIRouter, Path, Request, Response
 from fastapi.responses import JSONResponse
 from starlette.concurrency import run_in_threadpool
 
-from app.core import auth
 from app.core.errors import ForbiddenError
 from app.http.deps import DbId, ResearcherDep, RuntimeDep, SessionDep, ViewerDep
 from app.http.member_auth import InviteTokenDep, ParticipantDep
 from app.http.urls import image_url
 from app.labelling import disagreement, participants
 from app.labelling import service as labelling
+from app.recruiting import members
 from app.runtime import Runtime
 from app.studies import service as studies
 from app.studies import trees
@@ -72,7 +72,7 @@ async def next_match(token: InviteTokenDep, runtime: RuntimeDep) -> Response:
 
 def _next_match(runtime: Runtime, token: str | None) -> dict[str, Any] | None:
     with runtime.engine.connect() as conn:
-        person = auth.participant_ref(conn, token=token)
+        person = members.participant_ref(conn, token=token)
         upcoming = labelling.next_match(conn, participant=person)
     return None if upcoming is None else next_match_body(person.study_id, upcoming)
 

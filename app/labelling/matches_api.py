@@ -8,12 +8,12 @@ from fastapi import APIRouter, Response
 from fastapi.responses import JSONResponse
 from starlette.concurrency import run_in_threadpool
 
-from app.core import auth
 from app.http.deps import DbId, RuntimeDep, SessionDep
 from app.http.member_auth import InviteTokenDep, ParticipantDep
 from app.labelling import participants
 from app.labelling import service as labelling
 from app.labelling.api import next_match_body, progress_out
+from app.recruiting import members
 from app.runtime import Runtime
 from app.studies.schemas import LabelIn, LabelOut, UndoOut
 
@@ -46,7 +46,7 @@ def _label(
     runtime: Runtime, token: str | None, match_id: int, body: LabelIn
 ) -> tuple[labelling.LabelResult, int]:
     with runtime.engine.connect() as conn:
-        person = auth.participant_ref(conn, token=token)
+        person = members.participant_ref(conn, token=token)
         result = labelling.submit_label(
             conn,
             participant=person,

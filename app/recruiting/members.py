@@ -36,6 +36,7 @@ from typing import Generic, TypeVar
 from sqlalchemy import Connection, Engine, Select, bindparam, select
 from sqlalchemy.orm import Session
 
+from app.core import auth
 from app.core.errors import AuthError
 from app.db import engine_of
 from app.models import Participant, Study, Survey, SurveyRespondent, token_digest
@@ -78,7 +79,7 @@ STUDY = CollectionKind(
     collection=Study,
     member=Participant,
     invite_prefix="/p/",
-    cookie="acv_participant",
+    cookie=auth.PARTICIPANT_COOKIE,
     missing="a participant invite token is required",
     unknown="unknown invite token",
 )
@@ -87,7 +88,7 @@ SURVEY = CollectionKind(
     collection=Survey,
     member=SurveyRespondent,
     invite_prefix="/r/",
-    cookie="acv_respondent",
+    cookie=auth.RESPONDENT_COOKIE,
     missing="a survey invite token is required",
     unknown="unknown survey invite token",
 )
@@ -208,3 +209,23 @@ def _accepts(db: Session | Connection, kind: CollectionKind[Member], token: str)
     except AuthError:
         return False
     return True
+
+
+@dataclass(frozen=True)
+class ParticipantRef:
+    """A participant as the labelling hot path knows them (no row object, no session)."""
+
+    id: int
+    study_id: int
+    token: str
+
+
+def participant_ref(db: Session | Connection, *, token: str | None) -> ParticipantRef:
+    """The participant holding invite ``token`` (:func:`resolve`, which
+    remembers known tokens in this process, so the hot path needs no query for them).
+
+    Raises:
+        AuthError: missing or unknown token.
+    """
+    ref = resolve(db, STUDY, token=token)
+    return ParticipantRef(ref.id, ref.collection_id, ref.token)

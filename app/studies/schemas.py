@@ -257,7 +257,3 @@ class BracketCellOut(BaseModel):
 
 class BracketOut(BaseModel):
     rounds: list[list[BracketCellOut]]
-
-
-class HealthOut(BaseModel):
-    status: Literal["ok"]
