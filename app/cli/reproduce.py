@@ -79,8 +79,8 @@ def _participant_tree(config: ReproduceConfig) -> TreeDocument | None:
         return None
     from app.cli.serve import cli_runtime
     from app.core.errors import NotFoundError
+    from app.labelling.trees import participant_tree
     from app.models import Participant
-    from app.studies.trees import participant_tree
 
     with cli_runtime() as runtime, runtime.sessions() as session:
         doc = participant_tree(session, participant_id=config.participant_id)

@@ -29,14 +29,14 @@ from app.cli.root import cli, fail
 from app.core.auth import ADMIN_TOKEN_FILE
 from app.core.errors import ServiceError
 from app.db import upgrade
+from app.demo import ensure_demo
 from app.jobs.settings import JobSettings
 from app.jobs.worker import Worker, WorkerThread, make_executor
-from app.labelling.participants import invite_url
 from app.main import create_app
 from app.preflight import check_data_dir
 from app.runtime import Runtime
 from app.settings import Settings
-from app.studies.demo import ensure_demo
+from app.studies.participants import invite_url
 from engine.errors import InputError
 
 

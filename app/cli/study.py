@@ -10,11 +10,11 @@ import typer
 
 from app.cli.root import cli, fail
 from app.cli.serve import cli_runtime
-from app.labelling import participants
-from app.labelling.participants import invite_url
+from app.labelling import simulate as simulation
+from app.labelling import trees
+from app.studies import participants
 from app.studies import service as studies
-from app.studies import simulate as simulation
-from app.studies import trees
+from app.studies.participants import invite_url
 from engine.candidates import SAMPLING_MODES
 from engine.disagreement import MAX_PAIRS
 from engine.envs import DEFAULT_ENV_ID

@@ -12,12 +12,12 @@ from app.core.errors import ForbiddenError
 from app.http.deps import DbId, ResearcherDep, RuntimeDep, SessionDep, ViewerDep
 from app.http.member_auth import InviteTokenDep, ParticipantDep
 from app.http.urls import image_url
-from app.labelling import disagreement, participants
+from app.labelling import disagreement, trees
 from app.labelling import service as labelling
 from app.recruiting import members
 from app.runtime import Runtime
+from app.studies import participants
 from app.studies import service as studies
-from app.studies import trees
 from app.studies.api import participant_out
 from app.studies.schemas import (
     BracketCellOut,

@@ -1,6 +1,6 @@
 """The optional consistency check (issue 14): after the bracket, one first-round pair comes
 back with its sides swapped. It is not part of the bracket; its answer is compared with the
-participant's label of that pair (:mod:`app.studies.crowd_stats`)."""
+participant's label of that pair (:mod:`app.labelling.quality`)."""
 
 from __future__ import annotations
 

@@ -11,10 +11,9 @@ from app.http.deps import SessionDep
 from app.http.guards import PageParticipant
 from app.http.rendering import RedirectTo, redirect, render
 from app.labelling import check as crowd_check
-from app.labelling import participants
 from app.labelling.pages import THANKS, where_next
 from app.recruiting import pages as open_links
-from app.studies import crowd
+from app.studies import crowd, participants
 from app.studies import service as studies
 
 CHECK = "/participate/check"

@@ -19,11 +19,11 @@ from app.http.deps import SessionDep
 from app.http.guards import PageParticipant
 from app.http.rendering import PageRoute, RedirectTo, is_https, redirect, render, thumb_template
 from app.labelling import check as crowd_check
-from app.labelling import disagreement, participants
+from app.labelling import disagreement
 from app.models import Participant
 from app.recruiting import members
 from app.recruiting import service as recruiting
-from app.studies import crowd
+from app.studies import crowd, participants
 from app.studies import service as studies
 
 router = APIRouter(route_class=PageRoute, include_in_schema=False)

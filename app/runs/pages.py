@@ -22,7 +22,6 @@ from app.http.deps import MAX_DB_ID, DbId, SessionDep
 from app.http.guards import ResearcherPage
 from app.http.rendering import PageRoute, redirect, render, thumb_template
 from app.jobs.execute import run_dir
-from app.labelling import participants
 from app.models import Run
 from app.runs import comparison, experiment_notes, experiments
 from app.runs import report as run_report
@@ -31,6 +30,7 @@ from app.runs.api import RunsRootDep
 from app.runs.experiments import DEFAULT_SEEDS
 from app.runs.experiments_api import ExperimentCreate
 from app.runs.schemas import Judge, RunCreate, RunOut
+from app.studies import participants
 from app.studies import service as studies
 from app.studies.schemas import FORM_INPUT
 from engine.errors import InputError

@@ -16,9 +16,9 @@ from typing import Any
 from sqlalchemy.orm import Session
 
 from app.core.errors import ConflictError, NotFoundError
-from app.labelling.participants import get_participant, list_participants
+from app.labelling.trees import participant_tree
 from app.models import Run
-from app.studies.trees import participant_tree
+from app.studies.participants import get_participant, list_participants
 from engine.errors import InputError
 from engine.pooling import check_pool, pooled_tree
 from engine.treefile import TreeDocument, tree_to_json

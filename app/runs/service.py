@@ -21,11 +21,11 @@ from app.core.errors import ConflictError, NotFoundError
 from app.db import writing
 from app.jobs.execute import run_dir
 from app.jobs.queue import update_if
-from app.labelling.participants import get_participant
+from app.labelling.trees import participant_tree
 from app.models import Run, RunStatus, utcnow
 from app.runs import pools
+from app.studies.participants import get_participant
 from app.studies.service import engine_candidates_of, first_round, get_ready_study
-from app.studies.trees import participant_tree
 from engine.bracket import Bracket
 from engine.envs import env_model
 from engine.errors import InputError

@@ -19,10 +19,11 @@ from app.http.deps import (
     ViewerDep,
 )
 from app.http.urls import image_url, invite_url
-from app.labelling import participants
+from app.labelling import trees
 from app.models import Participant
+from app.runs import power
 from app.runs.experiments import DEFAULT_SEEDS, MAX_SEEDS, MIN_SEEDS
-from app.studies import power, trees
+from app.studies import participants
 from app.studies import service as studies
 from app.studies.images import MEDIA_TYPE, ImageSize, image_file
 from app.studies.schemas import (

@@ -15,7 +15,6 @@ from dataclasses import dataclass
 
 from sqlalchemy.orm import Session
 
-from app.labelling.participants import stage_participants
 from app.models import CrowdSettings, Participant, Study
 from app.recruiting import service as recruiting
 from app.recruiting.links import (
@@ -26,6 +25,7 @@ from app.recruiting.links import (
     is_full,
 )
 from app.recruiting.members import STUDY
+from app.studies.participants import stage_participants
 from app.studies.service import get_ready_study
 from engine.errors import InputError
 

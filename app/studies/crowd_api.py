@@ -8,6 +8,7 @@ from fastapi import APIRouter, Request, Response
 
 from app.core.errors import NotFoundError
 from app.http.deps import DbId, ResearcherDep, SessionDep
+from app.labelling import quality as crowd_stats
 from app.models import CrowdSettings
 from app.recruiting import service as recruiting
 from app.recruiting.schemas import (
@@ -20,7 +21,7 @@ from app.recruiting.schemas import (
     SideBiasOut,
     TeacherAgreementOut,
 )
-from app.studies import crowd, crowd_stats, label_export
+from app.studies import crowd, label_export
 
 router = APIRouter(prefix="/studies", tags=["crowd"])
 

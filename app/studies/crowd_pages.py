@@ -12,10 +12,11 @@ from app.http.csrf import CsrfChecked, FormFields
 from app.http.deps import DbId, SessionDep
 from app.http.guards import ResearcherPage
 from app.http.rendering import PageRoute, redirect
+from app.labelling import quality as crowd_stats
 from app.recruiting import service as recruiting
 from app.recruiting.pages import link_form, validated, whole
 from app.recruiting.schemas import CrowdIn
-from app.studies import crowd, crowd_stats
+from app.studies import crowd
 
 router = APIRouter(route_class=PageRoute, include_in_schema=False, dependencies=[ResearcherPage])
 

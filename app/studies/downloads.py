@@ -12,8 +12,8 @@ from app.core.errors import NotFoundError
 from app.http.deps import DbId, SessionDep
 from app.http.guards import ResearcherPage
 from app.http.rendering import PageRoute
-from app.labelling import participants
-from app.studies import trees
+from app.labelling import trees
+from app.studies import participants
 from engine.treefile import dumps
 
 router = APIRouter(route_class=PageRoute, include_in_schema=False, dependencies=[ResearcherPage])

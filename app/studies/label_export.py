@@ -7,7 +7,7 @@ the candidates shown on the left and on the right, the winner and the side chose
 response time, when the pair was shown and when it was labelled. ``shown_at`` is
 ``labelled_at`` minus the response time (the page measures that from both pictures being
 on screen), so it is empty when no response time was stored. Quality flags
-(:mod:`app.studies.crowd_stats`) ride along per participant.
+(:mod:`app.labelling.quality`) ride along per participant.
 """
 
 from __future__ import annotations
@@ -21,8 +21,8 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from app.core import csv_export
+from app.labelling.quality import quality
 from app.models import DisagreementPair, Label, Match, Participant, as_utc
-from app.studies.crowd_stats import quality
 from app.studies.service import get_study
 
 COLUMNS = (

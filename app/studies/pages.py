@@ -18,12 +18,12 @@ from app.http.deps import DbId, RuntimeDep, SessionDep
 from app.http.guards import ResearcherPage
 from app.http.rendering import PageRoute, redirect, render, thumb_template
 from app.http.urls import image_url
-from app.labelling import participants
-from app.labelling.participants import MAX_BATCH
+from app.runs import power as study_power
 from app.runs.experiments import DEFAULT_SEEDS
-from app.studies import power as study_power
+from app.studies import participants
 from app.studies import service as studies
 from app.studies.crowd_pages import crowd_context
+from app.studies.participants import MAX_BATCH
 from app.studies.schemas import FORM_INPUT, StudyCreate
 from engine.candidates import MAX_CANDIDATES, SAMPLING_MODES
 from engine.disagreement import MAX_PAIRS

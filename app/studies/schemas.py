@@ -14,9 +14,9 @@ from pydantic import (
     ValidationInfo,
 )
 
-from app.labelling.participants import MAX_BATCH
 from app.labelling.service import MAX_RESPONSE_MS
 from app.models import StudyStatus, as_utc
+from app.studies.participants import MAX_BATCH
 from app.studies.service import MAX_INSTRUCTIONS_CHARS, MAX_NAME_CHARS, MAX_SEED
 from engine.candidates import MAX_CANDIDATES
 from engine.disagreement import MAX_PAIRS

@@ -15,9 +15,9 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from app.core.errors import ConflictError, NotFoundError
+from app.labelling.trees import participant_tree
 from app.models import CheckpointArtefact, Participant, Run, Study
 from app.runs.artefacts import FAILURE, judged
-from app.studies.trees import participant_tree
 from engine.conformance import compare
 from engine.errors import InputError
 from engine.judges import LEGACY_JUDGES, current_keys

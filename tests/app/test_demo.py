@@ -10,8 +10,8 @@ import pytest
 from fastapi.testclient import TestClient
 
 from app.cli.serve import _demo_lines
-from app.labelling.participants import invite_url
-from app.studies.demo import DEMO_RUN, ensure_demo
+from app.demo import DEMO_RUN, ensure_demo
+from app.studies.participants import invite_url
 from tests.app.conftest import ADMIN
 from tests.app.runs_support import run_app
 

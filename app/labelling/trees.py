@@ -7,9 +7,9 @@ from sqlalchemy.orm import Session
 
 from app.core import csv_export
 from app.core.errors import ConflictError
-from app.labelling.participants import get_participant
 from app.labelling.service import results_of
 from app.models import Label, Match, Participant, as_utc
+from app.studies.participants import get_participant
 from app.studies.service import engine_candidates_of, first_round, get_study
 from engine.treefile import TreeDocument, make_document
 

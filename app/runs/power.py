@@ -16,10 +16,11 @@ import numpy as np
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from app.labelling import disagreement, participants
+from app.labelling import disagreement
+from app.labelling.trees import participant_tree
 from app.models import Candidate
 from app.runs.experiments import DEFAULT_SEEDS
-from app.studies.trees import participant_tree
+from app.studies import participants
 from engine.verdict import advice_scores, bracket_pairs, split_matches
 from engine.verdict_power import min_detectable_delta
 

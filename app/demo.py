@@ -10,12 +10,12 @@ from dataclasses import dataclass
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from app.labelling.participants import add_participants
+from app.labelling.simulate import simulate
 from app.models import Experiment, Label, Participant, Study
 from app.runs.experiments import ExperimentSpec, create_experiment
 from app.runtime import Runtime
+from app.studies.participants import add_participants
 from app.studies.service import create_study, get_study
-from app.studies.simulate import simulate
 
 DEMO_NAME = "Demo: upright humanoid"
 DEMO_INSTRUCTIONS = (
