@@ -13,7 +13,11 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-FEATURES = ("studies", "labelling", "surveys", "runs", "recruiting")
+#: Feature packages in the order a researcher's work goes through them: a feature's services
+#: build on the ones before it, never on a later one (so the graph has no cycle). ``app.jobs``
+#: is the runs feature's executor (its queue and executors), on the runs level.
+FEATURES = ("recruiting", "studies", "labelling", "runs", "surveys")
+LEVEL = {**{f: i for i, f in enumerate(FEATURES)}, "jobs": FEATURES.index("runs")}
 WEB_LIBRARIES = ("fastapi", "starlette", "sqlalchemy", "jinja2", "uvicorn", "alembic", "app")
 #: Route modules: a feature's REST API and pages; only app.routes and other routes use them.
 ROUTE_SUFFIXES = ("api", "pages", "downloads")
@@ -79,6 +83,24 @@ def test_services_import_no_http_and_no_route(feature: str) -> None:
     assert not violations(f"app.{feature}", forbidden)
 
 
+def feature_of(module: str) -> str | None:
+    """The feature package (or ``jobs``) ``module`` belongs to; ``app.jobs.settings`` (where
+    runs live on disk) is on the floor, with ``app.core``."""
+    parts = module.split(".")
+    if parts[0] != "app" or len(parts) < 2 or module.startswith("app.jobs.settings"):
+        return None
+    return parts[1] if parts[1] in LEVEL else None
+
+
+@pytest.mark.parametrize("feature", [*FEATURES, "jobs"])
+def test_services_build_only_on_earlier_features(feature: str) -> None:
+    def forbidden(source: str, m: str) -> bool:
+        target = feature_of(m)
+        return not is_route(source) and target is not None and LEVEL[target] > LEVEL[feature]
+
+    assert not violations(f"app.{feature}", forbidden)
+
+
 def test_only_routes_import_routes() -> None:
     def forbidden(source: str, m: str) -> bool:
         return is_route(m) and not is_route(source) and source not in ("app.routes",)
@@ -95,3 +117,5 @@ def test_the_rules_see_a_break() -> None:
     assert is_route("app.studies.crowd_api") and is_route("app.runs.pages")
     assert not is_route("app.studies.service") and not is_route("app.recruiting.members")
     assert "app.http.deps" in set(imports(ROOT / "app" / "studies" / "api.py"))
+    assert feature_of("app.runs.service") == "runs" and feature_of("app.jobs.queue") == "jobs"
+    assert feature_of("app.jobs.settings") is None and feature_of("app.core.auth") is None

@@ -26,6 +26,7 @@ from sqlalchemy.orm import Session, sessionmaker
 
 from app.db import make_engine, make_sessions
 from app.jobs import queue
+from app.jobs.settings import run_dir
 from app.models import Run
 from app.runs import artefacts
 from engine.errors import InputError
@@ -35,11 +36,6 @@ LOCK_FILE = ".lock"
 #: Seconds a run waits for the previous process of the same run directory to let go.
 LOCK_WAIT_S = 60.0
 _SKIPPED_KEYS = ("episode_returns", "episode_shaped_returns")
-
-
-def run_dir(runs_dir: Path | str, run_id: int) -> Path:
-    """``<runs dir>/<id>``: the run's config, metrics, checkpoints and logs."""
-    return Path(runs_dir) / str(run_id)
 
 
 def execute_run(

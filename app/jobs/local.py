@@ -18,7 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from app.db import ROOT
-from app.jobs.execute import run_dir
+from app.jobs.settings import run_dir
 
 LOG_FILE = "process.log"
 #: Characters of a dead process's log quoted in its run's error.

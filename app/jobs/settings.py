@@ -46,3 +46,8 @@ class JobSettings(BaseSettings):
     def runs_root(self, settings: Settings) -> Path:
         """Where run directories live."""
         return self.runs_dir if self.runs_dir is not None else settings.data_dir / "runs"
+
+
+def run_dir(runs_dir: Path | str, run_id: int) -> Path:
+    """``<runs dir>/<id>``: the run's config, metrics, checkpoints and logs."""
+    return Path(runs_dir) / str(run_id)

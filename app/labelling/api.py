@@ -14,22 +14,21 @@ from app.http.member_auth import InviteTokenDep, ParticipantDep
 from app.http.urls import image_url
 from app.labelling import disagreement, trees
 from app.labelling import service as labelling
-from app.recruiting import members
-from app.runtime import Runtime
-from app.studies import participants
-from app.studies import service as studies
-from app.studies.api import participant_out
-from app.studies.schemas import (
+from app.labelling.schemas import (
     BracketCellOut,
     BracketOut,
     LabelIn,
     MeOut,
     NextMatchOut,
     PairOut,
-    ParticipantOut,
-    ProgressOut,
     UndoOut,
 )
+from app.recruiting import members
+from app.runtime import Runtime
+from app.studies import participants
+from app.studies import service as studies
+from app.studies.api import participant_out
+from app.studies.schemas import ParticipantOut, ProgressOut
 from engine.disagreement import MAX_PAIRS
 from engine.treefile import tree_to_json
 

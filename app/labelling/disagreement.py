@@ -8,7 +8,7 @@ stored with each candidate, leaving out pairs the bracket already played; they a
 with the side each shows on the left. Undoing a bracket label drops the pairs still
 unanswered: they are chosen again from the new tree once the bracket is finished again
 (unless some pair was answered). They never enter the tree. Their answers are exported with
-the labels (:mod:`app.studies.label_export`) and counted by the experiment verdict as
+the labels (:mod:`app.labelling.label_export`) and counted by the experiment verdict as
 matches of the participant's advice (:func:`answered`).
 """
 
@@ -24,10 +24,10 @@ from sqlalchemy.orm import Session
 from app.core.errors import ConflictError, NotFoundError
 from app.db import writing
 from app.labelling.flow import MAX_RESPONSE_MS
-from app.labelling.sides import a_on_left
 from app.labelling.trees import participant_tree
 from app.models import Candidate, DisagreementPair, Study, as_utc, utcnow
 from app.studies.participants import ParticipantKey, progress
+from app.studies.sides import a_on_left
 from engine.disagreement import disagreement_pairs
 from engine.errors import InputError
 from engine.verdict import Pair, advice_scores

@@ -30,9 +30,9 @@ from sqlalchemy.orm import Session, aliased
 from app.core.errors import AuthError, ConflictError, NotFoundError
 from app.db import engine_of as _engine_of
 from app.db import writing
-from app.labelling.sides import a_on_left
 from app.models import BracketSlot, Label, Match, Participant, Study, as_utc, utcnow
 from app.studies.participants import ParticipantKey, Progress
+from app.studies.sides import a_on_left
 from engine.errors import InputError
 
 #: Longest response time stored (one day); a larger client value is bad input.

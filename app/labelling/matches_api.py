@@ -12,10 +12,10 @@ from app.http.deps import DbId, RuntimeDep, SessionDep
 from app.http.member_auth import InviteTokenDep, ParticipantDep
 from app.labelling import service as labelling
 from app.labelling.api import next_match_body, progress_out
+from app.labelling.schemas import LabelIn, LabelOut, UndoOut
 from app.recruiting import members
 from app.runtime import Runtime
 from app.studies import participants
-from app.studies.schemas import LabelIn, LabelOut, UndoOut
 
 router = APIRouter(prefix="/matches", tags=["matches"])
 

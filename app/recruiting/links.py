@@ -24,11 +24,11 @@ from sqlalchemy import ColumnElement, select, update
 from sqlalchemy.orm import Session
 
 from app.core.errors import AuthError, ConflictError, NotFoundError, ServiceError
+from app.core.limits import check_text
 from app.db import writing
 from app.models import CrowdSettings, Participant, SurveyCrowdSettings, SurveyRespondent
 from app.recruiting import members
 from app.recruiting.members import CollectionKind
-from app.studies.service import check_text
 from engine.errors import InputError
 
 DEFAULT_EXTERNAL_PARAMS = ("PROLIFIC_PID", "STUDY_ID", "SESSION_ID")

@@ -21,8 +21,7 @@ from fastapi.responses import HTMLResponse
 from app.core.figures import FORMATS
 from app.http.deps import DbId, ResearcherDep, SessionDep, SettingsDep
 from app.http.errors import RESPONSES
-from app.jobs.execute import run_dir
-from app.jobs.settings import JobSettings
+from app.jobs.settings import JobSettings, run_dir
 from app.models import Run, RunStatus
 from app.runs import comparison
 from app.runs import report as run_report

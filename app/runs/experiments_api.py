@@ -15,6 +15,7 @@ from fastapi.responses import JSONResponse
 from pydantic import BaseModel, ConfigDict, Field
 
 from app.core.csv_export import csv_text
+from app.core.json_types import JsonInt, UtcDatetime
 from app.http.deps import DbId, ResearcherDep, SessionDep
 from app.models import Experiment
 from app.runs import experiment_notes, experiments
@@ -28,7 +29,7 @@ from app.runs.experiments import (
     ExperimentSpec,
 )
 from app.runs.schemas import Judge, RunCreate
-from app.studies.schemas import JsonInt, ProgressOut, UtcDatetime
+from app.studies.schemas import ProgressOut
 from engine.judges import DEFAULT_JUDGE
 
 router = APIRouter(prefix="/experiments", tags=["experiments"])

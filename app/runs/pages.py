@@ -17,11 +17,12 @@ from pydantic import TypeAdapter, ValidationError
 from sqlalchemy.orm import Session
 
 from app.core.errors import PendingError
+from app.core.json_types import FORM_INPUT
 from app.http.csrf import CsrfChecked, FormFields
 from app.http.deps import MAX_DB_ID, DbId, SessionDep
 from app.http.guards import ResearcherPage
 from app.http.rendering import PageRoute, redirect, render, thumb_template
-from app.jobs.execute import run_dir
+from app.jobs.settings import run_dir
 from app.models import Run
 from app.runs import comparison, experiment_notes, experiments
 from app.runs import report as run_report
@@ -32,7 +33,6 @@ from app.runs.experiments_api import ExperimentCreate
 from app.runs.schemas import Judge, RunCreate, RunOut
 from app.studies import participants
 from app.studies import service as studies
-from app.studies.schemas import FORM_INPUT
 from engine.errors import InputError
 from engine.judges import DEFAULT_JUDGE, judge_name
 from engine.rl.config import ADVICE_MODES, ALGOS

@@ -6,10 +6,11 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, StrictBool
 
+from app.core.json_types import JsonFloat, JsonInt, UtcDatetime
 from app.models import Run, RunStatus
 from app.runs.pools import members
 from app.runs.service import MAX_TIMESTEPS, advice_label
-from app.studies.schemas import JsonFloat, JsonInt, ProgressOut, UtcDatetime
+from app.studies.schemas import ProgressOut
 from engine.rl.config import AdviceMode, Algo, TrainConfig
 from engine.teachers import Teacher
 

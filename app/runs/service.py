@@ -19,8 +19,8 @@ from sqlalchemy.orm import Session
 
 from app.core.errors import ConflictError, NotFoundError
 from app.db import writing
-from app.jobs.execute import run_dir
 from app.jobs.queue import update_if
+from app.jobs.settings import run_dir
 from app.labelling.trees import participant_tree
 from app.models import Run, RunStatus, utcnow
 from app.runs import pools

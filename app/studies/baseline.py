@@ -57,7 +57,7 @@ def baseline_run(session: Session, *, env_id: str, before: datetime | None = Non
 
 def baseline_policy(run_id: int, runs_dir: Path) -> Policy:
     """The deterministic policy of a baseline run's last checkpoint (loads torch)."""
-    from app.jobs.execute import run_dir
+    from app.jobs.settings import run_dir
     from engine.rl.checkpoint import find_checkpoint
     from engine.rl.trained import deterministic_policy, load_agent
 

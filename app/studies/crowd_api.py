@@ -8,10 +8,12 @@ from fastapi import APIRouter, Request, Response
 
 from app.core.errors import NotFoundError
 from app.http.deps import DbId, ResearcherDep, SessionDep
+from app.labelling import label_export
 from app.labelling import quality as crowd_stats
 from app.models import CrowdSettings
 from app.recruiting import service as recruiting
-from app.recruiting.schemas import (
+from app.studies import crowd
+from app.studies.crowd_schemas import (
     AgreementOut,
     CrowdIn,
     CrowdOut,
@@ -21,7 +23,6 @@ from app.recruiting.schemas import (
     SideBiasOut,
     TeacherAgreementOut,
 )
-from app.studies import crowd, label_export
 
 router = APIRouter(prefix="/studies", tags=["crowd"])
 

@@ -15,8 +15,8 @@ from app.http.rendering import PageRoute, redirect
 from app.labelling import quality as crowd_stats
 from app.recruiting import service as recruiting
 from app.recruiting.pages import link_form, validated, whole
-from app.recruiting.schemas import CrowdIn
 from app.studies import crowd
+from app.studies.crowd_schemas import CrowdIn
 
 router = APIRouter(route_class=PageRoute, include_in_schema=False, dependencies=[ResearcherPage])
 

@@ -13,6 +13,7 @@ from fastapi.responses import HTMLResponse
 from pydantic import ValidationError
 from sqlalchemy.orm import Session
 
+from app.core.json_types import FORM_INPUT
 from app.http.csrf import CsrfChecked, FormFields
 from app.http.deps import DbId, RuntimeDep, SessionDep
 from app.http.guards import ResearcherPage
@@ -24,7 +25,7 @@ from app.studies import participants
 from app.studies import service as studies
 from app.studies.crowd_pages import crowd_context
 from app.studies.participants import MAX_BATCH
-from app.studies.schemas import FORM_INPUT, StudyCreate
+from app.studies.schemas import StudyCreate
 from engine.candidates import MAX_CANDIDATES, SAMPLING_MODES
 from engine.disagreement import MAX_PAIRS
 from engine.envs import DEFAULT_ENV_ID

@@ -10,11 +10,12 @@ from sqlalchemy.orm import Session
 
 from app.core.auth import new_token
 from app.core.errors import NotFoundError
+from app.core.limits import check_text
 from app.db import writing
-from app.labelling.sides import a_on_left
 from app.models import Label, Match, Participant, Study
 from app.recruiting.members import STUDY
-from app.studies.service import check_text, first_round, get_ready_study, get_study
+from app.studies.service import first_round, get_ready_study, get_study
+from app.studies.sides import a_on_left
 from engine.bracket import Bracket
 from engine.errors import InputError
 

@@ -20,6 +20,7 @@ from sqlalchemy import select, update
 from sqlalchemy.orm import Session, sessionmaker
 
 from app.core.errors import ConflictError, NotFoundError
+from app.core.limits import MAX_INSTRUCTIONS_CHARS, MAX_NAME_CHARS, MAX_SEED, check_text
 from app.db import writing
 from app.models import BracketSlot, Candidate, Study
 from app.studies.baseline import (
@@ -40,9 +41,6 @@ from engine.errors import InputError
 from engine.render import RenderService
 
 log = logging.getLogger(__name__)
-MAX_NAME_CHARS = 200
-MAX_INSTRUCTIONS_CHARS = 20_000
-MAX_SEED = 2**63 - 1
 
 
 def create_study(
@@ -130,13 +128,6 @@ def _check_params(
     needs = needs_baseline(sampling=sampling, disagreement_pairs=disagreement_pairs)
     if needs and baseline_run(session, env_id=env_id) is None:
         raise InputError(no_baseline_message(env_id, needs=needs))
-
-
-def check_text(**fields: str | None) -> None:
-    """Refuse NUL characters, which PostgreSQL cannot store in text columns."""
-    for field, value in fields.items():
-        if value is not None and "\x00" in value:
-            raise InputError(f"{field} must not contain NUL characters")
 
 
 def prepare_study(

@@ -21,6 +21,7 @@ from sqlalchemy.orm import Session
 
 from app.core.auth import new_token
 from app.core.errors import ConflictError, NotFoundError
+from app.core.limits import check_text
 from app.db import writing
 from app.models import (
     Survey,
@@ -31,7 +32,6 @@ from app.models import (
     utcnow,
 )
 from app.recruiting.members import SURVEY
-from app.studies.service import check_text
 from app.surveys.service import get_survey, questions_for, stimuli_of
 from engine.errors import InputError
 

@@ -7,7 +7,7 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, StrictBool
 
-from app.studies.schemas import JsonInt
+from app.core.json_types import JsonInt
 from app.surveys import respond as survey_respond
 from app.surveys import service as surveys
 from app.surveys.service import AttentionSpec, QuestionSpec, StimulusSpec

@@ -15,9 +15,9 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from app.core.errors import NotFoundError
+from app.core.limits import MAX_NAME_CHARS, MAX_SEED, check_text
 from app.db import writing
 from app.models import Survey, SurveyStimulus
-from app.studies.service import MAX_NAME_CHARS, MAX_SEED, check_text
 from app.surveys.sources import TreeSource, frozen, highlights, resolve
 from engine.errors import InputError
 

@@ -17,7 +17,7 @@ from sqlalchemy import text
 from app.core.auth import PARTICIPANT_COOKIE
 from app.db import make_engine, upgrade
 from app.http.ratelimit import LoginLimiter
-from app.labelling.sides import a_on_left
+from app.studies.sides import a_on_left
 from tests.app.conftest import ADMIN, Player
 from tests.support.postgres import empty_database
 

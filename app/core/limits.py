@@ -1,0 +1,18 @@
+"""Limits on what researchers and people may store, shared by every feature's services and
+schemas."""
+
+from __future__ import annotations
+
+from engine.errors import InputError
+
+MAX_NAME_CHARS = 200
+MAX_INSTRUCTIONS_CHARS = 20_000
+#: Seeds are stored as signed 64-bit integers.
+MAX_SEED = 2**63 - 1
+
+
+def check_text(**fields: str | None) -> None:
+    """Refuse NUL characters, which PostgreSQL cannot store in text columns."""
+    for field, value in fields.items():
+        if value is not None and "\x00" in value:
+            raise InputError(f"{field} must not contain NUL characters")
