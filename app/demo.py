@@ -13,6 +13,7 @@ from sqlalchemy.orm import Session
 from app.labelling.simulate import simulate
 from app.models import Experiment, Label, Participant, Study
 from app.runs.experiments import ExperimentSpec, create_experiment
+from app.runs.spec import RunSpec
 from app.runtime import Runtime
 from app.studies.participants import add_participants
 from app.studies.service import create_study, get_study
@@ -76,7 +77,7 @@ def _experiment(session: Session, study_id: int, participant_id: int) -> int:
     if found is not None:
         return found
     run = DEMO_RUN | {"study_id": study_id, "participant_id": participant_id}
-    return create_experiment(session, spec=ExperimentSpec(run=run)).id
+    return create_experiment(session, spec=ExperimentSpec(run=RunSpec.from_request(run))).id
 
 
 def _finished(session: Session, study_id: int) -> Participant | None:

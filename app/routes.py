@@ -14,7 +14,13 @@ from app.labelling import api as participants_api
 from app.labelling import crowd_pages as study_link_pages
 from app.labelling import matches_api, pair_pages
 from app.labelling import pages as participant_pages
-from app.runs import advisors_api, experiment_pages, experiments_api
+from app.runs import (
+    advisors_api,
+    checkpoint_api,
+    compare_pages,
+    experiment_pages,
+    experiments_api,
+)
 from app.runs import api as runs_api
 from app.runs import pages as runs_pages
 from app.studies import api as studies_api
@@ -33,6 +39,7 @@ for _api in (
     participants_api,
     matches_api,
     runs_api,
+    checkpoint_api,
     advisors_api,
     experiments_api,
     surveys_api,
@@ -49,6 +56,7 @@ for _pages in (
     downloads,
     studies_pages,
     runs_pages,
+    compare_pages,
     experiment_pages,
     surveys_pages,
     study_link_pages,

@@ -13,6 +13,7 @@ from app.cli.root import cli, fail
 from app.cli.serve import cli_runtime
 from app.runs import experiments
 from app.runs.experiments import DEFAULT_PILOT_SEEDS, DEFAULT_SEEDS, ExperimentSpec
+from app.runs.spec import RunSpec
 from engine.judges import DEFAULT_JUDGE
 
 Opt = typer.Option
@@ -41,13 +42,13 @@ def create(
     run |= {"n_envs": n_envs, "teacher": teacher, "participant_id": participant}
     run |= {"advice_scale": advice_scale, "checkpoint_every": checkpoint_every}
     run |= {"num_steps": num_steps}
-    spec = ExperimentSpec(
-        run={k: v for k, v in run.items() if v is not None},
-        seeds=seeds,
-        first_seed=first_seed,
-        pilot_seeds=pilot_seeds,
-    )
     with cli_runtime() as runtime, runtime.sessions() as session:
+        spec = ExperimentSpec(
+            run=RunSpec.from_request(run),
+            seeds=seeds,
+            first_seed=first_seed,
+            pilot_seeds=pilot_seeds,
+        )
         experiment = experiments.create_experiment(session, spec=spec)
         members = experiments.members(session, experiment_id=experiment.id)
     typer.echo(f"experiment {experiment.id} queued: {len(members)} runs")

@@ -16,7 +16,7 @@ from app.http.guards import ResearcherPage
 from app.http.rendering import PageRoute, render
 from app.runs import experiments
 from app.runs import service as runs
-from app.runs.pages import JUDGE_LABELS
+from app.runs.compare_pages import JUDGE_LABELS
 from app.runs.schemas import Judge
 from app.studies import service as studies
 from engine.errors import InputError

@@ -13,7 +13,7 @@ run's executor writes) and hands them to :func:`engine.verdict.verdict`.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -26,6 +26,7 @@ from app.labelling import disagreement
 from app.models import Experiment, ExperimentRole, ExperimentRun, Run, RunStatus
 from app.runs import artefacts
 from app.runs import service as runs
+from app.runs.spec import RunSpec
 from app.studies.service import get_ready_study
 from engine.errors import InputError
 from engine.judges import JUDGE_COLUMNS, judge_name
@@ -37,8 +38,6 @@ DEFAULT_SEEDS, MIN_SEEDS, MAX_SEEDS = 5, 2, 20
 DEFAULT_PILOT_SEEDS, MAX_PILOT_SEEDS = 2, 10
 #: Pilot seeds start here, far from any evaluation seed (those are below it).
 PILOT_SEED_BASE = 1_000_000
-#: Run options that only shape the advice: a baseline trains without them.
-ADVICE_OPTIONS = ("advice_mode", "advice_scale")
 #: Fewest runs per role with a judged checkpoint before a verdict is attempted.
 MIN_JUDGED = {ExperimentRole.ADVISED: 2, ExperimentRole.BASELINE: 2, ExperimentRole.PILOT: 1}
 
@@ -48,14 +47,13 @@ class ExperimentSpec:
     """What an experiment trains (``/api/experiments``'s body).
 
     Attributes:
-        run: the advised runs' request, as for ``/api/runs`` less ``seed``: ``study_id``, the
-            advice source, ``algo``, ``timesteps``, ``n_envs`` and further options.
+        run: the advised runs' spec; its ``seed`` is replaced by each evaluation seed.
         seeds: evaluation seeds per arm (``first_seed``, ``first_seed + 1``, ...).
         first_seed: the first evaluation seed.
         pilot_seeds: pilot runs, seeds ``PILOT_SEED_BASE + first_seed + i``.
     """
 
-    run: dict[str, Any]
+    run: RunSpec
     seeds: int = DEFAULT_SEEDS
     first_seed: int = 0
     pilot_seeds: int = DEFAULT_PILOT_SEEDS
@@ -86,12 +84,15 @@ def create_experiment(session: Session, *, spec: ExperimentSpec) -> Experiment:
         NotFoundError, ConflictError: as :func:`app.runs.service.create_run`.
     """
     _check_spec(spec)
-    advised = [runs.create_run(session, **spec.run, seed=seed) for seed in spec.evaluation_seeds()]
+    advised = [
+        runs.create_run(session, spec=replace(spec.run, seed=seed))
+        for seed in spec.evaluation_seeds()
+    ]
     baseline = [_baseline_run(session, spec, seed) for seed in spec.evaluation_seeds()]
     pilot = [_baseline_run(session, spec, seed) for seed in spec.pilot_seed_list()]
     experiment = Experiment(
-        study_id=spec.run["study_id"],
-        spec=spec.run,
+        study_id=spec.run.study_id,
+        spec=spec.run.to_request(),
         seeds=spec.evaluation_seeds(),
         pilot_seeds=spec.pilot_seed_list(),
     )
@@ -105,7 +106,7 @@ def create_experiment(session: Session, *, spec: ExperimentSpec) -> Experiment:
 
 
 def _check_spec(spec: ExperimentSpec) -> None:
-    if spec.run.get("algo", "bipars-em") == "ppo":
+    if spec.run.algo == "ppo":
         raise InputError("an experiment trains with advice: choose an algo other than ppo")
     if not MIN_SEEDS <= spec.seeds <= MAX_SEEDS:
         raise InputError(f"seeds must be in {MIN_SEEDS}..{MAX_SEEDS}, got {spec.seeds}")
@@ -117,20 +118,19 @@ def _check_spec(spec: ExperimentSpec) -> None:
 
 def _baseline_run(session: Session, spec: ExperimentSpec, seed: int) -> Run:
     """The no-advice ``ppo`` run matching ``spec`` at ``seed``: an existing one, else new."""
-    request = {k: v for k, v in spec.run.items() if k not in ADVICE_OPTIONS}
-    request["algo"] = "ppo"
+    request = spec.run.baseline(seed)
     config = runs.train_config(
-        env_id=get_ready_study(session, study_id=request["study_id"]).env_id,
-        algo="ppo",
-        timesteps=request["timesteps"],
+        env_id=get_ready_study(session, study_id=request.study_id).env_id,
+        algo=request.algo,
+        timesteps=request.timesteps,
         seed=seed,
-        n_envs=request.get("n_envs", 4),
-        **_options(request),
+        n_envs=request.n_envs,
+        **request.options,
     ).to_json()
     reusable = session.scalars(
         select(Run)
         .where(
-            Run.study_id == request["study_id"],
+            Run.study_id == request.study_id,
             Run.algo == "ppo",
             Run.seed == seed,
             Run.status.not_in([RunStatus.FAILED, RunStatus.CANCELLED]),
@@ -140,14 +140,7 @@ def _baseline_run(session: Session, spec: ExperimentSpec, seed: int) -> Run:
     # Only runs that name advice have their checkpoints judged (app.jobs.execute). Checked
     # here, not in SQL: the JSON column stores a run without advice as JSON null, not NULL.
     same = next((r for r in reusable if r.config == config and r.advice is not None), None)
-    return same or runs.create_run(session, **request, seed=seed)
-
-
-def _options(request: dict[str, Any]) -> dict[str, Any]:
-    """The request's :class:`TrainConfig` options (what is not the run's identity)."""
-    identity = ("study_id", "participant_id", "participant_ids", "all_participants", "teacher")
-    fixed = ("algo", "timesteps", "n_envs", "seed")
-    return {k: v for k, v in request.items() if k not in identity + fixed}
+    return same or runs.create_run(session, spec=request)
 
 
 def get_experiment(session: Session, *, experiment_id: int) -> Experiment:

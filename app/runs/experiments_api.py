@@ -17,6 +17,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from app.core.csv_export import csv_text
 from app.core.json_types import JsonInt, UtcDatetime
 from app.http.deps import DbId, ResearcherDep, SessionDep
+from app.http.files import attachment
 from app.models import Experiment
 from app.runs import experiment_notes, experiments
 from app.runs.experiments import (
@@ -29,6 +30,7 @@ from app.runs.experiments import (
     ExperimentSpec,
 )
 from app.runs.schemas import Judge, RunCreate
+from app.runs.spec import RunSpec
 from app.studies.schemas import ProgressOut
 from engine.judges import DEFAULT_JUDGE
 
@@ -49,10 +51,8 @@ class ExperimentCreate(RunCreate):
     pilot_seeds: JsonInt = Field(DEFAULT_PILOT_SEEDS, ge=1, le=MAX_PILOT_SEEDS)
     seed: JsonInt = Field(0, ge=0, lt=PILOT_SEED_BASE - MAX_SEEDS)
 
-    def spec(self) -> ExperimentSpec:
-        run = self.model_dump(exclude={"seeds", "pilot_seeds", "seed"}, exclude_none=True)
-        if not run.get("all_participants"):
-            run.pop("all_participants", None)
+    def experiment_spec(self) -> ExperimentSpec:
+        run = RunSpec.from_request(self.model_dump(exclude={"seeds", "pilot_seeds", "seed"}))
         return ExperimentSpec(
             run=run, seeds=self.seeds, first_seed=self.seed, pilot_seeds=self.pilot_seeds
         )
@@ -118,7 +118,7 @@ def create_experiment(
 ) -> ExperimentOut:
     """Queue the advised runs, and the baseline and pilot runs not trained already (runs of
     the same study, config and seed are reused)."""
-    experiment = experiments.create_experiment(session, spec=body.spec())
+    experiment = experiments.create_experiment(session, spec=body.experiment_spec())
     return _out(session, experiment)
 
 
@@ -182,8 +182,4 @@ def experiment_verdict_csv(
         return JSONResponse({"status": "pending"}, status_code=202)
     rows = experiment_notes.verdict_rows(session, experiment_id=experiment_id, found=found)
     name = f"experiment-{experiment_id}-verdict-{found.judge}-step{found.step}.csv"
-    return Response(
-        csv_text(experiment_notes.CSV_HEADER, rows),
-        media_type="text/csv",
-        headers={"Content-Disposition": f'attachment; filename="{name}"'},
-    )
+    return attachment(csv_text(experiment_notes.CSV_HEADER, rows), "text/csv", name)

@@ -1,5 +1,5 @@
-"""Researcher pages of training runs: the list, the launch form, a run's live page, and the
-comparisons (one run's Human vs Agent Preference Tree; several runs on the same advice).
+"""Researcher pages of training runs: the list, the launch form and a run's live page. The
+comparisons are :mod:`app.runs.compare_pages`.
 
 The pages call the services directly; their scripts (``static/js/run.js``,
 ``static/js/compare.js``) poll and draw from ``/api/runs``. Cancel and resume are form posts
@@ -16,25 +16,21 @@ from fastapi.responses import HTMLResponse
 from pydantic import TypeAdapter, ValidationError
 from sqlalchemy.orm import Session
 
-from app.core.errors import PendingError
 from app.core.json_types import FORM_INPUT
 from app.http.csrf import CsrfChecked, FormFields
 from app.http.deps import MAX_DB_ID, DbId, SessionDep
 from app.http.guards import ResearcherPage
-from app.http.rendering import PageRoute, redirect, render, thumb_template
+from app.http.rendering import PageRoute, redirect, render
 from app.jobs.settings import run_dir
-from app.models import Run
-from app.runs import comparison, experiment_notes, experiments
-from app.runs import report as run_report
+from app.runs import comparison, experiments
 from app.runs import service as runs
 from app.runs.api import RunsRootDep
 from app.runs.experiments import DEFAULT_SEEDS
 from app.runs.experiments_api import ExperimentCreate
-from app.runs.schemas import Judge, RunCreate, RunOut
+from app.runs.schemas import RunCreate, RunOut
 from app.studies import participants
 from app.studies import service as studies
 from engine.errors import InputError
-from engine.judges import DEFAULT_JUDGE, judge_name
 from engine.rl.config import ADVICE_MODES, ALGOS
 from engine.teachers import TEACHERS
 
@@ -57,17 +53,6 @@ _OPTIONAL = ("num_steps", "checkpoint_every", "advice_mode")
 POOL_ALL, POOL_CHOSEN, POOL_FIELD = "pool:all", "pool:chosen", "pool_"
 _POOL_BOX = re.compile(r"pool_\d{1,10}")
 _DB_ID = TypeAdapter(DbId)
-JUDGE_LABELS = (
-    ("return", "the return it earns from each state (provisional)"),
-    (
-        "behaviour",
-        "its behaviour: a revealed-preference tree of the postures it actually adopts "
-        "(provisional)",
-    ),
-    ("shaped", "diagnostic, is your advice still in its reward? R + z F"),
-    ("shaping", "diagnostic, is your advice still in its reward? the advice part z F"),
-    ("shaped-value", "diagnostic, is your advice still in its reward? its shaped critic V"),
-)
 
 
 @router.get("/runs")
@@ -203,12 +188,12 @@ def create_run(request: Request, session: SessionDep, fields: FormFields) -> Res
         if values["experiment"]:  # seeds checked even where ppo (its own baseline) ignores them
             spec = ExperimentCreate.model_validate(
                 body | {"seeds": values["seeds"].strip()}, context=FORM_INPUT
-            ).spec()
+            ).experiment_spec()
             if values["algo"] != "ppo":
                 experiment = experiments.create_experiment(session, spec=spec)
                 return redirect(f"/experiments/{experiment.id}")
         run = runs.create_run(
-            session, **RunCreate.model_validate(body, context=FORM_INPUT).model_dump()
+            session, spec=RunCreate.model_validate(body, context=FORM_INPUT).spec()
         )
     except ValidationError as exc:
         errors = {str(e["loc"][0]) if e["loc"] else "form": e["msg"] for e in exc.errors()}
@@ -246,86 +231,3 @@ def cancel(run_id: DbId, session: SessionDep) -> Response:
 def resume(run_id: DbId, session: SessionDep, root: RunsRootDep) -> Response:
     runs.resume_run(session, run_id=run_id, runs_dir=root)
     return redirect(f"/runs/{run_id}")
-
-
-@router.get("/runs/{run_id}/compare")
-def compare_page(
-    run_id: DbId,
-    request: Request,
-    session: SessionDep,
-    root: RunsRootDep,
-    checkpoint: Annotated[int | None, Query(ge=0)] = None,
-    judge: Judge | None = None,
-) -> HTMLResponse:
-    """Human and Agent Preference Tree side by side, the rejected advice, the metrics with a
-    verdict, a checkpoint selector and the conformance curve."""
-    run = runs.get_run(session, run_id=run_id)
-    runs.advice_of(run)  # 409 page for a run without advice
-    steps = comparison.checkpoints(run_dir(root, run_id))
-    selected = checkpoint if checkpoint in steps else (steps[-1] if steps else None)
-    shown = judge or comparison.shown_judge(session, run_id=run_id, step=selected)
-    return render(
-        request,
-        "compare.html",
-        {
-            "run": RunOut.of(run),
-            "study": studies.get_study(session, study_id=run.study_id),
-            "checkpoints": steps,
-            "who": run_report.who(run),
-            "whose": run_report.whose(run),
-            "selected": selected,
-            "experiment_notes": experiment_notes.notes_of_runs(
-                session, run_ids=[run_id], judge=judge_name(shown)
-            ),
-            "thumb_template": thumb_template(run.study_id),
-            "image_template": thumb_template(run.study_id).removesuffix("?size=thumb"),
-            "others": len(runs.same_advice_runs(session, run=run)),
-            "judge": judge_name(shown),
-            "judges": JUDGE_LABELS,
-        },
-    )
-
-
-@router.get("/runs/{run_id}/compare-runs")
-def compare_runs_page(
-    run_id: DbId, request: Request, session: SessionDep, root: RunsRootDep
-) -> HTMLResponse:
-    """Every run on the same advice as ``run_id`` (e.g. ``ppo`` vs ``bipars-em``): metrics at
-    each one's latest checkpoint, side by side, and their conformance curves."""
-    run = runs.get_run(session, run_id=run_id)
-    runs.advice_of(run)
-    rows = [_latest(session, r, root) for r in runs.same_advice_runs(session, run=run)]
-    return render(
-        request,
-        "compare_runs.html",
-        {
-            "run": RunOut.of(run),
-            "study": studies.get_study(session, study_id=run.study_id),
-            "rows": rows,
-            "experiment_notes": experiment_notes.notes_of_runs(
-                session, run_ids=[r["run"].id for r in rows], judge=DEFAULT_JUDGE
-            ),
-            "whose": run_report.whose(run),
-            "advice": runs.advice_label(run),
-        },
-    )
-
-
-def _latest(session: Session, run: Run, root: Any) -> dict[str, Any]:
-    """A run with its metrics at its latest judged checkpoint (None before the first one)."""
-    try:
-        curve = comparison.conformance_curve(
-            session, run_id=run.id, out=run_dir(root, run.id), judge="shaped"
-        )
-    except (PendingError, InputError):  # not judged yet, or never by this judge: no metrics
-        curve = []
-    steps = [step for step, _ in curve]
-    metrics = curve[-1][1] if curve else None
-    last = run.metrics or {}
-    return {
-        "run": RunOut.of(run),
-        "step": steps[-1] if steps else None,
-        "metrics": metrics,
-        "return_100": last.get("return_100"),
-        "z_mean": last.get("z_mean"),
-    }

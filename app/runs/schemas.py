@@ -10,6 +10,7 @@ from app.core.json_types import JsonFloat, JsonInt, UtcDatetime
 from app.models import Run, RunStatus
 from app.runs.pools import members
 from app.runs.service import MAX_TIMESTEPS, advice_label
+from app.runs.spec import RunSpec
 from app.studies.schemas import ProgressOut
 from engine.rl.config import AdviceMode, Algo, TrainConfig
 from engine.teachers import Teacher
@@ -69,6 +70,10 @@ class RunCreate(BaseModel):
         description="How F is made from the advice tree; ``reward``: F is the env's "
         "step reward (the tree is still what the agent is compared with).",
     )
+
+    def spec(self) -> RunSpec:
+        """The run this request asks for, as the services take it."""
+        return RunSpec.from_request(self.model_dump())
 
 
 class RunCreated(BaseModel):

@@ -13,7 +13,6 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
@@ -21,18 +20,13 @@ from app.core.errors import ConflictError, NotFoundError
 from app.db import writing
 from app.jobs.queue import update_if
 from app.jobs.settings import run_dir
-from app.labelling.trees import participant_tree
 from app.models import Run, RunStatus, utcnow
-from app.runs import pools
-from app.studies.participants import get_participant
-from app.studies.service import engine_candidates_of, first_round, get_ready_study
-from engine.bracket import Bracket
-from engine.envs import env_model
+from app.runs import advice, pools
+from app.runs.spec import ParticipantAdvice, RunSpec, TeacherAdvice
+from app.studies.service import get_ready_study
 from engine.errors import InputError
 from engine.rl.config import TrainConfig
-from engine.teachers import TEACHERS, make_teacher
-from engine.tournament import play
-from engine.treefile import TreeDocument, make_document, tree_from_json, tree_to_json
+from engine.treefile import TreeDocument, tree_from_json, tree_to_json
 
 RESUMABLE: tuple[RunStatus, ...] = (RunStatus.INTERRUPTED, RunStatus.FAILED, RunStatus.CANCELLED)
 FINAL: tuple[RunStatus, ...] = (RunStatus.SUCCEEDED, RunStatus.FAILED, RunStatus.CANCELLED)
@@ -41,64 +35,56 @@ MAX_TIMESTEPS = 100_000_000
 DEFAULT_CHECKPOINTS = 10
 
 
-def create_run(
-    session: Session,
-    *,
-    study_id: int,
-    participant_id: int | None = None,
-    participant_ids: list[int] | None = None,
-    all_participants: bool = False,
-    teacher: str | None = None,
-    algo: str = "bipars-em",
-    timesteps: int,
-    seed: int = 0,
-    n_envs: int = 4,
-    **options: int | float | None,
-) -> Run:
+def create_run(session: Session, *, spec: RunSpec) -> Run:
     """Validate and queue a new run.
 
-    Args:
-        participant_ids: pooled advice: two or more finished participants of the study.
-        all_participants: pooled advice: every finished participant of the study.
-        options: further :class:`TrainConfig` fields (``num_steps``, ``checkpoint_every``,
-            ...); None values are left at their defaults.
-
     Raises:
-        InputError: bad parameters, two advice sources, or an advised algo without advice.
+        InputError: bad parameters, a bad pool, or an advised algo without advice.
         NotFoundError: no such study or participant (or not in this study).
         ConflictError: the study is not ready, or a participant has not finished.
     """
-    study = get_ready_study(session, study_id=study_id)
-    if not 0 < timesteps <= MAX_TIMESTEPS:
-        raise InputError(f"timesteps must be in 1..{MAX_TIMESTEPS}, got {timesteps}")
+    study = get_ready_study(session, study_id=spec.study_id)
+    if not 0 < spec.timesteps <= MAX_TIMESTEPS:
+        raise InputError(f"timesteps must be in 1..{MAX_TIMESTEPS}, got {spec.timesteps}")
     config = train_config(
-        env_id=study.env_id, algo=algo, timesteps=timesteps, seed=seed, n_envs=n_envs, **options
+        env_id=study.env_id,
+        algo=spec.algo,
+        timesteps=spec.timesteps,
+        seed=spec.seed,
+        n_envs=spec.n_envs,
+        **spec.options,
     )
-    pool, advice = _advice_source(
-        session,
-        config=config,
-        study_id=study_id,
-        participant_id=participant_id,
-        participant_ids=participant_ids,
-        all_participants=all_participants,
-        teacher=teacher,
+    pool, tree = advice.resolve(
+        session, spec.advice, study_id=spec.study_id, tree_options=config.tree_options()
     )
-    if advice is None and config.uses_advice:
+    if tree is None and config.uses_advice:
         raise InputError(
-            f"algo {algo} trains with advice: give participant_id, participant_ids or teacher"
+            f"algo {spec.algo} trains with advice: give participant_id, participant_ids or teacher"
         )
+    return _queue(session, spec, config, pool, tree)
+
+
+def _queue(
+    session: Session,
+    spec: RunSpec,
+    config: TrainConfig,
+    pool: pools.Pool | None,
+    tree: TreeDocument | None,
+) -> Run:
+    """Store the run, queued (a worker picks it up)."""
+    source = spec.advice
     run = Run(
-        study_id=study.id,
-        participant_id=participant_id,
-        teacher=teacher,
+        study_id=spec.study_id,
+        participant_id=source.participant_id if isinstance(source, ParticipantAdvice) else None,
+        teacher=source.teacher if isinstance(source, TeacherAdvice) else None,
         advice_pool=pool,
-        algo=algo,
-        timesteps=timesteps,
-        seed=seed,
-        n_envs=n_envs,
+        algo=spec.algo,
+        timesteps=spec.timesteps,
+        seed=spec.seed,
+        n_envs=spec.n_envs,
         config=config.to_json(),
-        advice=None if advice is None else tree_to_json(advice),
-        status="queued",
+        advice=None if tree is None else tree_to_json(tree),
+        status=RunStatus.QUEUED,
         resume=False,
         cancel_requested=False,
         progress=0,
@@ -131,84 +117,6 @@ def train_config(
         1, base.num_updates // DEFAULT_CHECKPOINTS
     )
     return TrainConfig(**{**base.to_json(), "checkpoint_every": every})
-
-
-def _advice_source(
-    session: Session,
-    *,
-    config: TrainConfig,
-    study_id: int,
-    participant_id: int | None,
-    participant_ids: list[int] | None,
-    all_participants: bool,
-    teacher: str | None,
-) -> tuple[pools.Pool | None, TreeDocument | None]:
-    """The run's pool (pooled advice only) and its advice tree (the pooled verdict for a pool).
-
-    Raises:
-        InputError: more than one advice source, or a bad pool.
-    """
-    pooled = participant_ids is not None or all_participants
-    if sum((participant_id is not None, teacher is not None, pooled)) > 1:
-        raise InputError(
-            "give one advice source: participant_id, participant_ids (or all_participants) "
-            "or teacher, not both"
-        )
-    ids = pools.pool_ids(
-        session,
-        study_id=study_id,
-        participant_ids=participant_ids,
-        all_participants=all_participants,
-    )
-    if ids is not None:
-        return pools.pool_of(
-            session, study_id=study_id, ids=ids, tree_options=config.tree_options()
-        )
-    return None, advice_tree(
-        session, study_id=study_id, participant_id=participant_id, teacher=teacher
-    )
-
-
-def advice_tree(
-    session: Session, *, study_id: int, participant_id: int | None, teacher: str | None
-) -> TreeDocument | None:
-    """The advice a run of ``study_id`` would take (None when it takes none)."""
-    if participant_id is not None:
-        person = get_participant(session, participant_id=participant_id)
-        if person.study_id != study_id:
-            raise NotFoundError(f"participant {participant_id} is not in study {study_id}")
-        return participant_tree(session, participant_id=participant_id)
-    if teacher is not None:
-        return teacher_tree(session, study_id=study_id, teacher=teacher)
-    return None
-
-
-def teacher_tree(session: Session, *, study_id: int, teacher: str) -> TreeDocument:
-    """A simulated teacher's tree over the study's bracket (as
-    :func:`engine.pipeline.replay_with_teacher` makes it, without noise)."""
-    if teacher not in TEACHERS:
-        raise InputError(f"unknown teacher {teacher!r}: expected one of {', '.join(TEACHERS)}")
-    study = get_ready_study(session, study_id=study_id)
-    cands = engine_candidates_of(session, study_id=study_id)
-    bracket = first_round(session, study_id=study_id)
-    judge, scores = make_teacher(
-        teacher,
-        cands,
-        env_model(study.env_id),
-        noise=0.0,
-        rng=np.random.default_rng([study.seed, 1]),
-    )
-    results = play(Bracket(bracket), {c.id: c for c in cands}, judge)
-    return make_document(
-        env_id=study.env_id,
-        seed=study.seed,
-        p=study.p,
-        judge=teacher,
-        candidates=cands,
-        first_round=bracket,
-        results=results,
-        scores=scores,
-    )
 
 
 def get_run(session: Session, *, run_id: int) -> Run:

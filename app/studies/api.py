@@ -18,6 +18,7 @@ from app.http.deps import (
     SettingsDep,
     ViewerDep,
 )
+from app.http.files import attachment
 from app.http.urls import image_url, invite_url
 from app.labelling import trees
 from app.models import Participant
@@ -197,10 +198,8 @@ def participant_out(
 )
 def labels_csv(study_id: DbId, session: SessionDep, _: ResearcherDep) -> Response:
     """Every label of the study, one row per label."""
-    return Response(
-        trees.labels_csv(session, study_id=study_id),
-        media_type="text/csv",
-        headers={"Content-Disposition": f'attachment; filename="study-{study_id}-labels.csv"'},
+    return attachment(
+        trees.labels_csv(session, study_id=study_id), "text/csv", f"study-{study_id}-labels.csv"
     )
 
 

@@ -4,10 +4,14 @@ for reuse (issue 14). Researcher only."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import Any
+
 from fastapi import APIRouter, Request, Response
 
 from app.core.errors import NotFoundError
 from app.http.deps import DbId, ResearcherDep, SessionDep
+from app.http.files import attachment
 from app.labelling import label_export
 from app.labelling import quality as crowd_stats
 from app.models import CrowdSettings
@@ -100,7 +104,7 @@ def get_agreement(study_id: DbId, session: SessionDep, _: ResearcherDep) -> Agre
     )
 
 
-_EXPORTS = {
+_EXPORTS: dict[str, tuple[str, Callable[[list[dict[str, Any]]], bytes | str]]] = {
     "jsonl": ("application/x-ndjson", label_export.to_jsonl),
     "csv": ("text/csv", label_export.to_csv),
     "parquet": ("application/vnd.apache.parquet", label_export.to_parquet),
@@ -119,8 +123,4 @@ def export_labels(study_id: DbId, fmt: str, session: SessionDep, _: ResearcherDe
         raise NotFoundError(f"unknown export format {fmt!r}: expected jsonl, csv or parquet")
     media_type, write = _EXPORTS[fmt]
     body = write(label_export.records(session, study_id=study_id))
-    return Response(
-        body,
-        media_type=media_type,
-        headers={"Content-Disposition": f'attachment; filename="study-{study_id}-labels.{fmt}"'},
-    )
+    return attachment(body, media_type, f"study-{study_id}-labels.{fmt}")

@@ -10,6 +10,7 @@ from fastapi import APIRouter, Response
 
 from app.core.errors import NotFoundError
 from app.http.deps import DbId, SessionDep
+from app.http.files import attachment
 from app.http.guards import ResearcherPage
 from app.http.rendering import PageRoute
 from app.labelling import trees
@@ -23,18 +24,6 @@ def tree_filename(study_id: int, participant_id: int) -> str:
     return f"study-{study_id}-participant-{participant_id}.acv-tree.json"
 
 
-def _attachment(content: bytes | str, media_type: str, filename: str) -> Response:
-    return Response(
-        content,
-        media_type=media_type,
-        headers={
-            "Content-Disposition": f'attachment; filename="{filename}"',
-            "X-Content-Type-Options": "nosniff",
-            "Cache-Control": "no-store",
-        },
-    )
-
-
 @router.get("/studies/{study_id}/participants/{participant_id}/tree.json")
 def participant_tree(study_id: DbId, participant_id: DbId, session: SessionDep) -> Response:
     """A finished participant's Human Preference Tree as an ``acv.tree/1`` file."""
@@ -42,7 +31,7 @@ def participant_tree(study_id: DbId, participant_id: DbId, session: SessionDep) 
     if person.study_id != study_id:
         raise NotFoundError(f"participant {participant_id} is not in study {study_id}")
     doc = trees.participant_tree(session, participant_id=participant_id)
-    return _attachment(dumps(doc), "application/json", tree_filename(study_id, participant_id))
+    return attachment(dumps(doc), "application/json", tree_filename(study_id, participant_id))
 
 
 @router.get("/studies/{study_id}/trees.zip")
@@ -52,4 +41,4 @@ def all_trees(study_id: DbId, session: SessionDep) -> Response:
     with zipfile.ZipFile(buffer, "w", zipfile.ZIP_DEFLATED) as archive:
         for pid, doc in trees.study_trees(session, study_id=study_id):
             archive.writestr(tree_filename(study_id, pid), dumps(doc))
-    return _attachment(buffer.getvalue(), "application/zip", f"study-{study_id}-trees.zip")
+    return attachment(buffer.getvalue(), "application/zip", f"study-{study_id}-trees.zip")

@@ -23,6 +23,7 @@ from app.http.deps import (
     SessionDep,
     SettingsDep,
 )
+from app.http.files import attachment
 from app.http.member_auth import RespondentCookie, RespondentCredentials, RespondentDep
 from app.models import Survey, SurveyRespondent
 from app.recruiting import members
@@ -203,14 +204,6 @@ def survey_results_json(survey_id: DbId, session: SessionDep, _: ResearcherDep) 
     return survey_results.results(session, survey_id=survey_id)
 
 
-def _download(text: str, media_type: str, filename: str) -> Response:
-    return Response(
-        text,
-        media_type=media_type,
-        headers={"Content-Disposition": f'attachment; filename="{filename}"'},
-    )
-
-
 @router.get(
     "/{survey_id}/answers.csv",
     response_class=Response,
@@ -218,7 +211,7 @@ def _download(text: str, media_type: str, filename: str) -> Response:
 )
 def answers_csv(survey_id: DbId, session: SessionDep, _: ResearcherDep) -> Response:
     """One row per answer."""
-    return _download(
+    return attachment(
         survey_results.export_csv(session, survey_id=survey_id),
         "text/csv; charset=utf-8",
         f"survey-{survey_id}-answers.csv",
@@ -232,7 +225,7 @@ def answers_csv(survey_id: DbId, session: SessionDep, _: ResearcherDep) -> Respo
 )
 def answers_jsonl(survey_id: DbId, session: SessionDep, _: ResearcherDep) -> Response:
     """One JSON object per line, per answer."""
-    return _download(
+    return attachment(
         survey_results.export_jsonl(session, survey_id=survey_id),
         "application/jsonl",
         f"survey-{survey_id}-answers.jsonl",

@@ -1,0 +1,124 @@
+"""Researcher pages that compare: one run's Human and Agent Preference Tree side by side
+(``/runs/{id}/compare``), and every run on the same advice (``/runs/{id}/compare-runs``).
+
+Their script (``static/js/compare.js``) polls and draws from ``/api/runs``.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Any
+
+from fastapi import APIRouter, Query, Request
+from fastapi.responses import HTMLResponse
+from sqlalchemy.orm import Session
+
+from app.core.errors import PendingError
+from app.http.deps import DbId, SessionDep
+from app.http.guards import ResearcherPage
+from app.http.rendering import PageRoute, render, thumb_template
+from app.jobs.settings import run_dir
+from app.models import Run
+from app.runs import comparison, experiment_notes
+from app.runs import report as run_report
+from app.runs import service as runs
+from app.runs.api import RunsRootDep
+from app.runs.schemas import Judge, RunOut
+from app.studies import service as studies
+from engine.errors import InputError
+from engine.judges import DEFAULT_JUDGE, judge_name
+
+router = APIRouter(route_class=PageRoute, include_in_schema=False, dependencies=[ResearcherPage])
+JUDGE_LABELS = (
+    ("return", "the return it earns from each state (provisional)"),
+    (
+        "behaviour",
+        "its behaviour: a revealed-preference tree of the postures it actually adopts "
+        "(provisional)",
+    ),
+    ("shaped", "diagnostic, is your advice still in its reward? R + z F"),
+    ("shaping", "diagnostic, is your advice still in its reward? the advice part z F"),
+    ("shaped-value", "diagnostic, is your advice still in its reward? its shaped critic V"),
+)
+
+
+@router.get("/runs/{run_id}/compare")
+def compare_page(
+    run_id: DbId,
+    request: Request,
+    session: SessionDep,
+    root: RunsRootDep,
+    checkpoint: Annotated[int | None, Query(ge=0)] = None,
+    judge: Judge | None = None,
+) -> HTMLResponse:
+    """Human and Agent Preference Tree side by side, the rejected advice, the metrics with a
+    verdict, a checkpoint selector and the conformance curve."""
+    run = runs.get_run(session, run_id=run_id)
+    runs.advice_of(run)  # 409 page for a run without advice
+    steps = comparison.checkpoints(run_dir(root, run_id))
+    selected = checkpoint if checkpoint in steps else (steps[-1] if steps else None)
+    shown = judge or comparison.shown_judge(session, run_id=run_id, step=selected)
+    return render(
+        request,
+        "compare.html",
+        {
+            "run": RunOut.of(run),
+            "study": studies.get_study(session, study_id=run.study_id),
+            "checkpoints": steps,
+            "who": run_report.who(run),
+            "whose": run_report.whose(run),
+            "selected": selected,
+            "experiment_notes": experiment_notes.notes_of_runs(
+                session, run_ids=[run_id], judge=judge_name(shown)
+            ),
+            "thumb_template": thumb_template(run.study_id),
+            "image_template": thumb_template(run.study_id).removesuffix("?size=thumb"),
+            "others": len(runs.same_advice_runs(session, run=run)),
+            "judge": judge_name(shown),
+            "judges": JUDGE_LABELS,
+        },
+    )
+
+
+@router.get("/runs/{run_id}/compare-runs")
+def compare_runs_page(
+    run_id: DbId, request: Request, session: SessionDep, root: RunsRootDep
+) -> HTMLResponse:
+    """Every run on the same advice as ``run_id`` (e.g. ``ppo`` vs ``bipars-em``): metrics at
+    each one's latest checkpoint, side by side, and their conformance curves."""
+    run = runs.get_run(session, run_id=run_id)
+    runs.advice_of(run)
+    rows = [_latest(session, r, root) for r in runs.same_advice_runs(session, run=run)]
+    return render(
+        request,
+        "compare_runs.html",
+        {
+            "run": RunOut.of(run),
+            "study": studies.get_study(session, study_id=run.study_id),
+            "rows": rows,
+            "experiment_notes": experiment_notes.notes_of_runs(
+                session, run_ids=[r["run"].id for r in rows], judge=DEFAULT_JUDGE
+            ),
+            "whose": run_report.whose(run),
+            "advice": runs.advice_label(run),
+        },
+    )
+
+
+def _latest(session: Session, run: Run, root: Any) -> dict[str, Any]:
+    """A run with its metrics at its latest judged checkpoint (None before the first one)."""
+    try:
+        curve = comparison.conformance_curve(
+            session, run_id=run.id, out=run_dir(root, run.id), judge="shaped"
+        )
+    except (PendingError, InputError):  # not judged yet, or never by this judge: no metrics
+        curve = []
+    steps = [step for step, _ in curve]
+    metrics = curve[-1][1] if curve else None
+    last = run.metrics or {}
+    return {
+        "run": RunOut.of(run),
+        "step": steps[-1] if steps else None,
+        "metrics": metrics,
+        "return_100": last.get("return_100"),
+        "z_mean": last.get("z_mean"),
+    }
