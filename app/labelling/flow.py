@@ -3,7 +3,8 @@
 Hundreds of people label at once (issue 16), so each request does as little as it can:
 
 - a study's bracket shape (its size and first-round byes) never changes once the study is
-  ready, so each process keeps it (:func:`shape_of`) instead of querying it per request;
+  ready, so each process keeps it (:func:`app.labelling.shape.shape_of`) instead of querying
+  it per request;
 - the statements are built once, with bound parameters, and run on a plain connection
   (no statement construction, cache-key walk or ORM layer per request);
 - storing a label is one write transaction of at most six statements: take the
@@ -19,83 +20,22 @@ the UNIQUE ``labels.match_id`` constraint settles any race that gets through.
 
 from __future__ import annotations
 
-import threading
-import weakref
 from dataclasses import dataclass
 
-from sqlalchemy import BindParameter, Connection, Engine, bindparam, func, insert, select, update
+from sqlalchemy import BindParameter, Connection, bindparam, func, insert, select, update
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session, aliased
 
 from app.core.errors import AuthError, ConflictError, NotFoundError
-from app.db import engine_of as _engine_of
 from app.db import writing
-from app.models import BracketSlot, Label, Match, Participant, Study, as_utc, utcnow
+from app.labelling.shape import BracketShape, shape_of
+from app.models import Label, Match, Participant, as_utc, utcnow
 from app.studies.participants import ParticipantKey, Progress
 from app.studies.sides import a_on_left
 from engine.errors import InputError
 
 #: Longest response time stored (one day); a larger client value is bad input.
 MAX_RESPONSE_MS = 24 * 3600 * 1000
-
-
-@dataclass(frozen=True)
-class BracketShape:
-    """A ready study's bracket: ``n`` candidates and the first round's byes; ``seed`` is the
-    study's (it seeds which side each match shows on the left)."""
-
-    n: int
-    first_round: tuple[tuple[int, int | None], ...]  # (a, b) by slot; b is None for a bye
-    byes: dict[int, int]  # first-round slot -> its lone player
-    real_before: tuple[int, ...]  # first-round slot -> real matches in earlier slots
-    seed: int = 0
-
-    @property
-    def n_rounds(self) -> int:
-        return (self.n - 1).bit_length()
-
-    def position(self, rnd: int, slot: int) -> tuple[int, int]:
-        """``(number, in_round)``: "match ``number`` of ``in_round``" of this round."""
-        size = 1 << self.n_rounds  # first-round slots x 2
-        if rnd == 1:  # byes are not matches: count the real ones before this slot
-            return 1 + self.real_before[slot], self.n - size // 2
-        return slot + 1, size >> rnd
-
-
-#: Bracket shapes by database (engine), then study id.
-_shapes: weakref.WeakKeyDictionary[Engine, dict[int, BracketShape]] = weakref.WeakKeyDictionary()
-_shapes_lock = threading.Lock()
-
-
-def engine_of(db: Session | Connection) -> Engine:
-    """The engine (the database) a session or connection talks to."""
-    return _engine_of(db)
-
-
-def shape_of(db: Session | Connection, study_id: int) -> BracketShape:
-    """The study's bracket shape, read once per process and database (it is fixed once the
-    study is ready, and participants exist only in ready studies)."""
-    engine = engine_of(db)
-    if (shape := _shapes.get(engine, {}).get(study_id)) is not None:
-        return shape
-    n, seed = db.execute(select(Study.n_candidates, Study.seed).where(Study.id == study_id)).one()
-    slots = tuple(
-        (a, b)
-        for a, b in db.execute(
-            select(BracketSlot.a, BracketSlot.b)
-            .where(BracketSlot.study_id == study_id)
-            .order_by(BracketSlot.slot)
-        )
-    )
-    real_before, count = [], 0
-    for _, b in slots:
-        real_before.append(count)
-        count += b is not None
-    shape = BracketShape(
-        n, slots, {s: a for s, (a, b) in enumerate(slots) if b is None}, tuple(real_before), seed
-    )
-    with _shapes_lock:
-        return _shapes.setdefault(engine, {}).setdefault(study_id, shape)
 
 
 @dataclass(frozen=True)

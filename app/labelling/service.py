@@ -29,9 +29,9 @@ from app.labelling.flow import (
     NextMatch,
     ParticipantKey,
     next_match,
-    shape_of,
     submit_label,
 )
+from app.labelling.shape import shape_of
 from app.models import DisagreementPair, Label, Match, Participant, utcnow
 from engine.bracket import Bracket, Results
 

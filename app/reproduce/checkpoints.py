@@ -22,9 +22,8 @@ from concurrent.futures import ProcessPoolExecutor
 from multiprocessing import get_context
 from pathlib import Path
 
-import numpy as np
-
-from app.reproduce.plan import ARMS, Arm, ReproduceConfig, arm_seeds, run_path
+from app.reproduce.arms import ARMS, Arm
+from app.reproduce.plan import ReproduceConfig, arm_seeds, run_path
 from engine.treefile import TreeDocument, dump_tree, load_tree
 
 BRACKETS: tuple[str, ...] = ("main", "agent")
@@ -37,8 +36,8 @@ def agent_bracket(out: Path, config: ReproduceConfig) -> TreeDocument:
     """The ``standing`` teacher's tree over candidates from the ``ppo`` arm's final policy
     (seed 0, deterministic actions); made once, then reloaded from ``advice/``."""
     from engine.pipeline import run_tournament
-    from engine.rl.agent_judge import deterministic_policy, load_agent
     from engine.rl.checkpoint import find_checkpoint
+    from engine.rl.trained import deterministic_policy, load_agent
 
     path = out / "advice" / AGENT_BRACKET_FILE
     if path.is_file():
@@ -132,31 +131,3 @@ def _write_atomic(path: Path, text: str) -> None:
     with os.fdopen(fd, "w") as f:
         f.write(text)
     os.replace(tmp, path)
-
-
-def seed_statistics(
-    values: list[float | None], bounds: tuple[float, float] | None = None
-) -> dict[str, float | int | None]:
-    """Mean over seeds with a 95% Student's t interval (None for fewer than 2 seeds).
-
-    Args:
-        values: one number per seed; None (undefined at that seed) is left out.
-        bounds: where the quantity must lie (a proportion: ``(0, 1)``); the interval is
-            clipped to it.
-    """
-    from scipy import stats
-
-    x = np.asarray([v for v in values if v is not None], dtype=np.float64)
-    if len(x) == 0:
-        return {"n": 0, "mean": None, "ci_low": None, "ci_high": None}
-    if len(x) < 2:
-        return {"n": 1, "mean": float(x[0]), "ci_low": None, "ci_high": None}
-    sem = stats.sem(x)
-    low, high = (
-        (x.mean(), x.mean())
-        if sem == 0
-        else stats.t.interval(0.95, len(x) - 1, loc=x.mean(), scale=sem)
-    )
-    if bounds is not None:
-        low, high = max(low, bounds[0]), min(high, bounds[1])
-    return {"n": len(x), "mean": float(x.mean()), "ci_low": float(low), "ci_high": float(high)}

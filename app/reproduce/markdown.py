@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from app.reproduce.predictions import stat_text
+from app.reproduce.intervals import stat_text
 from app.reproduce.summary import JUDGES
 
 CANNOT_SHOW = """\

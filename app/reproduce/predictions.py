@@ -12,12 +12,11 @@ claim on one seed never holds.
 
 from __future__ import annotations
 
-import warnings
-from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
-from scipy import stats
+
+from app.reproduce.intervals import diff_text, difference, stat_text
 
 #: A share of matches that a coin would reach.
 CHANCE = 0.5
@@ -221,31 +220,6 @@ def _contested_per_seed(arm: dict[str, Any]) -> list[float | None]:
     return [s["main"][-1]["judges"]["behaviour"]["contested_agreement"] for s in arm["seeds"]]
 
 
-def difference(a: Sequence[float | None], b: Sequence[float | None]) -> dict[str, Any]:
-    """Mean of ``a`` minus mean of ``b`` with Welch's t 95% interval (None with fewer than
-    two values on either side). Values that are all equal on both sides give the point."""
-    x, y = (np.asarray([v for v in vs if v is not None], dtype=np.float64) for vs in (a, b))
-    delta = float(x.mean() - y.mean()) if len(x) and len(y) else None
-    if len(x) < 2 or len(y) < 2:
-        return {"delta": delta, "ci_low": None, "ci_high": None}
-    if np.ptp(x) == 0 and np.ptp(y) == 0:  # scipy answers nan; the difference is exact
-        return {"delta": delta, "ci_low": delta, "ci_high": delta}
-    with warnings.catch_warnings():  # a constant side (PPO at 100% on every seed) is exact:
-        warnings.simplefilter("ignore", RuntimeWarning)  # scipy warns of precision loss there
-        low, high = stats.ttest_ind(x, y, equal_var=False).confidence_interval(0.95)
-    return {"delta": delta, "ci_low": float(low), "ci_high": float(high)}
-
-
-def diff_text(diff: dict[str, Any]) -> str:
-    """``+0.14 [-0.05, 0.33]``, or ``n/a`` / no interval with too few seeds."""
-    if diff["delta"] is None:
-        return "n/a"
-    f = (lambda v: f"{v:+.2f}") if abs(diff["delta"]) < 10 else (lambda v: f"{v:+.0f}")
-    if diff["ci_low"] is None:
-        return f"{f(diff['delta'])} (no interval: one seed)"
-    return f"{f(diff['delta'])} [{f(diff['ci_low'])}, {f(diff['ci_high'])}]"
-
-
 def _above(stat: dict[str, Any], baseline: float) -> bool:
     """The interval over seeds lies above ``baseline`` (never with one seed)."""
     return stat["ci_low"] is not None and stat["ci_low"] > baseline
@@ -289,14 +263,4 @@ def _mean(stat: dict[str, Any]) -> float:
     return float("nan") if stat["mean"] is None else stat["mean"]
 
 
-def stat_text(stat: dict[str, Any], pct: bool = False) -> str:
-    """``0.62 [0.51, 0.73] (3 seeds)``; percentages with ``pct``."""
-    if stat["mean"] is None:
-        return "n/a"
-    f = (
-        (lambda v: f"{100 * v:.0f}%")
-        if pct
-        else (lambda v: f"{v:.2f}" if abs(v) < 10 else f"{v:.0f}")
-    )
-    ci = "" if stat["ci_low"] is None else f" [{f(stat['ci_low'])}, {f(stat['ci_high'])}]"
-    return f"{f(stat['mean'])}{ci} ({stat['n']} seed{'s' * (stat['n'] != 1)})"
+# END

@@ -22,10 +22,11 @@ from PIL import Image
 
 from app.core import figures
 from app.reproduce.analysis import bent_share, posture_classes
+from app.reproduce.arms import ARMS, Arm
 from app.reproduce.checkpoints import BRACKETS, bracket_trees, compute_reports, report_path
 from app.reproduce.figures import conformance_bands
 from app.reproduce.markdown import readme
-from app.reproduce.plan import ARMS, Arm, ReproduceConfig
+from app.reproduce.plan import ReproduceConfig
 from app.reproduce.predictions import predictions
 from app.reproduce.summary import arm_entry
 from engine.rl.plot import plot_runs

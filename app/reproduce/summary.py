@@ -12,8 +12,10 @@ from pathlib import Path
 from typing import Any
 
 from app.reproduce.analysis import seed_curve, training_stats
-from app.reproduce.checkpoints import BRACKETS, arm_reports, seed_statistics
-from app.reproduce.plan import Arm, ReproduceConfig, arm_seeds, run_path
+from app.reproduce.arms import Arm
+from app.reproduce.checkpoints import BRACKETS, arm_reports
+from app.reproduce.intervals import seed_statistics
+from app.reproduce.plan import ReproduceConfig, arm_seeds, run_path
 from engine.treefile import TreeDocument
 
 #: The agent's judges summarised (of :data:`engine.judges.JUDGES`): those that every cached

@@ -30,11 +30,12 @@ from app.recruiting import members
 from app.recruiting import service as recruiting
 from app.studies import service as studies
 from app.studies.images import MEDIA_TYPE, image_file
+from app.surveys import answers as survey_answers
 from app.surveys import crowd as survey_crowd
 from app.surveys import respond as survey_respond
 from app.surveys import results as survey_results
 from app.surveys import service as surveys
-from app.surveys.respond import AnswerIn
+from app.surveys.answers import AnswerIn
 from app.surveys.schemas import (
     RespondentOut,
     RespondentsCreate,
@@ -122,7 +123,7 @@ def answer_screen(
 ) -> dict[str, Any]:
     """Store a screen's answers: 201 stored, 200 the same again, 409 answered differently."""
     answers = {k: AnswerIn(a.value, a.confidence) for k, a in body.answers.items()}
-    if not survey_respond.submit(
+    if not survey_answers.submit(
         session, respondent=person, position=position, answers=answers, screen_ms=body.screen_ms
     ):
         response.status_code = 200

@@ -37,7 +37,6 @@ import torch
 from engine.envs import make_env, restore
 from engine.errors import InputError
 from engine.gym_types import box
-from engine.judges import JUDGES as JUDGES
 from engine.judges import judge_name
 from engine.pipeline import replay
 from engine.rewards import control_cost
@@ -48,9 +47,7 @@ from engine.rl.judge_cache import cached_array
 from engine.rl.returns import ReturnOptions, return_scores
 from engine.rl.runner import advice_reward, load_run_advice, load_run_pool, pool_reward
 from engine.rl.shaping import AdviceFn, EnvRewardAdvice
-from engine.rl.trained import TrainedAgent as TrainedAgent
-from engine.rl.trained import deterministic_policy as deterministic_policy
-from engine.rl.trained import load_agent as load_agent
+from engine.rl.trained import TrainedAgent, deterministic_policy, load_agent
 from engine.tournament import ScoreJudge
 from engine.treefile import TreeDocument
 

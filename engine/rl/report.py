@@ -1,7 +1,7 @@
 """Everything ACV shows about one checkpoint, computed once where the run lives.
 
 :func:`checkpoint_report` loads a checkpoint once and gives, for every judge of
-:data:`engine.rl.agent_judge.JUDGES`, the Agent Preference Tree over the advice bracket and its
+:data:`engine.judges.JUDGES`, the Agent Preference Tree over the advice bracket and its
 conformance to the advice tree, plus the per-candidate table that explains them (R, F, z, z F,
 V, the behaviour score and the return). The executor stores :meth:`CheckpointReport.to_json`
 for the web tier, which then only reads. Reports stored before ``value`` was renamed
@@ -21,10 +21,8 @@ from engine.judges import JUDGES, LEGACY_JUDGES
 from engine.records import CandidateRow
 from engine.rl.agent_judge import (
     CandidateTerms,
-    TrainedAgent,
     agent_scores,
     candidate_terms,
-    load_agent,
     replay_as,
     run_advice_fn,
     term_scores,
@@ -33,6 +31,7 @@ from engine.rl.behaviour import RolloutOptions
 from engine.rl.checkpoint import find_checkpoint
 from engine.rl.returns import ReturnOptions
 from engine.rl.runner import load_run_advice
+from engine.rl.trained import TrainedAgent, load_agent
 from engine.treefile import TreeDocument, tree_from_json, tree_to_json
 
 SCHEMA = "acv.checkpoint/1"

@@ -10,10 +10,11 @@ import pytest
 from PIL import Image
 
 from app.reproduce.analysis import recent_episode_length
-from app.reproduce.checkpoints import AGENT_BRACKET_FILE, seed_statistics
-from app.reproduce.plan import ARMS
+from app.reproduce.arms import ARMS
+from app.reproduce.checkpoints import AGENT_BRACKET_FILE
+from app.reproduce.intervals import seed_statistics
 from app.reproduce.summary import JUDGES
-from engine.rl.agent_judge import JUDGES as ENGINE_JUDGES
+from engine.judges import JUDGES as ENGINE_JUDGES
 from tests.support.cli import acv
 
 pytestmark = pytest.mark.training

@@ -8,8 +8,8 @@ from typing import Any
 import pytest
 from scipy import stats
 
-from app.reproduce.checkpoints import seed_statistics
-from app.reproduce.predictions import difference, predictions
+from app.reproduce.intervals import difference, seed_statistics
+from app.reproduce.predictions import predictions
 
 
 def _arm(returns: list[float], title: str) -> dict[str, Any]:

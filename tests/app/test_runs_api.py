@@ -28,8 +28,8 @@ from app.models import CheckpointArtefact, Experiment, ExperimentRun
 from app.runs import artefacts
 from app.runs import report as run_report
 from engine.conformance import compare
+from engine.judges import JUDGES
 from engine.pipeline import replay_with_teacher
-from engine.rl.agent_judge import JUDGES
 from engine.rl.checkpoint import list_checkpoints
 from engine.rl.report import checkpoint_report
 from engine.treefile import tree_from_json, tree_to_json

@@ -17,8 +17,8 @@ from app.db import make_engine, make_sessions
 from app.runs import artefacts
 from app.runs import service as runs
 from engine.conformance import compare
+from engine.judges import JUDGES
 from engine.pooling import pooled_tree
-from engine.rl.agent_judge import JUDGES
 from engine.rl.runner import load_run_pool
 from engine.treefile import tree_from_json, tree_to_json
 from tests.app.conftest import ADMIN, Player, new_study

@@ -16,9 +16,10 @@ from sqlalchemy import text
 from app.db import make_engine, upgrade
 from app.models import SurveyRespondent
 from app.recruiting import service as recruiting
+from app.surveys import answers as survey_answers
 from app.surveys import crowd as survey_crowd
 from app.surveys import respond as survey_respond
-from app.surveys.respond import AnswerIn
+from app.surveys.answers import AnswerIn
 from tests.app.conftest import ADMIN, BACKENDS
 from tests.app.surveys_support import invite, paper_body, participant_trees
 from tests.support.postgres import empty_database
@@ -79,7 +80,7 @@ def test_screens_submitted_at_once_finish_the_respondent(client, survey, monkeyp
                 q["key"]: AnswerIn((q["options"] or ["why"])[0], 3 if q["confidence"] else None)
                 for q in survey_respond.questions_for(survey_row, stimulus)
             }
-            return survey_respond.submit(
+            return survey_answers.submit(
                 session, respondent=person, position=position, answers=answers, screen_ms=5
             )
 
