@@ -8,8 +8,8 @@ study preparation), which its supervisor process does once.
 
 from __future__ import annotations
 
-from collections.abc import AsyncIterator
-from contextlib import asynccontextmanager
+from collections.abc import AsyncIterator, Callable
+from contextlib import AbstractAsyncContextManager, asynccontextmanager
 from pathlib import Path
 
 import anyio.to_thread
@@ -30,6 +30,8 @@ from app.runtime import Runtime
 from app.settings import Settings
 
 STATIC_DIR = Path(__file__).resolve().parents[1] / "static"
+#: Where the OpenAPI document is served (``/docs`` reads it).
+OPENAPI_URL = "/openapi.json"
 
 
 def create_app(
@@ -44,9 +46,32 @@ def create_app(
         processes: server processes sharing the database (sizes the connection pool).
     """
     runtime = Runtime(settings or Settings(), processes=processes)
+    # The docs page is ours (self-hosted Swagger UI, strict policy); no ReDoc.
+    app = FastAPI(
+        title="ACV",
+        version="0.1.0",
+        lifespan=_lifespan(runtime, background=background),
+        docs_url=None,
+        redoc_url=None,
+        openapi_url=OPENAPI_URL,
+        description="Advice Conformance Verification: studies, invite links and bracket labelling.",
+    )
+    app.state.runtime = runtime
+    _install_limiters(app, runtime, processes)
+    install_access_log_filter()  # invite tokens in /p/<token> paths
+    _add_middleware(app, runtime)
+    errors.install(app)
+    _mount_routes(app)
+    return app
+
+
+def _lifespan(
+    runtime: Runtime, *, background: bool
+) -> Callable[[FastAPI], AbstractAsyncContextManager[None]]:
+    """Start-up and shut-down: thread limit, half-prepared studies, the run worker."""
 
     @asynccontextmanager
-    async def lifespan(_: FastAPI) -> AsyncIterator[None]:
+    async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         # Few worker threads: requests are short and SQLite takes one writer at a time, so
         # more threads only fight over the GIL (a lock convoy that multiplies tail latency).
         anyio.to_thread.current_default_thread_limiter().total_tokens = runtime.settings.threads
@@ -62,28 +87,21 @@ def create_app(
                 await anyio.to_thread.run_sync(run_worker.stop)
             runtime.close()
 
-    # The docs page is ours (self-hosted Swagger UI, strict policy); no ReDoc.
-    openapi_url = "/openapi.json"
-    app = FastAPI(
-        title="ACV",
-        version="0.1.0",
-        lifespan=lifespan,
-        docs_url=None,
-        redoc_url=None,
-        openapi_url=openapi_url,
-        description="Advice Conformance Verification: studies, invite links and bracket labelling.",
-    )
-    app.state.runtime = runtime
-    # Several processes count failed logins together, in a file of the data dir.
-    app.state.login_limiter = LoginLimiter(
-        shared=runtime.settings.data_dir / LOGIN_FAILURES if processes > 1 else None
-    )
-    # New participants per address through open links (/s/<slug>), counted the same way.
+    return lifespan
+
+
+def _install_limiters(app: FastAPI, runtime: Runtime, processes: int) -> None:
+    """Failed researcher logins, and new people per address through open links; several
+    processes count together, in a file of the data dir."""
+    shared = runtime.settings.data_dir if processes > 1 else None
+    app.state.login_limiter = LoginLimiter(shared=shared / LOGIN_FAILURES if shared else None)
     app.state.join_limiter = LoginLimiter(
-        JOINS_PER_MINUTE,
-        shared=runtime.settings.data_dir / OPEN_LINK_JOINS if processes > 1 else None,
+        JOINS_PER_MINUTE, shared=shared / OPEN_LINK_JOINS if shared else None
     )
-    install_access_log_filter()  # invite tokens in /p/<token> paths
+
+
+def _add_middleware(app: FastAPI, runtime: Runtime) -> None:
+    """The middleware stack, innermost first."""
     # Credentials are checked before the body is parsed; an oversized one is refused first,
     # by its declared length, unread.
     app.add_middleware(CredentialsFirst)
@@ -94,9 +112,12 @@ def create_app(
         # only from the named proxies. The servers we start leave the headers alone
         # (``proxy_headers=False``): uvicorn's default trusts 127.0.0.1.
         app.add_middleware(ProxyHeadersMiddleware, trusted_hosts=runtime.settings.trusted_proxies)
-    errors.install(app)
+
+
+def _mount_routes(app: FastAPI) -> None:
+    """``/healthz``, ``/docs``, the API, the pages and ``/static``."""
     app.include_router(health.router)
-    app.include_router(docs_router(openapi_url=openapi_url, title=f"{app.title} API"))
+    app.include_router(docs_router(openapi_url=OPENAPI_URL, title=f"{app.title} API"))
     app.include_router(api_router)
     app.include_router(pages_router)
     if STATIC_DIR.is_dir():
@@ -107,4 +128,3 @@ def create_app(
             GZipMiddleware(StaticFiles(directory=STATIC_DIR), minimum_size=1024),
             name="static",
         )
-    return app

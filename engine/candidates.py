@@ -63,6 +63,20 @@ def seed_abilities(candidates: Sequence[Candidate]) -> np.ndarray:
     )
 
 
+def _check_request(n: int, mode: str, policy: Policy | None) -> None:
+    """Refuse a number of candidates out of range, an unknown mode, or ``informative``
+    sampling without a baseline policy."""
+    if not 2 <= n <= MAX_CANDIDATES:
+        raise InputError(f"number of candidates must be in 2..{MAX_CANDIDATES}, got {n}")
+    if mode not in SAMPLING_MODES:
+        raise InputError(f"unknown sampling mode {mode!r}: expected one of {SAMPLING_MODES}")
+    if mode == "informative" and policy is None:
+        raise InputError(
+            "informative sampling needs a trained no-advice baseline's policy: "
+            "train a ppo run on this env first"
+        )
+
+
 def sample_candidates(
     env_id: str = DEFAULT_ENV_ID,
     n: int = 16,
@@ -88,16 +102,9 @@ def sample_candidates(
         InputError: ``n`` out of range, an unknown mode or env, or ``informative`` without
             a baseline policy.
     """
-    if not 2 <= n <= MAX_CANDIDATES:
-        raise InputError(f"number of candidates must be in 2..{MAX_CANDIDATES}, got {n}")
-    if mode not in SAMPLING_MODES:
-        raise InputError(f"unknown sampling mode {mode!r}: expected one of {SAMPLING_MODES}")
+    _check_request(n, mode, policy)
     if mode == "informative":
-        if policy is None:
-            raise InputError(
-                "informative sampling needs a trained no-advice baseline's policy: "
-                "train a ppo run on this env first"
-            )
+        assert policy is not None  # checked above
         return _sample_informative(env_id, n, rng, rollout_steps or max(2000, 50 * n), policy)
     env = make_env(env_id)
     try:

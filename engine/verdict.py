@@ -242,6 +242,30 @@ def kept(scores: np.ndarray, pairs: tuple[Pair, ...]) -> np.ndarray:
     return out
 
 
+def _statistics(
+    inputs: VerdictInputs,
+    contested: tuple[Pair, ...],
+    rng: np.random.Generator,
+    options: VerdictOptions,
+) -> tuple[dict[str, Any], np.ndarray, np.ndarray]:
+    """Δ, its crossed bootstrap interval, the permutation test's p and the AUC (None where
+    an arm or the matches are empty), and each arm's per-seed CA, shape ``(k,)``."""
+    k_a, k_b = len(inputs.advised), len(inputs.baseline)
+    if not (contested and k_a and k_b):
+        empty: dict[str, Any] = {"delta": None, "interval": None, "p_value": None, "auc": None}
+        return empty, np.zeros(0), np.zeros(0)
+    kept_a, kept_b = kept(inputs.advised, contested), kept(inputs.baseline, contested)
+    ca_a, ca_b = kept_a.mean(axis=1), kept_b.mean(axis=1)
+    stats = {
+        "delta": float(ca_a.mean() - ca_b.mean()),
+        "interval": crossed_bootstrap(kept_a, kept_b, rng, options.n_boot),
+        # scipy needs two seeds per arm; with one, no test could reach alpha anyway
+        "p_value": float(permutation_p(ca_a, ca_b, rng)) if min(k_a, k_b) > 1 else None,
+        "auc": auc(ca_a, ca_b),
+    }
+    return stats, ca_a, ca_b
+
+
 def verdict(
     inputs: VerdictInputs, rng: np.random.Generator, options: VerdictOptions = VerdictOptions()
 ) -> Verdict:
@@ -253,26 +277,11 @@ def verdict(
         options: margins, minimum matches, level and power.
     """
     classes = classify(inputs, options)
-    n = len(classes.contested)
-    k_a, k_b = len(inputs.advised), len(inputs.baseline)
+    sizes = len(classes.contested), len(inputs.advised), len(inputs.baseline)
     mde = min_detectable_delta(
-        n, k_a, k_b, alpha=options.alpha, power=options.power, seed_sd=options.seed_sd
+        *sizes, alpha=options.alpha, power=options.power, seed_sd=options.seed_sd
     )
-    stats: dict[str, Any] = {"delta": None, "interval": None, "p_value": None, "auc": None}
-    ca_a, ca_b = np.zeros(0), np.zeros(0)
-    if n and k_a and k_b:
-        kept_a, kept_b = (
-            kept(inputs.advised, classes.contested),
-            kept(inputs.baseline, classes.contested),
-        )
-        ca_a, ca_b = kept_a.mean(axis=1), kept_b.mean(axis=1)
-        stats = {
-            "delta": float(ca_a.mean() - ca_b.mean()),
-            "interval": crossed_bootstrap(kept_a, kept_b, rng, options.n_boot),
-            # scipy needs two seeds per arm; with one, no test could reach alpha anyway
-            "p_value": float(permutation_p(ca_a, ca_b, rng)) if min(k_a, k_b) > 1 else None,
-            "auc": auc(ca_a, ca_b),
-        }
+    stats, ca_a, ca_b = _statistics(inputs, classes.contested, rng, options)
     outcome, label, reason = outcome_and_reason(
         inputs, classes, mde, stats["delta"], stats["p_value"], options
     )

@@ -47,8 +47,6 @@ def reproduce(
     """Train ppo, Case 1, Case 2 and the naive-shaping control on one bracket; write the
     learning curves, both cases' trees side by side, summary.json and README.md."""
     from app.cli.serve import service_errors
-    from app.reproduce.plan import prepare, train_all
-    from app.reproduce.report import write_report
 
     with service_errors():
         check_env_id(env)
@@ -66,11 +64,19 @@ def reproduce(
             study_id=study,
             participant_id=participant,
         )
-        trees = prepare(out, config, _participant_tree(config))
-        train_all(out, config, trees, jobs=jobs)
-        typer.echo("training done; extracting agent trees and drawing figures")
-        write_report(out, config, trees, command=shlex.join(["acv", *sys.argv[1:]]), jobs=jobs)
+        _reproduce(out, config, jobs)
     typer.echo(f"wrote {out / 'README.md'} and {out / 'summary.json'}")
+
+
+def _reproduce(out: Path, config: ReproduceConfig, jobs: int) -> None:
+    """Prepare the bracket and advice, train every arm, then write the report."""
+    from app.reproduce.plan import prepare, train_all
+    from app.reproduce.report import write_report
+
+    trees = prepare(out, config, _participant_tree(config))
+    train_all(out, config, trees, jobs=jobs)
+    typer.echo("training done; extracting agent trees and drawing figures")
+    write_report(out, config, trees, command=shlex.join(["acv", *sys.argv[1:]]), jobs=jobs)
 
 
 def _participant_tree(config: ReproduceConfig) -> TreeDocument | None:

@@ -119,16 +119,7 @@ def serve(
         runtime: Runtime = app.state.runtime if app is not None else Runtime(settings)
         base = base_url(settings, host, port)
         demo_lines = _demo_lines(runtime, base) if demo else []
-    typer.echo(
-        f"ACV on {base}  (data: {settings.data_dir.resolve()}, database: "
-        f"{runtime.engine.url.render_as_string(hide_password=True)}"
-        f"{f', {workers} server processes' if workers > 1 else ''})"
-    )
-    for line in _login_lines(settings, runtime.admin_token, base):
-        typer.echo(line)
-    for line in demo_lines:
-        typer.echo(line)
-    typer.echo(f"  API docs:         {base}/docs")
+    _print_welcome(settings, runtime, base, workers, demo_lines)
     options: dict[str, Any] = {
         "host": host,
         "port": port,
@@ -145,6 +136,20 @@ def serve(
         uvicorn.run(app, **options)
     else:
         _serve_workers(runtime, workers, options)
+
+
+def _print_welcome(
+    settings: Settings, runtime: Runtime, base: str, workers: int, demo_lines: list[str]
+) -> None:
+    """Where the app is, its data and database, how to log in, the demo's links, the docs."""
+    typer.echo(
+        f"ACV on {base}  (data: {settings.data_dir.resolve()}, database: "
+        f"{runtime.engine.url.render_as_string(hide_password=True)}"
+        f"{f', {workers} server processes' if workers > 1 else ''})"
+    )
+    for line in [*_login_lines(settings, runtime.admin_token, base), *demo_lines]:
+        typer.echo(line)
+    typer.echo(f"  API docs:         {base}/docs")
 
 
 def _serve_workers(runtime: Runtime, workers: int, options: dict[str, Any]) -> None:

@@ -58,8 +58,6 @@ def train(
     ] = False,
 ) -> None:
     """Train PPO or BiPaRS with advice; a progress bar shows steps/s and recent return."""
-    from engine.rl.runner import train as train_run
-
     given = {
         "algo": algo,
         "total_timesteps": timesteps,
@@ -72,8 +70,14 @@ def train(
         "advice_mode": advice_mode,
         "advice_depth_factor": advice_depth_factor,
     }
-    given = {k: v for k, v in given.items() if v is not None}
-    docs = [load_tree(path) for path in advice or []]
+    _train(out, {k: v for k, v in given.items() if v is not None}, advice or [], resume=resume)
+
+
+def _train(out: Path, given: dict[str, Any], advice: list[Path], *, resume: bool) -> None:
+    """Train (or resume) the run in ``out`` with the options ``given``."""
+    from engine.rl.runner import train as train_run
+
+    docs = [load_tree(path) for path in advice]
     doc = docs[0] if docs else None
     config = _resumed_config(out, given) if resume else _new_config(given, doc)
     bars: list[tqdm] = []  # opened at the first update, so input errors print no bar

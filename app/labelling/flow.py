@@ -241,23 +241,28 @@ def _submit(
     if rnd == 1 and slot ^ 1 in shape.byes:
         sibling = shape.byes[slot ^ 1]
     if not progress.finished and sibling is not None:
-        pair = (winner, sibling) if slot % 2 == 0 else (sibling, winner)
-        conn.execute(
-            _INSERT_MATCH,
-            {
-                "participant_id": pid,
-                "round": rnd + 1,
-                "slot": slot // 2,
-                "a": pair[0],
-                "b": pair[1],
-                "a_left": a_on_left(
-                    seed=shape.seed, participant_id=pid, rnd=rnd + 1, slot=slot // 2
-                ),
-            },
-        )
+        _open_next_round(conn, shape, pid, rnd, slot, winner, sibling)
     conn.execute(_FINISH if progress.finished else _TOUCH, {"pid": pid, "now": now})
     return LabelResult(
         match_id, winner, True, progress, _next(conn, participant, progress, with_next)
+    )
+
+
+def _open_next_round(
+    conn: Connection, shape: BracketShape, pid: int, rnd: int, slot: int, winner: int, sibling: int
+) -> None:
+    """Insert the next-round match of ``winner`` and the winner of the sibling slot."""
+    pair = (winner, sibling) if slot % 2 == 0 else (sibling, winner)
+    conn.execute(
+        _INSERT_MATCH,
+        {
+            "participant_id": pid,
+            "round": rnd + 1,
+            "slot": slot // 2,
+            "a": pair[0],
+            "b": pair[1],
+            "a_left": a_on_left(seed=shape.seed, participant_id=pid, rnd=rnd + 1, slot=slot // 2),
+        },
     )
 
 

@@ -98,29 +98,9 @@ def undo_label(
     """
     with writing(session):
         _lock(session, participant)
-        query = select(Label).where(Label.participant_id == participant.id)
-        if match_id is not None:
-            if (m := session.get(Match, match_id)) is None or m.participant_id != participant.id:
-                raise NotFoundError(f"match {match_id} not found among this participant's matches")
-            query = query.where(Label.match_id == match_id)
-        label = session.scalar(query.order_by(Label.id.desc()).limit(1))
-        if label is None:
-            raise ConflictError("there is no label to undo")
+        label = _label_to_undo(session, participant, match_id)
         match = session.get_one(Match, label.match_id)
-        later = session.scalar(
-            select(Match).where(
-                Match.participant_id == participant.id,
-                Match.round == match.round + 1,
-                Match.slot == match.slot // 2,
-            )
-        )
-        if later is not None:
-            if _label_of(session, later.id) is not None:
-                raise ConflictError(
-                    f"cannot undo: round {later.round} match {later.a} vs "
-                    f"{later.b} already depends on it"
-                )
-            session.delete(later)  # its players are no longer both known
+        _drop_next_match(session, participant, match)
         session.delete(label)
         session.execute(
             update(Participant).where(Participant.id == participant.id).values(finished_at=None)
@@ -134,6 +114,38 @@ def undo_label(
             )
         )
     return match
+
+
+def _label_to_undo(session: Session, participant: ParticipantKey, match_id: int | None) -> Label:
+    """The label of ``match_id``, or the participant's latest (404, 409 as :func:`undo_label`)."""
+    query = select(Label).where(Label.participant_id == participant.id)
+    if match_id is not None:
+        if (m := session.get(Match, match_id)) is None or m.participant_id != participant.id:
+            raise NotFoundError(f"match {match_id} not found among this participant's matches")
+        query = query.where(Label.match_id == match_id)
+    label = session.scalar(query.order_by(Label.id.desc()).limit(1))
+    if label is None:
+        raise ConflictError("there is no label to undo")
+    return label
+
+
+def _drop_next_match(session: Session, participant: ParticipantKey, match: Match) -> None:
+    """Delete the next-round match that ``match``'s winner entered (its players are no longer
+    both known), unless it is decided already (409)."""
+    later = session.scalar(
+        select(Match).where(
+            Match.participant_id == participant.id,
+            Match.round == match.round + 1,
+            Match.slot == match.slot // 2,
+        )
+    )
+    if later is None:
+        return
+    if _label_of(session, later.id) is not None:
+        raise ConflictError(
+            f"cannot undo: round {later.round} match {later.a} vs {later.b} already depends on it"
+        )
+    session.delete(later)
 
 
 def can_undo(session: Session, *, participant: ParticipantKey) -> bool:

@@ -38,19 +38,7 @@ def readme(summary: dict[str, Any]) -> str:
         "Welch's t 95% interval of the difference over seeds; one seed never holds. Every "
         "number comes from `summary.json`.\n",
         "## Paper vs measured\n",
-        _table(
-            ["claim", "paper", "measured", "rests on", "holds?"],
-            [
-                [
-                    p["claim"],
-                    p["paper"],
-                    p["measured"],
-                    p["rests_on"],
-                    ("yes" if p["holds"] else "**no**") + f" ({p['rule']})",
-                ]
-                for p in summary["predictions"]
-            ],
-        ),
+        _predictions_table(summary["predictions"]),
         "## Final returns and z\n",
         _table(
             ["arm", "final return (last 100 episodes)", "per seed", "z final (mean ± std)"],
@@ -72,6 +60,23 @@ def readme(summary: dict[str, Any]) -> str:
         CANNOT_SHOW,
     ]
     return "\n".join(parts)
+
+
+def _predictions_table(predictions: list[dict[str, Any]]) -> str:
+    """Each claim of the paper next to what was measured, and whether it holds."""
+    return _table(
+        ["claim", "paper", "measured", "rests on", "holds?"],
+        [
+            [
+                p["claim"],
+                p["paper"],
+                p["measured"],
+                p["rests_on"],
+                ("yes" if p["holds"] else "**no**") + f" ({p['rule']})",
+            ]
+            for p in predictions
+        ],
+    )
 
 
 def _conformance_section(arms: dict[str, Any], bracket: str) -> str:

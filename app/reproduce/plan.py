@@ -24,10 +24,13 @@ from __future__ import annotations
 
 import json
 import shutil
+from collections.abc import Callable, Iterator
 from concurrent.futures import ProcessPoolExecutor
+from contextlib import contextmanager
 from dataclasses import asdict, dataclass, fields
 from multiprocessing import get_context
 from pathlib import Path
+from typing import Any
 
 from app.reproduce.arms import ARMS, Arm
 from engine.envs import DEFAULT_ENV_ID
@@ -209,8 +212,6 @@ def train_arm(
     position: int = 0,
 ) -> None:
     """Train one arm and seed to the end, resuming from its last checkpoint if it has one."""
-    from tqdm import tqdm
-
     from engine.rl.checkpoint import list_checkpoints
     from engine.rl.runner import train
 
@@ -222,9 +223,25 @@ def train_arm(
         return
     if not found and path.exists():  # killed before its first checkpoint: start again
         shutil.rmtree(path)
-    start = max(found) if found else 0
+    with _progress_bar(arm, seed, done, max(found) if found else 0, position) as progress:
+        train(
+            cfg,
+            trees[arm.advice] if arm.advice else None,
+            path,
+            progress=progress,
+            resume=bool(found),
+        )
+
+
+@contextmanager
+def _progress_bar(
+    arm: Arm, seed: int, total: int, start: int, position: int
+) -> Iterator[Callable[[dict[str, Any]], None]]:
+    """A progress bar for one arm and seed, and the callback that moves it per update."""
+    from tqdm import tqdm
+
     with tqdm(
-        total=done,
+        total=total,
         initial=start,
         unit="step",
         position=position,
@@ -233,17 +250,11 @@ def train_arm(
         dynamic_ncols=True,
     ) as bar:
 
-        def progress(row: dict) -> None:
+        def progress(row: dict[str, Any]) -> None:
             bar.update(row["timesteps"] - bar.n)
             ret = row.get("return_100")
             bar.set_postfix(
                 ret="-" if ret is None else f"{ret:.0f}", z=f"{row['z_mean']:.2f}", refresh=False
             )
 
-        train(
-            cfg,
-            trees[arm.advice] if arm.advice else None,
-            path,
-            progress=progress,
-            resume=bool(found),
-        )
+        yield progress

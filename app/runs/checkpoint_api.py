@@ -173,16 +173,7 @@ def tree_image(
     run = runs.get_run(session, run_id=run_id)
     thumbs = run_report.thumb_paths(session, data_dir=settings.data_dir, study_id=run.study_id)
     run, view = load_view(session, run_id, root, checkpoint)
-    human, agent = runs.advice_of(run), view.tree(judge)
-    marked = comparison.highlights(view.of(judge))
-    doc, title = (
-        (human, f"Human Preference Tree ({runs.advice_label(run)})")
-        if which == "human"
-        else (agent, f"Agent Preference Tree (step {view.step})")
-    )
-    data = run_report.tree_file(
-        doc, thumbs=thumbs, highlight=marked[which == "agent"], title=title, fmt=fmt
-    )
+    data = run_report.tree_image(run, view, judge, which, thumbs, fmt)
     return attachment(data, FORMATS[fmt], f"run-{run_id}-{which}-tree-{view.step}.{fmt}")
 
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 import base64
 import math
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 from jinja2 import Environment, FileSystemLoader, select_autoescape
 from sqlalchemy.orm import Session
@@ -80,6 +80,25 @@ def tree_file(
     )
 
 
+def tree_image(
+    run: Run,
+    view: comparison.CheckpointView,
+    judge: str,
+    which: Literal["human", "agent"],
+    thumbs: dict[int, Path],
+    fmt: str,
+) -> bytes:
+    """The run's advice tree (``human``) or ``judge``'s Agent Preference Tree at ``view``'s
+    checkpoint (``agent``) as SVG or PNG with thumbnails, the rejected advice in red."""
+    marked = comparison.highlights(view.of(judge))
+    doc, title = (
+        (advice_of(run), f"Human Preference Tree ({advice_label(run)})")
+        if which == "human"
+        else (view.tree(judge), f"Agent Preference Tree (step {view.step})")
+    )
+    return tree_file(doc, thumbs=thumbs, highlight=marked[which == "agent"], title=title, fmt=fmt)
+
+
 def report_context(
     run: Run, *, session: Session, out: Path, step: int, judge: str, thumbs: dict[int, Path]
 ) -> dict[str, Any]:
@@ -88,26 +107,9 @@ def report_context(
     Raises:
         PendingError: the checkpoint's artefact is not computed yet.
     """
-    human = advice_of(run)
     view = comparison.checkpoint_view(session, run_id=run.id, step=step)
-    agent, metrics = view.tree(judge), view.of(judge)
-    marked_human, marked_agent = comparison.highlights(metrics)
-    svg = {
-        "human": tree_file(
-            human,
-            thumbs=thumbs,
-            highlight=marked_human,
-            title=f"Human Preference Tree ({advice_label(run)})",
-            fmt="svg",
-        ),
-        "agent": tree_file(
-            agent,
-            thumbs=thumbs,
-            highlight=marked_agent,
-            title=f"Agent Preference Tree (step {step})",
-            fmt="svg",
-        ),
-    }
+    metrics = view.of(judge)
+    human, agent = (tree_image(run, view, judge, w, thumbs, "svg") for w in ("human", "agent"))
     curve = comparison.conformance_curve(session, run_id=run.id, out=out, judge=judge)
     return {
         "run": run,
@@ -123,8 +125,8 @@ def report_context(
         "judges": view.conformance,
         "candidates": view.candidates,
         "thumbs": {cid: data_uri(path) for cid, path in thumbs.items() if path.is_file()},
-        "human_svg": inline_svg(svg["human"]),
-        "agent_svg": inline_svg(svg["agent"]),
+        "human_svg": inline_svg(human),
+        "agent_svg": inline_svg(agent),
         "curve_svg": inline_svg(curve_chart(curve)),
         "learning_svg": inline_svg(learning_chart(comparison.metrics_rows(out))),
         "curve": curve,

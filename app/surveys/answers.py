@@ -6,6 +6,7 @@ respondent marked finished with their last screen.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from datetime import datetime
 from typing import Any
 
 from sqlalchemy import func, select, update
@@ -121,21 +122,22 @@ def _store(
             )
             .values(answered_at=now, screen_ms=screen_ms)
         )
-        left = session.scalar(
-            select(func.count(SurveyScreen.position)).where(
-                SurveyScreen.respondent_id == screen.respondent_id,
-                SurveyScreen.answered_at.is_(None),
-            )
+        _finish_if_done(session, screen.respondent_id, now)
+
+
+def _finish_if_done(session: Session, respondent_id: int, now: datetime) -> None:
+    """Mark the respondent finished once no screen of theirs is left unanswered."""
+    left = session.scalar(
+        select(func.count(SurveyScreen.position)).where(
+            SurveyScreen.respondent_id == respondent_id, SurveyScreen.answered_at.is_(None)
         )
-        if left == 0:
-            session.execute(
-                update(SurveyRespondent)
-                .where(
-                    SurveyRespondent.id == screen.respondent_id,
-                    SurveyRespondent.finished_at.is_(None),
-                )
-                .values(finished_at=now)
-            )
+    )
+    if left == 0:
+        session.execute(
+            update(SurveyRespondent)
+            .where(SurveyRespondent.id == respondent_id, SurveyRespondent.finished_at.is_(None))
+            .values(finished_at=now)
+        )
 
 
 def _lock_respondent(session: Session, respondent_id: int) -> None:

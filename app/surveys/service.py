@@ -236,13 +236,18 @@ def create_survey(
         rr_counter=0,
         exclusion_rule="attention_check" if attention else "none",
     )
+    _store(session, survey, rows)
+    return survey
+
+
+def _store(session: Session, survey: Survey, stimuli: list[SurveyStimulus]) -> None:
+    """Store a new survey and its stimuli in one transaction."""
     with writing(session):
         session.add(survey)
         session.flush()
-        for row in rows:
+        for row in stimuli:
             row.survey_id = survey.id
-        session.add_all(rows)
-    return survey
+        session.add_all(stimuli)
 
 
 def get_survey(session: Session, *, survey_id: int) -> Survey:
