@@ -16,7 +16,7 @@ from app.runs.experiments import ExperimentSpec, create_experiment
 from app.runs.spec import RunSpec
 from app.runtime import Runtime
 from app.studies.participants import add_participants
-from app.studies.service import create_study, get_study
+from app.studies.service import StudySpec, create_study, get_study
 
 DEMO_NAME = "Demo: upright humanoid"
 DEMO_INSTRUCTIONS = (
@@ -47,16 +47,8 @@ def ensure_demo(runtime: Runtime) -> Demo:
             select(Study).where(Study.name == DEMO_NAME, Study.status != "failed").limit(1)
         )
         if study is None:
-            study = create_study(
-                session,
-                name=DEMO_NAME,
-                env_id="Humanoid-v5",
-                n_candidates=16,
-                p=0.9,
-                seed=0,
-                sampling="uniform",
-                instructions=DEMO_INSTRUCTIONS,
-            )
+            spec = StudySpec(DEMO_NAME, "Humanoid-v5", 16, 0.9, 0, instructions=DEMO_INSTRUCTIONS)
+            study = create_study(session, spec=spec)
     if study.status == "preparing":
         runtime.prepare(study.id)
     with runtime.sessions() as session:

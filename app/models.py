@@ -166,38 +166,44 @@ def token_digest(token: str) -> str:
     return hashlib.sha256(token.encode()).hexdigest()
 
 
-class Participant(Base):
-    """Someone labelling a study's bracket, known only by their invite token.
+class MemberColumns:
+    """The columns every member of a collection has (a study's participant, a survey's
+    respondent): who they are to us, an invite token, and who they are to a crowd platform.
 
     Requests are matched by ``token_hash`` and then the token itself is compared in
     constant time (:func:`app.recruiting.members.resolve`): an index lookup's timing
     can tell an attacker about the hash of their guess, never about a real token.
     """
 
-    __tablename__ = "participants"
-    __table_args__ = (
-        Index("uq_participants_study_external_id", "study_id", "external_id", unique=True),
-    )
-
-    id: Mapped[int] = mapped_column(Integer, primary_key=True)
-    study_id: Mapped[int] = mapped_column(ForeignKey("studies.id", ondelete="CASCADE"), index=True)
+    id: Mapped[int] = mapped_column(Integer, primary_key=True, sort_order=-1)
     token: Mapped[str] = mapped_column(String(64), unique=True)
     token_hash: Mapped[str] = mapped_column(String(64), index=True, unique=True)
     name: Mapped[str | None] = mapped_column(String(200), default=None)
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
-    last_active_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), default=None)
     finished_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), default=None)
-    #: A crowd platform's id of the person (the study's first external parameter, e.g.
-    #: ``PROLIFIC_PID``): the same id coming back resumes this participant.
+    #: A crowd platform's id of the person (the collection's first external parameter,
+    #: e.g. ``PROLIFIC_PID``): the same id coming back resumes this member.
     external_id: Mapped[str | None] = mapped_column(String(200), default=None)
     external_ids: Mapped[dict | None] = mapped_column(JSON, default=None)
-    #: Whether they came through the study's open link (only they get its completion code).
+    #: Whether they came through the open link (only they get its completion code).
     via_link: Mapped[bool] = mapped_column(Boolean, default=False)
 
     @validates("token")
     def _hash_token(self, _key: str, token: str) -> str:
         self.token_hash = token_digest(token)
         return token
+
+
+class Participant(MemberColumns, Base):
+    """Someone labelling a study's bracket, known only by their invite token."""
+
+    __tablename__ = "participants"
+    __table_args__ = (
+        Index("uq_participants_study_external_id", "study_id", "external_id", unique=True),
+    )
+
+    study_id: Mapped[int] = mapped_column(ForeignKey("studies.id", ondelete="CASCADE"), index=True)
+    last_active_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), default=None)
 
 
 class Match(Base):
@@ -475,7 +481,7 @@ class SurveyStimulus(Base):
     expected: Mapped[dict] = mapped_column(JSON)
 
 
-class SurveyRespondent(Base):
+class SurveyRespondent(MemberColumns, Base):
     """Someone answering a survey, known only by their invite token (as a participant).
 
     ``started_at`` is set once, by whichever request first plans their screens (an atomic
@@ -487,27 +493,11 @@ class SurveyRespondent(Base):
         Index("uq_survey_respondents_survey_external_id", "survey_id", "external_id", unique=True),
     )
 
-    id: Mapped[int] = mapped_column(Integer, primary_key=True)
     survey_id: Mapped[int] = mapped_column(ForeignKey("surveys.id", ondelete="CASCADE"), index=True)
-    token: Mapped[str] = mapped_column(String(64), unique=True)
-    token_hash: Mapped[str] = mapped_column(String(64), index=True, unique=True)
-    name: Mapped[str | None] = mapped_column(String(200), default=None)
     stimulus_id: Mapped[int | None] = mapped_column(
         ForeignKey("survey_stimuli.id", ondelete="CASCADE"), default=None
     )
-    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
     started_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), default=None)
-    finished_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), default=None)
-    #: Whether they came through the survey's open link (app.surveys.crowd), and
-    #: their crowd platform's ids (the first external parameter resumes them).
-    via_link: Mapped[bool] = mapped_column(Boolean, default=False)
-    external_id: Mapped[str | None] = mapped_column(String(200), default=None)
-    external_ids: Mapped[dict | None] = mapped_column(JSON, default=None)
-
-    @validates("token")
-    def _hash_token(self, _key: str, token: str) -> str:
-        self.token_hash = token_digest(token)
-        return token
 
 
 class SurveyCrowdSettings(OpenLink, Base):

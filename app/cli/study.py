@@ -51,17 +51,10 @@ def create(
     text = instructions_file.read_text(encoding="utf-8") if instructions_file else instructions
     with cli_runtime() as runtime:
         with runtime.sessions() as session:
-            study = studies.create_study(
-                session,
-                name=name,
-                env_id=env,
-                n_candidates=candidates,
-                p=p,
-                seed=seed,
-                sampling=sampling,
-                instructions=text,
-                disagreement_pairs=disagreement_pairs,
+            spec = studies.StudySpec(
+                name, env, candidates, p, seed, sampling, text, disagreement_pairs
             )
+            study = studies.create_study(session, spec=spec)
         runtime.prepare(study.id)
         with runtime.sessions() as session:
             study = studies.get_study(session, study_id=study.id)

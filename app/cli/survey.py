@@ -50,7 +50,7 @@ def create(
     """Create and open a survey; prints its id."""
     body = _spec(spec)
     with cli_runtime() as runtime, runtime.sessions() as session:
-        survey = surveys.create_survey(session, **body.service_args())
+        survey = surveys.create_survey(session, spec=body.spec())
         n = len(surveys.stimuli_of(session, survey_id=survey.id))
     typer.echo(
         f"survey {survey.id} open: {n} stimuli, exclusion rule: {surveys.exclusion_text(survey)}"

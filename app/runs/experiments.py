@@ -119,14 +119,8 @@ def _check_spec(spec: ExperimentSpec) -> None:
 def _baseline_run(session: Session, spec: ExperimentSpec, seed: int) -> Run:
     """The no-advice ``ppo`` run matching ``spec`` at ``seed``: an existing one, else new."""
     request = spec.run.baseline(seed)
-    config = runs.train_config(
-        env_id=get_ready_study(session, study_id=request.study_id).env_id,
-        algo=request.algo,
-        timesteps=request.timesteps,
-        seed=seed,
-        n_envs=request.n_envs,
-        **request.options,
-    ).to_json()
+    study = get_ready_study(session, study_id=request.study_id)
+    config = runs.train_config(request, env_id=study.env_id).to_json()
     reusable = session.scalars(
         select(Run)
         .where(

@@ -46,14 +46,7 @@ def create_run(session: Session, *, spec: RunSpec) -> Run:
     study = get_ready_study(session, study_id=spec.study_id)
     if not 0 < spec.timesteps <= MAX_TIMESTEPS:
         raise InputError(f"timesteps must be in 1..{MAX_TIMESTEPS}, got {spec.timesteps}")
-    config = train_config(
-        env_id=study.env_id,
-        algo=spec.algo,
-        timesteps=spec.timesteps,
-        seed=spec.seed,
-        n_envs=spec.n_envs,
-        **spec.options,
-    )
+    config = train_config(spec, env_id=study.env_id)
     pool, tree = advice.resolve(
         session, spec.advice, study_id=spec.study_id, tree_options=config.tree_options()
     )
@@ -94,26 +87,19 @@ def _queue(
     return run
 
 
-def train_config(
-    *,
-    env_id: str,
-    algo: str,
-    timesteps: int,
-    seed: int,
-    n_envs: int,
-    **options: int | float | str | None,
-) -> TrainConfig:
-    """The run's configuration; by default about :data:`DEFAULT_CHECKPOINTS` checkpoints."""
-    given: dict[str, Any] = {k: v for k, v in options.items() if v is not None}
+def train_config(spec: RunSpec, *, env_id: str) -> TrainConfig:
+    """The configuration of the run ``spec`` asks for on ``env_id``; by default about
+    :data:`DEFAULT_CHECKPOINTS` checkpoints."""
+    options: dict[str, Any] = {k: v for k, v in spec.options.items() if k != "checkpoint_every"}
     base = TrainConfig(
-        algo=algo,
+        algo=spec.algo,
         env_id=env_id,
-        total_timesteps=timesteps,
-        seed=seed,
-        n_envs=n_envs,
-        **{k: v for k, v in given.items() if k != "checkpoint_every"},
+        total_timesteps=spec.timesteps,
+        seed=spec.seed,
+        n_envs=spec.n_envs,
+        **options,
     )
-    every = given.get("checkpoint_every") or base.batch_size * max(
+    every = spec.options.get("checkpoint_every") or base.batch_size * max(
         1, base.num_updates // DEFAULT_CHECKPOINTS
     )
     return TrainConfig(**{**base.to_json(), "checkpoint_every": every})

@@ -49,7 +49,7 @@ def create_study(
 ) -> StudyOut:
     """Create a study; its candidates are sampled and rendered in the background
     (``status`` goes from ``preparing`` to ``ready``, or ``failed`` with ``error``)."""
-    study = studies.create_study(session, **body.model_dump())
+    study = studies.create_study(session, spec=body.spec())
     runtime.prepare_later(study.id)
     return StudyOut.model_validate(study)
 

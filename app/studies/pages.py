@@ -104,7 +104,7 @@ def create_study(
             {k: v.strip() if k != "instructions" else v for k, v in values.items()},
             context=FORM_INPUT,
         )
-        study = studies.create_study(session, **body.model_dump())
+        study = studies.create_study(session, spec=body.spec())
     except ValidationError as exc:
         errors = {str(e["loc"][0]) if e["loc"] else "form": e["msg"] for e in exc.errors()}
         return _form_page(request, values, errors, status_code=422)

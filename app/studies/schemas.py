@@ -14,6 +14,7 @@ from app.core.json_types import JsonFloat, JsonInt, UtcDatetime
 from app.core.limits import MAX_INSTRUCTIONS_CHARS, MAX_NAME_CHARS, MAX_SEED
 from app.models import StudyStatus
 from app.studies.participants import MAX_BATCH
+from app.studies.service import StudySpec
 from engine.candidates import MAX_CANDIDATES
 from engine.disagreement import MAX_PAIRS
 from engine.envs import DEFAULT_ENV_ID
@@ -57,6 +58,10 @@ class StudyCreate(BaseModel):
         max_length=MAX_INSTRUCTIONS_CHARS,
         description="Shown to participants before the first match.",
     )
+
+    def spec(self) -> StudySpec:
+        """The study this request asks for, as the services take it."""
+        return StudySpec(**self.model_dump())
 
 
 class StudyOut(BaseModel):

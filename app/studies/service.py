@@ -12,6 +12,7 @@ with the Braverman-Mossel model and renders the images, exactly as
 from __future__ import annotations
 
 import logging
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import cast
 
@@ -22,7 +23,7 @@ from sqlalchemy.orm import Session, sessionmaker
 from app.core.errors import ConflictError, NotFoundError
 from app.core.limits import MAX_INSTRUCTIONS_CHARS, MAX_NAME_CHARS, MAX_SEED, check_text
 from app.db import writing
-from app.models import BracketSlot, Candidate, Study
+from app.models import BracketSlot, Candidate, Study, StudyStatus
 from app.studies.baseline import (
     baseline_returns,
     baseline_run,
@@ -43,89 +44,69 @@ from engine.render import RenderService
 log = logging.getLogger(__name__)
 
 
-def create_study(
-    session: Session,
-    *,
-    name: str,
-    env_id: str,
-    n_candidates: int,
-    p: float,
-    seed: int,
-    sampling: str,
-    instructions: str,
-    disagreement_pairs: int = 0,
-) -> Study:
+@dataclass(frozen=True)
+class StudySpec:
+    """A study to create (``POST /api/studies``'s body, as the services take it)."""
+
+    name: str
+    env_id: str
+    n_candidates: int
+    p: float
+    seed: int
+    sampling: str = "uniform"
+    instructions: str = ""
+    disagreement_pairs: int = 0
+
+
+def create_study(session: Session, *, spec: StudySpec) -> Study:
     """Validate and store a new study (status ``preparing``).
 
     Raises:
         InputError: any parameter is out of range, or the env is not a MuJoCo env.
     """
-    _check_params(
-        session,
-        name=name,
-        env_id=env_id,
-        n_candidates=n_candidates,
-        p=p,
-        seed=seed,
-        sampling=sampling,
-        instructions=instructions,
-        disagreement_pairs=disagreement_pairs,
-    )
-    study = Study(
-        name=name.strip(),
-        env_id=env_id,
-        n_candidates=n_candidates,
-        p=float(p),
-        seed=seed,
-        sampling=sampling,
-        instructions=instructions,
-        disagreement_pairs=disagreement_pairs,
-        status="preparing",
-    )
+    _check_spec(session, spec)
+    study = Study(**{**asdict(spec), "name": spec.name.strip(), "p": float(spec.p)})
+    study.status = StudyStatus.PREPARING
     with writing(session):
         session.add(study)
     return study
 
 
-def _check_params(
-    session: Session,
-    *,
-    name: str,
-    env_id: str,
-    n_candidates: int,
-    p: float,
-    seed: int,
-    sampling: str,
-    instructions: str,
-    disagreement_pairs: int,
-) -> None:
+def _check_spec(session: Session, spec: StudySpec) -> None:
+    name, n, seed = spec.name, spec.n_candidates, spec.seed
     if not name.strip() or len(name) > MAX_NAME_CHARS:
         raise InputError(f"name must be 1..{MAX_NAME_CHARS} characters")
-    check_text(name=name, instructions=instructions, env_id=env_id)
-    if not 2 <= n_candidates <= engine_candidates.MAX_CANDIDATES:
-        raise InputError(
-            f"n_candidates must be in 2..{engine_candidates.MAX_CANDIDATES}, got {n_candidates}"
-        )
-    if not 0.0 <= p <= 1.0:
-        raise InputError(f"p must be in [0, 1], got {p}")
+    check_text(name=name, instructions=spec.instructions, env_id=spec.env_id)
+    if not 2 <= n <= engine_candidates.MAX_CANDIDATES:
+        raise InputError(f"n_candidates must be in 2..{engine_candidates.MAX_CANDIDATES}, got {n}")
+    if not 0.0 <= spec.p <= 1.0:
+        raise InputError(f"p must be in [0, 1], got {spec.p}")
     if not 0 <= seed <= MAX_SEED:
         raise InputError(f"seed must be in 0..2**63-1, got {seed}")
-    if sampling not in engine_candidates.SAMPLING_MODES:
+    if spec.sampling not in engine_candidates.SAMPLING_MODES:
         raise InputError(
             f"sampling must be one of {', '.join(engine_candidates.SAMPLING_MODES)}"
-            f", got {sampling!r}"
+            f", got {spec.sampling!r}"
         )
-    if not 0 <= disagreement_pairs <= MAX_PAIRS:
-        raise InputError(f"disagreement_pairs must be in 0..{MAX_PAIRS}, got {disagreement_pairs}")
-    if len(instructions) > MAX_INSTRUCTIONS_CHARS:
+    if not 0 <= spec.disagreement_pairs <= MAX_PAIRS:
+        raise InputError(
+            f"disagreement_pairs must be in 0..{MAX_PAIRS}, got {spec.disagreement_pairs}"
+        )
+    if len(spec.instructions) > MAX_INSTRUCTIONS_CHARS:
         raise InputError(f"instructions must be at most {MAX_INSTRUCTIONS_CHARS} characters")
+    _check_env(session, spec)
+
+
+def _check_env(session: Session, spec: StudySpec) -> None:
+    """The env can be made here, and a no-advice baseline exists where the study needs one."""
+    env_id = spec.env_id
     try:
         check_env_id(env_id)
     except InputError:
         raise
     except Exception as exc:  # registered but unusable here (missing extras, ...)
         raise InputError(f"env {env_id!r} cannot be made: {type(exc).__name__}: {exc}") from exc
-    needs = needs_baseline(sampling=sampling, disagreement_pairs=disagreement_pairs)
+    needs = needs_baseline(sampling=spec.sampling, disagreement_pairs=spec.disagreement_pairs)
     if needs and baseline_run(session, env_id=env_id) is None:
         raise InputError(no_baseline_message(env_id, needs=needs))
 

@@ -145,7 +145,7 @@ def tree_sources(session: SessionDep, _: ResearcherDep) -> dict[str, list[dict[s
 def create_survey(body: SurveyCreate, session: SessionDep, _: ResearcherDep) -> SurveyOut:
     """Create and open a survey; its trees are frozen now (409 if a run's checkpoint has no
     computed agent trees yet)."""
-    survey = surveys.create_survey(session, **body.service_args())
+    survey = surveys.create_survey(session, spec=body.spec())
     return survey_out(survey)
 
 

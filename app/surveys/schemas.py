@@ -11,7 +11,7 @@ from app.core.json_types import JsonInt
 from app.surveys import answers as survey_answers
 from app.surveys import respond as survey_respond
 from app.surveys import service as surveys
-from app.surveys.service import AttentionSpec, QuestionSpec, StimulusSpec
+from app.surveys.service import AttentionSpec, QuestionSpec, StimulusSpec, SurveySpec
 from app.surveys.sources import TreeSource
 
 _FORBID = ConfigDict(extra="forbid")
@@ -116,24 +116,23 @@ class SurveyCreate(BaseModel):
             )
         return [QuestionSpec(**q.model_dump()) for q in self.questions]
 
-    def service_args(self) -> dict[str, Any]:
-        """Keyword arguments of :func:`app.surveys.service.create_survey`."""
-        return {
-            "name": self.name,
-            "intro": self.intro,
-            "template": self.template,
-            "questions": self.question_specs(),
-            "highlights_on": self.highlights,
-            "assignment": self.assignment,
-            "seed": self.seed,
-            "attention": AttentionSpec(**self.attention_check.model_dump())
-            if self.attention_check
-            else None,
-            "stimuli": [
+    def spec(self) -> SurveySpec:
+        """The survey this request asks for, as the services take it."""
+        attention = self.attention_check
+        return SurveySpec(
+            name=self.name,
+            intro=self.intro,
+            template=self.template,
+            questions=self.question_specs(),
+            stimuli=[
                 StimulusSpec(_source(s.tree1), _source(s.tree2), s.label, s.expected)
                 for s in self.stimuli
             ],
-        }
+            attention=AttentionSpec(**attention.model_dump()) if attention else None,
+            highlights_on=self.highlights,
+            assignment=self.assignment,
+            seed=self.seed,
+        )
 
 
 class SurveyOut(BaseModel):

@@ -196,19 +196,23 @@ def _attention(
     )
 
 
-def create_survey(
-    session: Session,
-    *,
-    name: str,
-    intro: str,
-    template: Literal["paper", "blank"],
-    questions: list[QuestionSpec],
-    stimuli: list[StimulusSpec],
-    attention: AttentionSpec | None = None,
-    highlights_on: bool = False,
-    assignment: Literal["all", "round_robin"] = "all",
-    seed: int | None = None,
-) -> Survey:
+@dataclass(frozen=True)
+class SurveySpec:
+    """A survey to create (``POST /api/surveys``'s body, as the services take it)."""
+
+    name: str
+    intro: str
+    template: Literal["paper", "blank"]
+    questions: list[QuestionSpec]
+    stimuli: list[StimulusSpec]
+    attention: AttentionSpec | None = None
+    highlights_on: bool = False
+    assignment: Literal["all", "round_robin"] = "all"
+    #: None: drawn now.
+    seed: int | None = None
+
+
+def create_survey(session: Session, *, spec: SurveySpec) -> Survey:
     """Create (and open) a survey; every tree is resolved and frozen now.
 
     Raises:
@@ -216,25 +220,25 @@ def create_survey(
         NotFoundError, ConflictError: a named participant, run or checkpoint (see
             :func:`app.surveys.sources.resolve`).
     """
-    seed = secrets.randbits(62) if seed is None else seed
-    _check_survey(name=name, intro=intro, stimuli=stimuli, seed=seed)
-    stored = check_questions(questions)
+    seed = secrets.randbits(62) if spec.seed is None else spec.seed
+    _check_survey(name=spec.name, intro=spec.intro, stimuli=spec.stimuli, seed=seed)
+    stored = check_questions(spec.questions)
     rows = [
-        _stimulus(session, spec, position=i, questions=stored)
-        for i, spec in enumerate(stimuli, start=1)
+        _stimulus(session, stimulus, position=i, questions=stored)
+        for i, stimulus in enumerate(spec.stimuli, start=1)
     ]
-    if attention is not None:
-        rows.append(_attention(rows[0], attention, position=len(rows) + 1, questions=stored))
+    if spec.attention is not None:
+        rows.append(_attention(rows[0], spec.attention, position=len(rows) + 1, questions=stored))
     survey = Survey(
-        name=name,
-        intro=intro,
-        template=template,
+        name=spec.name,
+        intro=spec.intro,
+        template=spec.template,
         questions=stored,
-        highlights=highlights_on,
-        assignment=assignment,
+        highlights=spec.highlights_on,
+        assignment=spec.assignment,
         seed=seed,
         rr_counter=0,
-        exclusion_rule="attention_check" if attention else "none",
+        exclusion_rule="attention_check" if spec.attention else "none",
     )
     _store(session, survey, rows)
     return survey

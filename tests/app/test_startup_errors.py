@@ -28,7 +28,7 @@ from app.db import make_engine, make_sessions, upgrade
 from app.models import Candidate, Study
 from app.runtime import Runtime
 from app.settings import Settings
-from app.studies.service import create_study
+from app.studies.service import StudySpec, create_study
 from tests.app.conftest import ADMIN_TOKEN
 from tests.support.net import free_port, listening
 from tests.support.postgres import BACKENDS, empty_database
@@ -227,16 +227,7 @@ def test_two_workers_resume_the_same_half_prepared_study(postgres, tmp_path: Pat
     settings = Settings(data_dir=tmp_path, database_url=url, admin_token=ADMIN_TOKEN)
     engine = make_engine(url)
     with make_sessions(engine)() as session:
-        study = create_study(
-            session,
-            name="resumed",
-            env_id="Hopper-v5",
-            n_candidates=4,
-            p=0.9,
-            seed=1,
-            sampling="uniform",
-            instructions="",
-        )
+        study = create_study(session, spec=StudySpec("resumed", "Hopper-v5", 4, 0.9, seed=1))
     workers = [Runtime(settings), Runtime(settings)]
     try:
         for runtime in workers:

@@ -11,7 +11,7 @@ from PIL import Image
 
 from app.main import create_app
 from app.runtime import Runtime
-from app.studies.service import create_study
+from app.studies.service import StudySpec, create_study
 from engine.bracket import make_first_round
 from engine.candidates import sample_candidates
 from tests.app.conftest import wait_ready
@@ -242,16 +242,7 @@ def test_failed_preparation_is_reported_not_raised(client, admin, make_study, mo
 def test_a_restart_finishes_studies_left_preparing(settings, admin) -> None:
     runtime = Runtime(settings)  # stored, then "crashed" before preparing it
     with runtime.sessions() as session:
-        left = create_study(
-            session,
-            name="interrupted",
-            env_id="Hopper-v5",
-            n_candidates=2,
-            p=0.5,
-            seed=9,
-            sampling="uniform",
-            instructions="",
-        )
+        left = create_study(session, spec=StudySpec("interrupted", "Hopper-v5", 2, 0.5, seed=9))
     runtime.close()
     with TestClient(create_app(settings)) as restarted:
         body = wait_ready(restarted, left.id)
