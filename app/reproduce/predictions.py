@@ -152,43 +152,45 @@ def _control_return(arms: dict[str, Any]) -> dict[str, Any] | None:
 
 
 def _contested(arms: dict[str, Any]) -> dict[str, Any] | None:
-    case2, control = arms.get("case2"), arms.get("control")
-    if case2 is None or control is None:
-        return None
-    c2 = case2["final"]["main"]["behaviour"]["contested_agreement"]
-    ctl = control["final"]["main"]["behaviour"]["contested_agreement"]
-    diff = difference(_contested_per_seed(control), _contested_per_seed(case2))
-    return _claim(
+    return _against_case2(
+        arms,
+        ("control", "control"),
+        "control minus Case 2",
         "Case 2 rejects the advice where it goes against the reward, more than naive shaping",
         "implied: BiPaRS learns to ignore harmful advice",
-        case2,
-        "behaviour",
-        "last",
-        f"contested matches kept by behaviour: Case 2 {stat_text(c2)}, control {stat_text(ctl)}; "
-        f"control minus Case 2 {diff_text(diff)}",
-        diff["ci_low"] is not None and diff["ci_low"] > 0,
         "Case 2 keeps fewer contested matches (interval of the difference above 0)",
     )
 
 
 def _used_at_all(arms: dict[str, Any]) -> dict[str, Any] | None:
-    case2, ppo = arms.get("case2"), arms.get("ppo")
-    if case2 is None or ppo is None:
-        return None
-    c2 = case2["final"]["main"]["behaviour"]["contested_agreement"]
-    base = ppo["final"]["main"]["behaviour"]["contested_agreement"]
-    diff = difference(_contested_per_seed(case2), _contested_per_seed(ppo))
-    return _claim(
+    return _against_case2(
+        arms,
+        ("ppo", "PPO without advice"),
+        "difference",
         "The standing advice changed what the agent does, beyond what PPO without advice does",
         "implied by any verdict on advice use",
-        case2,
-        "behaviour",
-        "last",
-        f"contested matches kept by behaviour: Case 2 {stat_text(c2)}, PPO without advice "
-        f"{stat_text(base)}; difference {diff_text(diff)}",
-        diff["ci_low"] is not None and diff["ci_low"] > 0,
         "Case 2 keeps more than PPO (interval of the difference above 0)",
     )
+
+
+def _against_case2(
+    arms: dict[str, Any], other: tuple[str, str], gap: str, claim: str, paper: str, rule: str
+) -> dict[str, Any] | None:
+    """Case 2's share of contested matches kept (``behaviour``) against arm ``other`` (key,
+    name); ``gap`` names the difference: ``difference`` is Case 2 minus the other, anything
+    else the other minus Case 2. It holds when the difference's interval is above 0."""
+    case2, base = arms.get("case2"), arms.get(other[0])
+    if case2 is None or base is None:
+        return None
+    kept = [a["final"]["main"]["behaviour"]["contested_agreement"] for a in (case2, base)]
+    first, second = (case2, base) if gap == "difference" else (base, case2)
+    diff = difference(_contested_per_seed(first), _contested_per_seed(second))
+    measured = (
+        f"contested matches kept by behaviour: Case 2 {stat_text(kept[0])}, {other[1]} "
+        f"{stat_text(kept[1])}; {gap} {diff_text(diff)}"
+    )
+    holds = diff["ci_low"] is not None and diff["ci_low"] > 0
+    return _claim(claim, paper, case2, "behaviour", "last", measured, holds, rule)
 
 
 def _agent_bracket(arms: dict[str, Any]) -> dict[str, Any] | None:

@@ -159,44 +159,37 @@ def conformance_csv(at: AtCheckpointDep) -> Response:
     responses={200: {"content": {m: {} for m in FORMATS.values()}}, **PENDING},
 )
 def tree_image(
-    run_id: DbId,
     which: Literal["human", "agent"],
     fmt: Literal["svg", "png"],
-    session: SessionDep,
+    at: AtCheckpointDep,
     settings: SettingsDep,
-    root: RunsRootDep,
-    _: ResearcherDep,
-    checkpoint: Step = None,
-    judge: JudgeQuery = DEFAULT_JUDGE,
 ) -> Response:
     """A tree as SVG or PNG with thumbnails; the rejected advice is drawn in red."""
-    run = runs.get_run(session, run_id=run_id)
-    thumbs = run_report.thumb_paths(session, data_dir=settings.data_dir, study_id=run.study_id)
-    run, view = load_view(session, run_id, root, checkpoint)
-    data = run_report.tree_image(run, view, judge, which, thumbs, fmt)
-    return attachment(data, FORMATS[fmt], f"run-{run_id}-{which}-tree-{view.step}.{fmt}")
+    run = runs.get_run(at.session, run_id=at.run_id)
+    thumbs = run_report.thumb_paths(at.session, data_dir=settings.data_dir, study_id=run.study_id)
+    run, view = at.view()
+    data = run_report.tree_image(run, view, at.judge, which, thumbs, fmt)
+    return attachment(data, FORMATS[fmt], f"run-{at.run_id}-{which}-tree-{view.step}.{fmt}")
 
 
 @router.get("/{run_id}/report.html", response_class=HTMLResponse, responses=NO_CHECKPOINT)
-def report(
-    run_id: DbId,
-    session: SessionDep,
-    settings: SettingsDep,
-    root: RunsRootDep,
-    _: ResearcherDep,
-    checkpoint: Step = None,
-    judge: JudgeQuery = DEFAULT_JUDGE,
-    download: bool = False,
-) -> HTMLResponse:
+def report(at: AtCheckpointDep, settings: SettingsDep, download: bool = False) -> HTMLResponse:
     """A self-contained HTML report (both trees, the rejected advice as image pairs, the
     metrics and curves; images inline, no scripts)."""
+    session, run_id = at.session, at.run_id
     run = runs.get_run(session, run_id=run_id)
     study = studies.get_study(session, study_id=run.study_id)
     thumbs = run_report.thumb_paths(session, data_dir=settings.data_dir, study_id=run.study_id)
-    run, out = load_run(session, run_id, root)
-    step = comparison.pick_checkpoint(out, checkpoint)
+    run, out = load_run(session, run_id, at.root)
+    step = comparison.pick_checkpoint(out, at.checkpoint)
     html = run_report.report_html(
-        run, session=session, study_name=study.name, out=out, step=step, judge=judge, thumbs=thumbs
+        run,
+        session=session,
+        study_name=study.name,
+        out=out,
+        step=step,
+        judge=at.judge,
+        thumbs=thumbs,
     )
     headers = {"Content-Security-Policy": REPORT_CSP}
     if download:

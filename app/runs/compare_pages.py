@@ -61,15 +61,10 @@ def compare_page(
         request,
         "compare.html",
         {
-            "run": RunOut.of(run),
-            "study": studies.get_study(session, study_id=run.study_id),
+            **_run_context(session, run, [run_id], judge_name(shown)),
             "checkpoints": steps,
             "who": run_report.who(run),
-            "whose": run_report.whose(run),
             "selected": selected,
-            "experiment_notes": experiment_notes.notes_of_runs(
-                session, run_ids=[run_id], judge=judge_name(shown)
-            ),
             "thumb_template": thumb_template(run.study_id),
             "image_template": thumb_template(run.study_id).removesuffix("?size=thumb"),
             "others": len(runs.same_advice_runs(session, run=run)),
@@ -92,16 +87,22 @@ def compare_runs_page(
         request,
         "compare_runs.html",
         {
-            "run": RunOut.of(run),
-            "study": studies.get_study(session, study_id=run.study_id),
+            **_run_context(session, run, [r["run"].id for r in rows], DEFAULT_JUDGE),
             "rows": rows,
-            "experiment_notes": experiment_notes.notes_of_runs(
-                session, run_ids=[r["run"].id for r in rows], judge=DEFAULT_JUDGE
-            ),
-            "whose": run_report.whose(run),
             "advice": runs.advice_label(run),
         },
     )
+
+
+def _run_context(session: Session, run: Run, shown: list[int], judge: str) -> dict[str, Any]:
+    """What both pages show of ``run``: it, its study, whose advice, and the experiment
+    verdicts on the runs ``shown`` by ``judge``."""
+    return {
+        "run": RunOut.of(run),
+        "study": studies.get_study(session, study_id=run.study_id),
+        "whose": run_report.whose(run),
+        "experiment_notes": experiment_notes.notes_of_runs(session, run_ids=shown, judge=judge),
+    }
 
 
 def _latest(session: Session, run: Run, root: Any) -> dict[str, Any]:
