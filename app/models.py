@@ -424,6 +424,29 @@ class CheckpointArtefact(Base):
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
 
 
+class RunMetric(Base):
+    """One metrics row of a run (one per PPO update), as its executor reported it: scalars
+    only (:func:`app.runs.run_state.scalar_metrics`). Pages and the API read these, never the
+    run folder's ``metrics.jsonl``."""
+
+    __tablename__ = "run_metrics"
+
+    run_id: Mapped[int] = mapped_column(ForeignKey("runs.id", ondelete="CASCADE"), primary_key=True)
+    timesteps: Mapped[int] = mapped_column(BigInteger, primary_key=True, autoincrement=False)
+    row: Mapped[dict] = mapped_column(JSON)
+
+
+class RunCheckpoint(Base):
+    """A checkpoint a run's executor saved (its file is ``checkpoints/step_<step>.pt`` in the
+    run folder, which only executors read)."""
+
+    __tablename__ = "run_checkpoints"
+
+    run_id: Mapped[int] = mapped_column(ForeignKey("runs.id", ondelete="CASCADE"), primary_key=True)
+    step: Mapped[int] = mapped_column(BigInteger, primary_key=True, autoincrement=False)
+    saved_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+
+
 # --- Tree-reading surveys (the paper's user study; app.surveys.service) ---------------------
 
 SURVEY_ASSIGNMENTS = ("all", "round_robin")

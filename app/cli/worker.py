@@ -12,9 +12,9 @@ import typer
 from app.cli.root import cli
 from app.cli.serve import migrated_settings, service_errors
 from app.db import make_engine, make_sessions
+from app.jobs.backfill import backfill_all
 from app.jobs.settings import JobSettings
 from app.jobs.worker import Worker, make_backfiller, make_executor
-from app.runs import artefacts
 
 
 @cli.command()
@@ -68,7 +68,7 @@ def _backfill(url: str, runs_root: Path) -> None:
     """Compute the missing checkpoint artefacts of ended runs, in this process."""
     engine = make_engine(url)
     try:
-        done = artefacts.backfill(make_sessions(engine), runs_root=runs_root)
+        done = backfill_all(make_sessions(engine), runs_root=runs_root)
     finally:
         engine.dispose()
     typer.echo(f"acv worker --backfill: {done} checkpoint artefact(s) stored")

@@ -20,7 +20,7 @@ from pathlib import Path
 from sqlalchemy.orm import Session, sessionmaker
 
 from app.db import ROOT, make_engine, make_sessions
-from app.runs import artefacts
+from app.runs import artefacts, run_state
 
 log = logging.getLogger(__name__)
 
@@ -52,6 +52,7 @@ class Backfiller:
         if not idle or now < self._look_at:
             return
         self._look_at = now + self.every_s
+        run_state.import_folders(self.sessions, runs_root=self.runs_dir)  # runs from before rows
         with self.sessions() as session:
             if not artefacts.missing(session, runs_root=self.runs_dir):
                 return
@@ -72,12 +73,19 @@ class Backfiller:
             self.proc.wait()
 
 
+def backfill_all(sessions: sessionmaker[Session], *, runs_root: Path) -> int:
+    """Import the run folders of runs from before run state rows, then judge every unjudged
+    checkpoint of ended runs; returns the artefacts stored."""
+    run_state.import_folders(sessions, runs_root=runs_root)
+    return artefacts.backfill(sessions, runs_root=runs_root)
+
+
 def main() -> None:
     """Judge every unjudged checkpoint of ended runs (``DATABASE_URL``, ``ACV_RUNS_DIR``)."""
     logging.basicConfig(level=logging.INFO, format="acv backfill: %(message)s")
     engine = make_engine(os.environ["DATABASE_URL"])
     try:
-        done = artefacts.backfill(make_sessions(engine), runs_root=Path(os.environ["ACV_RUNS_DIR"]))
+        done = backfill_all(make_sessions(engine), runs_root=Path(os.environ["ACV_RUNS_DIR"]))
     finally:
         engine.dispose()
     log.info("%d checkpoint artefact(s) stored", done)

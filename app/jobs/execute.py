@@ -2,18 +2,17 @@
 
 The run's row says what to train (config, advice tree or pool of trees, resume flag);
 :func:`execute_run` calls :func:`engine.rl.runner.train` in the run directory, stores every
-metrics row as the run's progress, judges every checkpoint once and stores the result as the
-checkpoint's artefact (:mod:`app.runs.artefacts`; the web tier only reads it), polls for a
-cancel (or for the run being taken away, e.g. marked ``interrupted`` after a restart) after
-every update, and sets the final state. A stop always writes a checkpoint first (``train``
-does), so an interrupted or cancelled run can resume.
+metrics row and saved checkpoint as rows (:mod:`app.runs.run_state`), judges every checkpoint
+once and stores the result as the checkpoint's artefact (:mod:`app.runs.artefacts`; the web
+tier only reads it), polls for a cancel (or for the run being taken away, e.g. marked
+``interrupted`` after a restart) after every update, and sets the final state. A stop always
+writes a checkpoint first (``train`` does), so an interrupted or cancelled run can resume.
 """
 
 from __future__ import annotations
 
 import fcntl
 import logging
-import math
 import os
 import time
 import traceback
@@ -28,14 +27,13 @@ from app.db import make_engine, make_sessions
 from app.jobs import queue
 from app.jobs.settings import run_dir
 from app.models import Run
-from app.runs import artefacts
+from app.runs import artefacts, run_state
 from engine.errors import InputError
 
 log = logging.getLogger(__name__)
 LOCK_FILE = ".lock"
 #: Seconds a run waits for the previous process of the same run directory to let go.
 LOCK_WAIT_S = 60.0
-_SKIPPED_KEYS = ("episode_returns", "episode_shaped_returns")
 
 
 def execute_run(
@@ -79,12 +77,17 @@ class _Job:
         self.sessions, self.run_id, self.worker = sessions, run_id, worker
         self.interrupted = interrupted
         self.reason: str | None = None  # cancel, lost, interrupted
+        self.out = Path()
 
     def run(self, out: Path) -> str:
+        self.out = out
         with self.sessions() as session:
             row = session.get(Run, self.run_id)
         if row is None or row.worker != self.worker or row.status != "running":
             return "lost"
+        if row.resume:  # a run trained before run state rows: its earlier rows first
+            with self.sessions() as session:
+                run_state.import_folder(session, run_id=self.run_id, out=out)
         try:
             with run_lock(out):
                 _train(row, out, self.progress, self.should_stop, self.judge_checkpoint(row, out))
@@ -106,14 +109,14 @@ class _Job:
         return status if done else "lost"
 
     def progress(self, row: dict[str, Any]) -> None:
+        """Store the update: the run's progress, its metrics row, and its checkpoint when the
+        runner saved one at this step (it saves before it reports)."""
+        saved = artefacts.checkpoint_file(self.out, int(row["timesteps"])).is_file()
         with self.sessions() as session:
-            ours = queue.report_progress(
-                session,
-                run_id=self.run_id,
-                worker=self.worker,
-                timesteps=int(row["timesteps"]),
-                metrics=progress_metrics(row),
-            )
+            ours = run_state.record_update(
+                session, run_id=self.run_id, owner=queue.ours(self.run_id, self.worker), row=row,
+                saved=saved,
+            )  # fmt: skip
         if not ours:
             self.reason = self.reason or "lost"
 
@@ -170,15 +173,6 @@ def _train(
         resume=row.resume,
         on_checkpoint=on_checkpoint,
     )
-
-
-def progress_metrics(row: dict[str, Any]) -> dict[str, Any]:
-    """A metrics row as stored on the run: scalars only, NaN and infinities as null."""
-    return {
-        k: None if isinstance(v, float) and not math.isfinite(v) else v
-        for k, v in row.items()
-        if k not in _SKIPPED_KEYS and (v is None or isinstance(v, int | float))
-    }
 
 
 def error_text(exc: BaseException) -> str:

@@ -110,15 +110,6 @@ def heartbeat(session: Session, *, worker: str) -> None:
         )
 
 
-def report_progress(
-    session: Session, *, run_id: int, worker: str, timesteps: int, metrics: dict[str, Any]
-) -> bool:
-    """Store a run's progress; False when the run is no longer this worker's to run."""
-    return update_if(
-        session, _ours(run_id, worker), progress=timesteps, metrics=metrics, heartbeat_at=utcnow()
-    )
-
-
 def stop_reason(session: Session, *, run_id: int, worker: str) -> str | None:
     """``cancel`` when a cancel was asked, ``lost`` when the run is no longer ours, else None."""
     row = session.execute(
@@ -136,7 +127,7 @@ def finish(
     """Move a run this worker is running to its final ``status`` (or ``interrupted``)."""
     finished_at = None if status == "interrupted" else utcnow()
     return update_if(
-        session, _ours(run_id, worker), status=status, error=error, finished_at=finished_at
+        session, ours(run_id, worker), status=status, error=error, finished_at=finished_at
     )
 
 
@@ -194,5 +185,6 @@ def recover(
     ]
 
 
-def _ours(run_id: int, worker: str) -> tuple:
+def ours(run_id: int, worker: str) -> tuple:
+    """The conditions under which run ``run_id`` is still ``worker``'s to run."""
     return Run.id == run_id, Run.worker == worker, Run.status == "running"

@@ -7,15 +7,13 @@ A run is queued by ``POST /api/runs`` (202) and executed by a worker (:mod:`app.
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Annotated
 
-from fastapi import APIRouter, Depends, Query, Request
+from fastapi import APIRouter, Query
 
 from app.http.deps import DbId, ResearcherDep, SessionDep
-from app.jobs.settings import JobSettings, run_dir
-from app.models import Run, RunStatus
-from app.runs import comparison
+from app.models import RunStatus
+from app.runs import run_state
 from app.runs import service as runs
 from app.runs.compare_schemas import (
     MetricsRowOut,
@@ -25,23 +23,6 @@ from app.runs.schemas import CheckpointOut, RunCreate, RunCreated, RunOut
 from engine.treefile import tree_to_json
 
 router = APIRouter(prefix="/runs", tags=["runs"])
-
-
-def get_runs_root(request: Request) -> Path:
-    """Where run directories live (``ACV_RUNS_DIR``, default ``ACV_DATA_DIR/runs``)."""
-    jobs = getattr(request.app.state, "job_settings", None) or JobSettings()
-    return jobs.runs_root(request.app.state.runtime.settings)
-
-
-RunsRootDep = Annotated[Path, Depends(get_runs_root)]
-
-
-def load_run(session: SessionDep, run_id: int, root: Path) -> tuple[Run, Path]:
-    """The run and its directory; the session's connection goes back to the pool, since
-    what follows (agent trees, figures) may take a while."""
-    run = runs.get_run(session, run_id=run_id)
-    session.rollback()
-    return run, run_dir(root, run_id)
 
 
 @router.post("", status_code=202)
@@ -76,33 +57,32 @@ def cancel_run(run_id: DbId, session: SessionDep, _: ResearcherDep) -> RunOut:
 
 
 @router.post("/{run_id}/resume", status_code=202)
-def resume_run(run_id: DbId, session: SessionDep, root: RunsRootDep, _: ResearcherDep) -> RunOut:
+def resume_run(run_id: DbId, session: SessionDep, _: ResearcherDep) -> RunOut:
     """Queue an interrupted, failed or cancelled run again; it continues from its latest
     checkpoint exactly as if it had never stopped."""
-    return RunOut.of(runs.resume_run(session, run_id=run_id, runs_dir=root))
+    return RunOut.of(runs.resume_run(session, run_id=run_id))
 
 
 @router.get("/{run_id}/metrics")
 def run_metrics(
     run_id: DbId,
     session: SessionDep,
-    root: RunsRootDep,
     _: ResearcherDep,
     after: Annotated[int, Query(ge=-1)] = -1,
 ) -> list[MetricsRowOut]:
     """The run's metrics rows (one per update) with ``timesteps`` above ``after``."""
-    out = load_run(session, run_id, root)[1]
-    return [MetricsRowOut.model_validate(row) for row in comparison.metrics_rows(out, after)]
+    runs.get_run(session, run_id=run_id)
+    rows = run_state.metrics_rows(session, run_id=run_id, after=after)
+    return [MetricsRowOut.model_validate(row) for row in rows]
 
 
 @router.get("/{run_id}/checkpoints")
-def run_checkpoints(
-    run_id: DbId, session: SessionDep, root: RunsRootDep, _: ResearcherDep
-) -> list[CheckpointOut]:
+def run_checkpoints(run_id: DbId, session: SessionDep, _: ResearcherDep) -> list[CheckpointOut]:
     """The run's checkpoints, oldest first."""
-    out = load_run(session, run_id, root)[1]
-    rows = {r["timesteps"]: r for r in comparison.metrics_rows(out)}
-    return [CheckpointOut(checkpoint=s, metrics=rows.get(s)) for s in comparison.checkpoints(out)]
+    runs.get_run(session, run_id=run_id)
+    rows = {r["timesteps"]: r for r in run_state.metrics_rows(session, run_id=run_id)}
+    steps = run_state.checkpoint_steps(session, run_id=run_id)
+    return [CheckpointOut(checkpoint=s, metrics=rows.get(s)) for s in steps]
 
 
 @router.get("/{run_id}/advice-tree")

@@ -42,6 +42,11 @@ FAILURE = "error"
 ADVISORS = "advisors"
 
 
+def checkpoint_file(out: Path, step: int) -> Path:
+    """Where the run directory ``out`` keeps its checkpoint at ``step`` (no torch import)."""
+    return out / "checkpoints" / f"step_{step}.pt"
+
+
 def checkpoint_steps(out: Path) -> list[int]:
     """The timesteps of the run directory's checkpoints, increasing (no torch import)."""
     folder = out / "checkpoints"

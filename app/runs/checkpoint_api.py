@@ -13,7 +13,6 @@ artefact, which the run's executor stores; until then these endpoints answer 202
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, Depends, Query, Response
@@ -28,7 +27,6 @@ from app.models import Run
 from app.runs import comparison
 from app.runs import report as run_report
 from app.runs import service as runs
-from app.runs.api import RunsRootDep, load_run
 from app.runs.compare_schemas import CheckpointReportOut, ConformanceOut, CurvePointOut, TreeJson
 from app.runs.schemas import Judge
 from app.studies import service as studies
@@ -64,35 +62,33 @@ class AtCheckpoint:
 
     session: Session
     run_id: int
-    root: Path
     checkpoint: int | None
     judge: str
 
     def view(self) -> tuple[Run, comparison.CheckpointView]:
-        return load_view(self.session, self.run_id, self.root, self.checkpoint)
+        return load_view(self.session, self.run_id, self.checkpoint)
 
 
 def at_checkpoint(
     run_id: DbId,
     session: SessionDep,
-    root: RunsRootDep,
     _: ResearcherDep,
     checkpoint: Step = None,
     judge: JudgeQuery = DEFAULT_JUDGE,
 ) -> AtCheckpoint:
-    return AtCheckpoint(session, run_id, root, checkpoint, judge)
+    return AtCheckpoint(session, run_id, checkpoint, judge)
 
 
 AtCheckpointDep = Annotated[AtCheckpoint, Depends(at_checkpoint)]
 
 
 def load_view(
-    session: SessionDep, run_id: int, root: Path, checkpoint: int | None
+    session: Session, run_id: int, checkpoint: int | None
 ) -> tuple[Run, comparison.CheckpointView]:
     """The run and the stored artefact of its checkpoint (PendingError: 202)."""
-    run, out = load_run(session, run_id, root)
+    run = runs.get_run(session, run_id=run_id)
     runs.advice_of(run)
-    step = comparison.pick_checkpoint(out, checkpoint)
+    step = comparison.pick_checkpoint(session, run_id=run_id, step=checkpoint)
     return run, comparison.checkpoint_view(session, run_id=run_id, step=step)
 
 
@@ -119,18 +115,13 @@ def checkpoint_report(at: AtCheckpointDep) -> CheckpointReportOut:
 
 @router.get("/{run_id}/conformance-curve", responses=PENDING)
 def conformance_curve(
-    run_id: DbId,
-    session: SessionDep,
-    root: RunsRootDep,
-    _: ResearcherDep,
-    judge: JudgeQuery = DEFAULT_JUDGE,
+    run_id: DbId, session: SessionDep, _: ResearcherDep, judge: JudgeQuery = DEFAULT_JUDGE
 ) -> list[CurvePointOut]:
     """The conformance metrics at every judged checkpoint (``{"checkpoint": step, ...}``)."""
-    run, out = load_run(session, run_id, root)
-    runs.advice_of(run)
+    runs.advice_of(runs.get_run(session, run_id=run_id))
     return [
         CurvePointOut.at(step, m)
-        for step, m in comparison.conformance_curve(session, run_id=run_id, out=out, judge=judge)
+        for step, m in comparison.conformance_curve(session, run_id=run_id, judge=judge)
     ]
 
 
@@ -141,10 +132,9 @@ def conformance_curve(
 )
 def conformance_csv(at: AtCheckpointDep) -> Response:
     """The metrics as CSV: one row per judged checkpoint, or only ``checkpoint``'s."""
-    run, out = load_run(at.session, at.run_id, at.root)
-    runs.advice_of(run)
+    runs.advice_of(runs.get_run(at.session, run_id=at.run_id))
     if at.checkpoint is None:
-        rows = comparison.conformance_curve(at.session, run_id=at.run_id, out=out, judge=at.judge)
+        rows = comparison.conformance_curve(at.session, run_id=at.run_id, judge=at.judge)
     else:
         view = at.view()[1]
         rows = [(view.step, view.of(at.judge))]
@@ -180,16 +170,9 @@ def report(at: AtCheckpointDep, settings: SettingsDep, download: bool = False) -
     run = runs.get_run(session, run_id=run_id)
     study = studies.get_study(session, study_id=run.study_id)
     thumbs = run_report.thumb_paths(session, data_dir=settings.data_dir, study_id=run.study_id)
-    run, out = load_run(session, run_id, at.root)
-    step = comparison.pick_checkpoint(out, at.checkpoint)
+    step = comparison.pick_checkpoint(session, run_id=run_id, step=at.checkpoint)
     html = run_report.report_html(
-        run,
-        session=session,
-        study_name=study.name,
-        out=out,
-        step=step,
-        judge=at.judge,
-        thumbs=thumbs,
+        run, session=session, study_name=study.name, step=step, judge=at.judge, thumbs=thumbs
     )
     headers = {"Content-Security-Policy": REPORT_CSP}
     if download:

@@ -16,12 +16,10 @@ from app.core.errors import PendingError
 from app.http.deps import DbId, SessionDep
 from app.http.guards import ResearcherPage
 from app.http.rendering import PageRoute, render, thumb_template
-from app.jobs.settings import run_dir
 from app.models import Run
-from app.runs import comparison, experiment_notes
+from app.runs import comparison, experiment_notes, run_state
 from app.runs import report as run_report
 from app.runs import service as runs
-from app.runs.api import RunsRootDep
 from app.runs.schemas import Judge, RunOut
 from app.studies import service as studies
 from engine.errors import InputError
@@ -46,7 +44,6 @@ def compare_page(
     run_id: DbId,
     request: Request,
     session: SessionDep,
-    root: RunsRootDep,
     checkpoint: Annotated[int | None, Query(ge=0)] = None,
     judge: Judge | None = None,
 ) -> HTMLResponse:
@@ -54,7 +51,7 @@ def compare_page(
     verdict, a checkpoint selector and the conformance curve."""
     run = runs.get_run(session, run_id=run_id)
     runs.advice_of(run)  # 409 page for a run without advice
-    steps = comparison.checkpoints(run_dir(root, run_id))
+    steps = run_state.checkpoint_steps(session, run_id=run_id)
     selected = checkpoint if checkpoint in steps else (steps[-1] if steps else None)
     shown = judge or comparison.shown_judge(session, run_id=run_id, step=selected)
     return render(
@@ -75,14 +72,12 @@ def compare_page(
 
 
 @router.get("/runs/{run_id}/compare-runs")
-def compare_runs_page(
-    run_id: DbId, request: Request, session: SessionDep, root: RunsRootDep
-) -> HTMLResponse:
+def compare_runs_page(run_id: DbId, request: Request, session: SessionDep) -> HTMLResponse:
     """Every run on the same advice as ``run_id`` (e.g. ``ppo`` vs ``bipars-em``): metrics at
     each one's latest checkpoint, side by side, and their conformance curves."""
     run = runs.get_run(session, run_id=run_id)
     runs.advice_of(run)
-    rows = [_latest(session, r, root) for r in runs.same_advice_runs(session, run=run)]
+    rows = [_latest(session, r) for r in runs.same_advice_runs(session, run=run)]
     return render(
         request,
         "compare_runs.html",
@@ -105,12 +100,10 @@ def _run_context(session: Session, run: Run, shown: list[int], judge: str) -> di
     }
 
 
-def _latest(session: Session, run: Run, root: Any) -> dict[str, Any]:
+def _latest(session: Session, run: Run) -> dict[str, Any]:
     """A run with its metrics at its latest judged checkpoint (None before the first one)."""
     try:
-        curve = comparison.conformance_curve(
-            session, run_id=run.id, out=run_dir(root, run.id), judge="shaped"
-        )
+        curve = comparison.conformance_curve(session, run_id=run.id, judge="shaped")
     except (PendingError, InputError):  # not judged yet, or never by this judge: no metrics
         curve = []
     steps = [step for step, _ in curve]

@@ -9,9 +9,7 @@ is not stored yet raises :class:`app.core.errors.PendingError` (HTTP 202).
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 from sqlalchemy.orm import Session
@@ -19,7 +17,7 @@ from sqlalchemy.orm import Session
 from app.core import csv_export
 from app.core.errors import ConflictError, PendingError
 from app.models import CheckpointArtefact
-from app.runs import artefacts
+from app.runs import artefacts, run_state
 from engine.conformance import Conformance
 from engine.errors import InputError
 from engine.judges import DEFAULT_JUDGE, JUDGES, LEGACY_JUDGES, current_keys
@@ -42,7 +40,6 @@ CSV_COLUMNS = (
     "contested_kept",
     "reference_agreement",
 )
-_EPISODE_KEYS = ("episode_returns", "episode_shaped_returns")
 #: The judges whose disagreement the verdict names: what the agent's reward says, what it does.
 _REWARD_JUDGE, _BEHAVIOUR_JUDGE = "shaped", "behaviour"
 
@@ -96,19 +93,14 @@ class CheckpointView:
         return [(pid, by[judge]) for pid, by in sorted(self.advisors.items())]
 
 
-def checkpoints(out: Path) -> list[int]:
-    """The timesteps of the run's checkpoints, in increasing order (no torch import)."""
-    return artefacts.checkpoint_steps(out)
-
-
-def pick_checkpoint(out: Path, step: int | None) -> int:
+def pick_checkpoint(session: Session, *, run_id: int, step: int | None) -> int:
     """``step`` if the run has it, else (for None) its latest checkpoint.
 
     Raises:
         ConflictError: no checkpoint yet (a state the run will leave, not bad input).
         InputError: no checkpoint at ``step``.
     """
-    steps = checkpoints(out)
+    steps = run_state.checkpoint_steps(session, run_id=run_id)
     if not steps:
         raise ConflictError("the run has no checkpoint yet")
     if step is None:
@@ -157,7 +149,7 @@ def checkpoint_view(session: Session, *, run_id: int, step: int) -> CheckpointVi
 
 
 def conformance_curve(
-    session: Session, *, run_id: int, out: Path, judge: str
+    session: Session, *, run_id: int, judge: str
 ) -> list[tuple[int, Conformance]]:
     """(step, conformance) at every judged checkpoint, increasing steps.
 
@@ -165,19 +157,13 @@ def conformance_curve(
         PendingError: the run has checkpoints, but none is judged yet.
     """
     stored = artefacts.payloads(session, run_id=run_id)
-    if not stored and checkpoints(out):
+    if not stored and run_state.checkpoint_steps(session, run_id=run_id):
         raise PendingError(f"the conformance curve of run {run_id} is being computed")
     return [
         (step, view_of(step, body).of(judge))
         for step, body in stored.items()
         if artefacts.judged(body)  # a corrupt checkpoint has no point on the curve
     ]
-
-
-def pending_steps(session: Session, *, run_id: int, out: Path) -> list[int]:
-    """The run's checkpoints whose artefact is not stored yet."""
-    have = artefacts.computed_steps(session, run_id=run_id)
-    return [s for s in checkpoints(out) if s not in have]
 
 
 def _kept(c: Conformance) -> bool:
@@ -256,19 +242,3 @@ def _csv_row(step: int, m: Conformance) -> tuple[object, ...]:
         m.contested.kept,
         m.reference_agreement,
     )
-
-
-def metrics_rows(out: Path, after: int = -1) -> list[dict[str, Any]]:
-    """The run's metrics rows (without per-episode lists) with timesteps above ``after``."""
-    path = out / "metrics.jsonl"
-    if not path.is_file():
-        return []
-    rows = []
-    for line in path.read_text().splitlines():
-        try:
-            row = json.loads(line)
-        except json.JSONDecodeError:  # a line being written right now
-            continue
-        if row.get("timesteps", 0) > after:
-            rows.append({k: v for k, v in row.items() if k not in _EPISODE_KEYS})
-    return rows

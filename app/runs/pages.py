@@ -21,10 +21,8 @@ from app.http.csrf import CsrfChecked, FormFields
 from app.http.deps import MAX_DB_ID, DbId, SessionDep
 from app.http.guards import ResearcherPage
 from app.http.rendering import PageRoute, redirect, render
-from app.jobs.settings import run_dir
-from app.runs import comparison, experiments
+from app.runs import experiments, run_state
 from app.runs import service as runs
-from app.runs.api import RunsRootDep
 from app.runs.experiments import DEFAULT_SEEDS
 from app.runs.experiments_api import ExperimentCreate
 from app.runs.schemas import RunCreate, RunOut
@@ -204,9 +202,7 @@ def create_run(request: Request, session: SessionDep, fields: FormFields) -> Res
 
 
 @router.get("/runs/{run_id}")
-def run_page(
-    run_id: DbId, request: Request, session: SessionDep, root: RunsRootDep
-) -> HTMLResponse:
+def run_page(run_id: DbId, request: Request, session: SessionDep) -> HTMLResponse:
     """Live progress, metrics, the learning curve and z, the checkpoints, cancel/resume."""
     run = runs.get_run(session, run_id=run_id)
     return render(
@@ -215,7 +211,7 @@ def run_page(
         {
             "run": RunOut.of(run),
             "study": studies.get_study(session, study_id=run.study_id),
-            "checkpoints": comparison.checkpoints(run_dir(root, run_id)),
+            "checkpoints": run_state.checkpoint_steps(session, run_id=run_id),
             "has_advice": run.advice is not None,
         },
     )
@@ -228,6 +224,6 @@ def cancel(run_id: DbId, session: SessionDep) -> Response:
 
 
 @router.post("/runs/{run_id}/resume", dependencies=[CsrfChecked])
-def resume(run_id: DbId, session: SessionDep, root: RunsRootDep) -> Response:
-    runs.resume_run(session, run_id=run_id, runs_dir=root)
+def resume(run_id: DbId, session: SessionDep) -> Response:
+    runs.resume_run(session, run_id=run_id)
     return redirect(f"/runs/{run_id}")

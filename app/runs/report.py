@@ -18,7 +18,7 @@ from sqlalchemy.orm import Session
 
 from app.core import figures
 from app.models import Run
-from app.runs import comparison
+from app.runs import comparison, run_state
 from app.runs.experiment_notes import notes_of_runs
 from app.runs.service import advice_label, advice_of
 from app.studies import service as studies
@@ -100,7 +100,7 @@ def tree_image(
 
 
 def report_context(
-    run: Run, *, session: Session, out: Path, step: int, judge: str, thumbs: dict[int, Path]
+    run: Run, *, session: Session, step: int, judge: str, thumbs: dict[int, Path]
 ) -> dict[str, Any]:
     """Everything ``compare_report.html`` shows; images inline, so the file stands alone.
 
@@ -110,7 +110,7 @@ def report_context(
     view = comparison.checkpoint_view(session, run_id=run.id, step=step)
     metrics = view.of(judge)
     human, agent = (tree_image(run, view, judge, w, thumbs, "svg") for w in ("human", "agent"))
-    curve = comparison.conformance_curve(session, run_id=run.id, out=out, judge=judge)
+    curve = comparison.conformance_curve(session, run_id=run.id, judge=judge)
     return {
         "run": run,
         "advice": advice_label(run),
@@ -128,7 +128,7 @@ def report_context(
         "human_svg": inline_svg(human),
         "agent_svg": inline_svg(agent),
         "curve_svg": inline_svg(curve_chart(curve)),
-        "learning_svg": inline_svg(learning_chart(comparison.metrics_rows(out))),
+        "learning_svg": inline_svg(learning_chart(run_state.metrics_rows(session, run_id=run.id))),
         "curve": curve,
     }
 
@@ -138,13 +138,12 @@ def report_html(
     *,
     session: Session,
     study_name: str,
-    out: Path,
     step: int,
     judge: str,
     thumbs: dict[int, Path],
 ) -> str:
     """The self-contained HTML report of a run at a checkpoint (no scripts, no links)."""
-    context = report_context(run, session=session, out=out, step=step, judge=judge, thumbs=thumbs)
+    context = report_context(run, session=session, step=step, judge=judge, thumbs=thumbs)
     return _templates.get_template(REPORT_TEMPLATE).render(study_name=study_name, **context)
 
 

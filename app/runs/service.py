@@ -10,7 +10,6 @@ a ``bipars-em`` run on the same advice). Workers (:mod:`app.jobs`) execute queue
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Any
 
 from sqlalchemy import select
@@ -19,9 +18,8 @@ from sqlalchemy.orm import Session
 from app.core.errors import ConflictError, NotFoundError
 from app.db import writing
 from app.jobs.queue import update_if
-from app.jobs.settings import run_dir
 from app.models import Run, RunStatus, utcnow
-from app.runs import advice, pools
+from app.runs import advice, pools, run_state
 from app.runs.spec import ParticipantAdvice, RunSpec, TeacherAdvice
 from app.studies.service import get_ready_study
 from engine.errors import InputError
@@ -181,21 +179,19 @@ def cancel_run(session: Session, *, run_id: int) -> Run:
     return _fresh(session, run_id)
 
 
-def resume_run(session: Session, *, run_id: int, runs_dir: Path) -> Run:
+def resume_run(session: Session, *, run_id: int) -> Run:
     """Queue an interrupted, failed or cancelled run again, to continue from its latest
     checkpoint.
 
     Raises:
         ConflictError: the run is queued, running or succeeded, or has no checkpoint.
     """
-    from app.runs.artefacts import checkpoint_steps  # by file name: no torch in a request
-
     run = get_run(session, run_id=run_id)
     if run.status not in RESUMABLE:
         raise ConflictError(
             f"run {run_id} is {run.status}; only {', '.join(RESUMABLE)} runs can be resumed"
         )
-    if not checkpoint_steps(run_dir(runs_dir, run_id)):
+    if not run_state.checkpoint_steps(session, run_id=run_id):
         raise ConflictError(f"run {run_id} has no checkpoint to resume from")
     if not update_if(
         session,
