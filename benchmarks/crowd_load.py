@@ -15,9 +15,13 @@ JSON: participants, think_ms, workers, database, labels_sent, labels_stored, los
 duplicates, errors_5xx, labels_per_s, p50_ms and p99_ms (of every labelling request: labels
 and next-match), ceiling_rps and ratio_vs_ceiling (labelling requests/s over the ceiling).
 
+With ``--training``, a ``ppo`` run trains on the same server throughout (its executor stores a
+metrics row every 128 steps in the same database): the labelling latency with run state
+written to the database, to compare with a run of the same command without it.
+
 Usage:
     python benchmarks/crowd_load.py [--database sqlite|postgresql] [--participants 300]
-        [--think-ms 2000] [--workers 1] [--candidates 16] [--timeout-s 300]
+        [--think-ms 2000] [--workers 1] [--candidates 16] [--timeout-s 300] [--training]
 """
 
 from __future__ import annotations
@@ -114,6 +118,23 @@ def prepare(base: str, n_candidates: int, count: int) -> tuple[int, list[str]]:
         )
         tokens += [p["token"] for p in people.raise_for_status().json()]
     return study_id, tokens
+
+
+def start_training(base: str, study_id: int) -> int:
+    """A ``ppo`` run with a tiny update (128 steps, a metrics row each), running once the
+    crowd starts: its executor writes run state rows to the same database all along."""
+    body = {"study_id": study_id, "algo": "ppo", "timesteps": 10_000_000, "n_envs": 1,
+            "num_steps": 128, "num_minibatches": 4, "update_epochs": 2}  # fmt: skip
+    run_id = int(httpx.post(f"{base}/api/runs", json=body, headers=ADMIN).json()["id"])
+    while httpx.get(f"{base}/api/runs/{run_id}/metrics", headers=ADMIN).json() == []:
+        time.sleep(0.2)  # training: the first metrics row is stored
+    return run_id
+
+
+def stop_training(base: str, run_id: int) -> int:
+    """Cancel the run; the metrics rows it wrote."""
+    httpx.post(f"{base}/api/runs/{run_id}/cancel", headers=ADMIN)
+    return len(httpx.get(f"{base}/api/runs/{run_id}/metrics", headers=ADMIN).json())
 
 
 @dataclass
@@ -294,14 +315,22 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=1)
     parser.add_argument("--candidates", type=int, default=16)
     parser.add_argument("--timeout-s", type=float, default=300.0)
+    parser.add_argument(
+        "--training",
+        action="store_true",
+        help="a training run writes its metrics rows (one per 128 steps) all along",
+    )
     args = parser.parse_args()
     with database(args.database) as url, server(url, args.workers) as base:
         study_id, tokens = prepare(base, args.candidates, args.participants)
+        run_id = start_training(base, study_id) if args.training else None
         ceiling_rps = asyncio.run(_ceiling(base, CEILING_S, min(CEILING_LOOPS, args.participants)))
         tally, seconds = asyncio.run(
             crowd(base, tokens, args.think_ms, args.candidates - 1, args.timeout_s)
         )
         stored = stored_labels(base, study_id)
+        if run_id is not None:
+            print(f"training run: {stop_training(base, run_id)} metrics rows written")
     for kind, ms in tally.ms.items():
         if ms:
             print(
