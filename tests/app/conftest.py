@@ -15,24 +15,28 @@ them out); the cluster code is in ``tests/support/postgres.py``.
 
 from __future__ import annotations
 
+import shutil
 import subprocess
+import threading
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
+from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
 from typing import Any
 
 import pytest
 from fastapi.testclient import TestClient
+from playwright.sync_api import Browser, sync_playwright
 
 from app.db import upgrade
 from app.jobs.settings import JobSettings
 from app.main import create_app
 from app.settings import Settings
+from tests.support.browser import ADMIN_TOKEN as SERVER_ADMIN_TOKEN
+from tests.support.browser import CHROMIUM, CHROMIUM_ARGS, SCREENS_COPY
 from tests.support.postgres import BACKENDS, PostgresCluster, PostgresMissing
-from tests.support.wait import wait_for
+from tests.support.server import acv_serve, clean_env
+from tests.support.studies import Player, new_study
 from tests.support.web import ADMIN, ADMIN_TOKEN
-
-__all__ = ["ADMIN", "ADMIN_TOKEN", "BACKENDS", "Player", "new_study", "wait_ready"]
 
 
 @pytest.fixture(scope="session")
@@ -85,33 +89,6 @@ def client(settings: Settings) -> Iterator[TestClient]:
         yield test_client
 
 
-def wait_ready(client: TestClient, study_id: int, timeout_s: float = 60.0) -> dict[str, Any]:
-    """Poll a study until it leaves ``preparing``; returns its JSON."""
-    return wait_for(
-        lambda: client.get(f"/api/studies/{study_id}", headers=ADMIN).json(),
-        lambda body: body["status"] != "preparing",
-        what=f"study {study_id} to leave preparing",
-        timeout_s=timeout_s,
-        every_s=0.05,
-    )
-
-
-def new_study(client: TestClient, **overrides: Any) -> dict[str, Any]:
-    """Create a small Hopper study and wait until it is prepared."""
-    body = {
-        "name": "test study",
-        "env_id": "Hopper-v5",
-        "n_candidates": 5,
-        "p": 0.9,
-        "seed": 3,
-        "sampling": "uniform",
-        "instructions": "Pick the taller one.",
-    }
-    response = client.post("/api/studies", json=body | overrides, headers=ADMIN)
-    assert response.status_code == 201, response.text
-    return wait_ready(client, response.json()["id"])
-
-
 @pytest.fixture(scope="session")
 def admin() -> dict[str, str]:
     """Researcher headers."""
@@ -130,39 +107,6 @@ def study(client: TestClient) -> dict[str, Any]:
     ready = new_study(client)
     assert ready["status"] == "ready", ready
     return ready
-
-
-@dataclass
-class Player:
-    """A participant driving the REST API with their invite token."""
-
-    client: TestClient
-    id: int
-    token: str
-    invite_url: str
-
-    @property
-    def headers(self) -> dict[str, str]:
-        return {"Authorization": f"Bearer {self.token}"}
-
-    def next_match(self) -> dict[str, Any] | None:
-        response = self.client.get("/api/participants/me/next-match", headers=self.headers)
-        assert response.status_code in (200, 204), response.text
-        return response.json() if response.status_code == 200 else None
-
-    def label(self, match_id: int, winner: int, **extra: Any):
-        return self.client.post(
-            f"/api/matches/{match_id}/label", headers=self.headers, json={"winner": winner, **extra}
-        )
-
-    def play(self, choose: Callable[[dict[str, Any]], int] | None = None) -> int:
-        """Label every match (``choose`` picks the winner; default the ``a`` side)."""
-        sent = 0
-        while (match := self.next_match()) is not None:
-            winner = choose(match) if choose else match["a"]["candidate_id"]
-            assert self.label(match["match_id"], winner).status_code == 201
-            sent += 1
-        return sent
 
 
 @pytest.fixture
@@ -186,3 +130,61 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     for item in items:
         if "browser" in getattr(item, "fixturenames", ()):
             item.add_marker(pytest.mark.browser)
+
+
+# --- browser tests: acv serve in a subprocess, Debian's Chromium -----------------------------
+
+
+@pytest.fixture(scope="module")
+def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[str, Path]]:
+    """``acv serve`` on a free port; yields ``(base URL, file with its output and logs)``."""
+    data_dir = tmp_path_factory.mktemp("acv-browser-data")
+    log = data_dir / "server.log"  # one per server: tests find the data dir as its folder
+    env = clean_env(ACV_DATA_DIR=str(data_dir), ACV_ADMIN_TOKEN=SERVER_ADMIN_TOKEN)
+    with acv_serve(env, log) as base:
+        yield base, log
+
+
+@pytest.fixture(scope="module")
+def browser() -> Iterator[Browser]:
+    """Debian's Chromium, headless; never a downloaded browser."""
+    with sync_playwright() as playwright:
+        chromium = playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+        yield chromium
+        chromium.close()
+
+
+@pytest.fixture
+def screens(tmp_path: Path) -> Iterator[Path]:
+    """The screenshots folder; copied to ``/tmp/acv_screens`` afterwards."""
+    folder = tmp_path / "screens"
+    folder.mkdir()
+    yield folder
+    SCREENS_COPY.mkdir(parents=True, exist_ok=True)
+    for shot in folder.glob("*.png"):
+        shutil.copy(shot, SCREENS_COPY / shot.name)
+
+
+class _Done(BaseHTTPRequestHandler):
+    """The crowd platform's completion page, as far as this test needs it."""
+
+    def do_GET(self) -> None:  # noqa: N802 (http.server's name)
+        body = b"<!doctype html><title>Completed</title><h1>Submission complete</h1>"
+        self.send_response(200)
+        self.send_header("Content-Type", "text/html")
+        self.send_header("Content-Length", str(len(body)))
+        self.end_headers()
+        self.wfile.write(body)
+
+    def log_message(self, *_args) -> None:
+        pass
+
+
+@pytest.fixture(scope="module")
+def platform() -> Iterator[str]:
+    """A local HTTP server standing in for the platform's completion URL."""
+    httpd = ThreadingHTTPServer(("127.0.0.1", 0), _Done)
+    thread = threading.Thread(target=httpd.serve_forever, daemon=True)
+    thread.start()
+    yield f"http://127.0.0.1:{httpd.server_address[1]}"
+    httpd.shutdown()

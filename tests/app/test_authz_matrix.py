@@ -31,10 +31,10 @@ from app.db import make_engine, make_sessions, upgrade
 from app.http.deps import AJAX_HEADER
 from app.models import Experiment, ExperimentRun
 from app.recruiting import members
-from tests.app.conftest import ADMIN, ADMIN_TOKEN, Player
-from tests.app.runs_support import TINY, create_run, wait_run
 from tests.support.postgres import BACKENDS, empty_database
-from tests.support.web import browser, csrf_token
+from tests.support.runs import TINY, create_run, wait_run
+from tests.support.studies import Player
+from tests.support.web import ADMIN, ADMIN_TOKEN, browser, csrf_token
 
 ANON, A, B, RESEARCHER = "anonymous", "participant A", "participant B", "researcher"
 EVERYONE = frozenset({ANON, A, B, RESEARCHER})

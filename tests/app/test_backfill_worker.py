@@ -12,9 +12,10 @@ from collections.abc import Iterator
 import pytest
 from fastapi.testclient import TestClient
 
-from tests.app.conftest import ADMIN, new_study
-from tests.app.runs_support import ENDLESS, create_run, progressed, run_app, wait_run
+from tests.support.runs import ENDLESS, create_run, progressed, run_app, wait_run
+from tests.support.studies import new_study
 from tests.support.wait import wait_for
+from tests.support.web import ADMIN
 
 pytestmark = pytest.mark.training
 

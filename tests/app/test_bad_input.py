@@ -20,11 +20,11 @@ from sqlalchemy import update
 
 from app.db import make_engine, make_sessions
 from app.middleware import MAX_BODY_BYTES
-from app.models import Candidate, Run
+from app.models import Candidate, Run, RunCheckpoint
 from app.runs import artefacts
 from engine.rl.checkpoint import checkpoint_path
-from tests.app.conftest import ADMIN, ADMIN_TOKEN
-from tests.app.runs_support import run_app
+from tests.support.runs import run_app
+from tests.support.web import ADMIN, ADMIN_TOKEN
 
 CANARY = "acv-canary-outside-the-data-dir"
 MALFORMED_IDS = [
@@ -361,6 +361,9 @@ def test_corrupt_checkpoints_are_refused_with_a_clear_message(
     path.write_bytes(content)
     assert client.post(f"/api/runs/{run_id}/cancel", headers=ADMIN).status_code == 202
     sessions = make_sessions(make_engine(settings.sqlalchemy_url))
+    with sessions() as session:  # as the executor records a checkpoint it saved
+        session.add(RunCheckpoint(run_id=run_id, step=256))
+        session.commit()
     assert artefacts.backfill(sessions, runs_root=settings.data_dir / "runs") == 1
     for url in (
         f"/api/runs/{run_id}/agent-tree",

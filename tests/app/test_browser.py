@@ -13,104 +13,29 @@ from __future__ import annotations
 import csv
 import io
 import re
-import shutil
-from collections.abc import Iterator
 from pathlib import Path
 
 import httpx
 import pytest
-from playwright.sync_api import Browser, BrowserContext, Page, expect, sync_playwright
+from playwright.sync_api import Browser, Page, expect
 
 from tests.support.a11y import assert_accessible
-from tests.support.browser import wait_for_match
-from tests.support.server import acv_serve, clean_env
+from tests.support.browser import (
+    ADMIN_TOKEN,
+    DESKTOP,
+    N_CANDIDATES,
+    PHONE,
+    create_study_and_invite,
+    fits_width,
+    in_view,
+    new_page,
+    shown,
+    wait_for_match,
+)
 
 pytestmark = pytest.mark.browser
 
-ADMIN_TOKEN = "browser-test-admin-token-0123456789"
-CHROMIUM = "/usr/bin/chromium"
-CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking"]
-PHONE = {"width": 375, "height": 667}
-DESKTOP = {"width": 1280, "height": 860}
-SCREENS_COPY = Path("/tmp/acv_screens")
-N_CANDIDATES = 6  # 5 matches in 3 rounds (two byes)
 LOG_LINE = re.compile(r"^(DEBUG|INFO|WARNING|ERROR|CRITICAL)\b")
-
-
-@pytest.fixture(scope="module")
-def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[str, Path]]:
-    """``acv serve`` on a free port; yields ``(base URL, file with its output and logs)``."""
-    data_dir = tmp_path_factory.mktemp("acv-browser-data")
-    log = data_dir / "server.log"  # one per server: tests find the data dir as its folder
-    env = clean_env(ACV_DATA_DIR=str(data_dir), ACV_ADMIN_TOKEN=ADMIN_TOKEN)
-    with acv_serve(env, log) as base:
-        yield base, log
-
-
-@pytest.fixture(scope="module")
-def browser() -> Iterator[Browser]:
-    """Debian's Chromium, headless; never a downloaded browser."""
-    with sync_playwright() as playwright:
-        chromium = playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
-        yield chromium
-        chromium.close()
-
-
-@pytest.fixture
-def screens(tmp_path: Path) -> Iterator[Path]:
-    """The screenshots folder; copied to ``/tmp/acv_screens`` afterwards."""
-    folder = tmp_path / "screens"
-    folder.mkdir()
-    yield folder
-    SCREENS_COPY.mkdir(parents=True, exist_ok=True)
-    for shot in folder.glob("*.png"):
-        shutil.copy(shot, SCREENS_COPY / shot.name)
-
-
-def watch_errors(page: Page, errors: list[str]) -> Page:
-    """Collect console errors (CSP violations among them) and uncaught script errors."""
-    page.on(
-        "console",
-        lambda m: (
-            errors.append(f"{m.text} ({m.location.get('url')})") if m.type == "error" else None
-        ),
-    )
-    page.on("pageerror", lambda exc: errors.append(str(exc)))
-    return page
-
-
-def new_page(browser: Browser, errors: list[str], **context_args) -> tuple[BrowserContext, Page]:
-    context = browser.new_context(**context_args)
-    context.set_default_timeout(30_000)
-    return context, watch_errors(context.new_page(), errors)
-
-
-def create_study_and_invite(page: Page, base: str) -> tuple[str, str]:
-    """Log in by the ``#token=`` link, create a study through the form, invite one person.
-
-    Returns the study page URL and the invite link shown there.
-    """
-    page.goto(f"{base}/login#token={ADMIN_TOKEN}")
-    page.wait_for_url(f"{base}/studies")
-    assert ADMIN_TOKEN not in page.url and ADMIN_TOKEN not in page.content()
-    page.click("text=New study")
-    page.wait_for_selector("#sampling")
-    assert_accessible(page, "new-study form")
-    page.fill("#name", "Browser study")
-    page.fill("#n_candidates", str(N_CANDIDATES))
-    page.fill("#seed", "7")
-    page.click("button:has-text('Create study')")
-    expect(page.locator(".grid figure")).to_have_count(N_CANDIDATES, timeout=90_000)
-    page.fill("#count", "1")
-    page.click("button:has-text('Add participants')")
-    invite = page.locator("td.invite input").first.input_value()
-    assert invite.startswith(f"{base}/p/")
-    return page.url.split("?")[0], invite
-
-
-def shown(page: Page, side: str) -> int:
-    """The candidate id shown on ``side`` (``a`` = left)."""
-    return int(page.get_attribute(f"#img-{side}", "alt").removeprefix("candidate "))
 
 
 def decide(page: Page, match: str, how: str, side: str, chosen: dict[int, int]) -> None:
@@ -122,15 +47,6 @@ def decide(page: Page, match: str, how: str, side: str, chosen: dict[int, int]) 
         page.tap(how.removeprefix("tap:"))
     else:
         page.click(how)
-
-
-def fits_width(page: Page) -> bool:
-    return page.evaluate("document.documentElement.scrollWidth <= window.innerWidth")
-
-
-def in_view(page: Page, selector: str) -> bool:
-    box = page.locator(selector).bounding_box()
-    return box is not None and box["y"] + box["height"] <= page.viewport_size["height"]
 
 
 @pytest.mark.parametrize("viewport", [DESKTOP, PHONE], ids=["desktop", "phone"])

@@ -18,10 +18,10 @@ from app.core.auth import PARTICIPANT_COOKIE
 from app.db import make_engine, upgrade
 from app.http.ratelimit import LoginLimiter
 from app.studies.sides import a_on_left
-from tests.app.conftest import ADMIN, Player
+from tests.support.crowd import SETTINGS, configure, joined_player, visit, visitor
 from tests.support.postgres import empty_database
-
-SETTINGS = {"enabled": True, "max_participants": 50}
+from tests.support.studies import Player
+from tests.support.web import ADMIN
 
 
 @pytest.fixture(autouse=True)
@@ -34,29 +34,6 @@ def fresh_join_limit(client: TestClient) -> None:
 def four(make_study) -> dict[str, Any]:
     """A 4-candidate study: two first-round matches, then the final (no byes)."""
     return make_study(n_candidates=4, seed=11)
-
-
-def configure(client: TestClient, study_id: int, **options: Any) -> dict[str, Any]:
-    response = client.put(f"/api/studies/{study_id}/crowd", json=SETTINGS | options, headers=ADMIN)
-    assert response.status_code == 200, response.text
-    return response.json()
-
-
-def visitor(client: TestClient) -> TestClient:
-    """A browser of its own (an empty cookie jar) on the same app."""
-    return TestClient(client.app, follow_redirects=False)
-
-
-def visit(client: TestClient, link: dict[str, Any], query: str = "") -> tuple[TestClient, Any]:
-    browser = visitor(client)
-    return browser, browser.get(f"/s/{link['slug']}{query}")
-
-
-def joined_player(client: TestClient, browser: TestClient, response: Any) -> Player:
-    assert response.status_code == 303, response.text
-    token = browser.cookies[PARTICIPANT_COOKIE]
-    me = client.get("/api/participants/me", headers={"Authorization": f"Bearer {token}"})
-    return Player(client, me.json()["id"], token, "")
 
 
 def participants_of(client: TestClient, study_id: int) -> list[dict[str, Any]]:

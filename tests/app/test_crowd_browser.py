@@ -10,55 +10,20 @@ axe-core checks every page added or changed.
 from __future__ import annotations
 
 import json
-import threading
-from collections.abc import Iterator
-from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
 
 import httpx
 import pytest
 from playwright.sync_api import Browser, Page, expect
 
-from tests.app.test_browser import (  # noqa: F401 (fixtures)
-    ADMIN_TOKEN,
-    browser,
-    new_page,
-    screens,
-    server,
-    shown,
-    wait_for_match,
-)
 from tests.support.a11y import assert_accessible
+from tests.support.browser import ADMIN_TOKEN, new_page, shown, wait_for_match
+from tests.support.crowd import turned_away
 from tests.support.labelling import label_bracket, wait_until_prepared
 
 pytestmark = pytest.mark.browser
 ADMIN = {"Authorization": f"Bearer {ADMIN_TOKEN}"}
 DESKTOP = {"width": 1280, "height": 900}
-
-
-class _Done(BaseHTTPRequestHandler):
-    """The crowd platform's completion page, as far as this test needs it."""
-
-    def do_GET(self) -> None:  # noqa: N802 (http.server's name)
-        body = b"<!doctype html><title>Completed</title><h1>Submission complete</h1>"
-        self.send_response(200)
-        self.send_header("Content-Type", "text/html")
-        self.send_header("Content-Length", str(len(body)))
-        self.end_headers()
-        self.wfile.write(body)
-
-    def log_message(self, *_args) -> None:
-        pass
-
-
-@pytest.fixture(scope="module")
-def platform() -> Iterator[str]:
-    """A local HTTP server standing in for the platform's completion URL."""
-    httpd = ThreadingHTTPServer(("127.0.0.1", 0), _Done)
-    thread = threading.Thread(target=httpd.serve_forever, daemon=True)
-    thread.start()
-    yield f"http://127.0.0.1:{httpd.server_address[1]}"
-    httpd.shutdown()
 
 
 def ready_study(api: httpx.Client) -> int:
@@ -166,26 +131,6 @@ def test_open_link_consent_bracket_check_and_completion(
     first_round = [json.loads(r) for r in rows if '"round": 1' in r]
     assert check in [(r["right"], r["left"]) for r in first_round]  # sides swapped
     assert errors == []
-
-
-def turned_away(browser: Browser, errors: list[str], link: str, settings_url: str) -> None:
-    """pw-1's id in another browser gets "already taken part"; once the researcher closes
-    the link (``settings_url``), a new visitor gets "closed": both pages pass axe."""
-    _, taken = new_page(browser, errors, viewport=DESKTOP)
-    taken.goto(f"{link}?PROLIFIC_PID=pw-1&STUDY_ID=st&SESSION_ID=another")
-    expect(taken.locator("h1")).to_have_text("This id has already taken part")
-    assert_accessible(taken, "already taken part page")
-    with httpx.Client(headers=ADMIN, timeout=60) as api:
-        closed = {"enabled": False, "max_participants": 5}
-        assert api.put(settings_url, json=closed).status_code == 200
-    _, new = new_page(browser, errors, viewport=DESKTOP)
-    new.goto(f"{link}?PROLIFIC_PID=pw-5")
-    expect(new.locator("h1")).to_have_text("This link is closed")
-    expect(new.locator("p.error")).to_contain_text("not taking new people")
-    assert_accessible(new, "closed link page")
-    refusals = [e for e in errors if "status of 409" in e or "status of 410" in e]
-    assert len(refusals) == 2  # Chromium logs the two refusals' statuses; nothing else
-    errors[:] = [e for e in errors if e not in refusals]
 
 
 def _play_api(base: str, link: str, pid: str, pick) -> None:

@@ -14,8 +14,8 @@ from fastapi.testclient import TestClient
 
 from app.core.csv_export import csv_text, safe_cell
 from app.http.ratelimit import LoginLimiter
-from tests.app.conftest import ADMIN
-from tests.app.test_crowd_api import configure, joined_player, visit
+from tests.support.crowd import configure, joined_player, visit
+from tests.support.web import ADMIN
 
 APP = Path(__file__).resolve().parents[2] / "app"
 

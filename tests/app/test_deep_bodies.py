@@ -20,8 +20,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from app.http.ratelimit import LoginLimiter
-from tests.app.openapi_support import JsonOperation, api_openapi, json_operations
-from tests.app.surveys_support import scheme_headers
+from tests.support.openapi import JsonOperation, api_openapi, json_operations
+from tests.support.surveys import scheme_headers
 
 OPERATIONS = json_operations(api_openapi())
 #: Largest answer to a bad body, and largest log output of one request (bytes).

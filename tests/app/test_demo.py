@@ -12,8 +12,8 @@ from fastapi.testclient import TestClient
 from app.cli.serve import _demo_lines
 from app.demo import DEMO_RUN, ensure_demo
 from app.studies.participants import invite_url
-from tests.app.conftest import ADMIN
-from tests.app.runs_support import run_app
+from tests.support.runs import run_app
+from tests.support.web import ADMIN
 
 
 @pytest.fixture(scope="module")

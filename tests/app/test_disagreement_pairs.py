@@ -17,9 +17,9 @@ from app.settings import Settings
 from engine.disagreement import disagreement_pairs
 from engine.treefile import tree_from_json
 from engine.verdict import advice_scores
-from tests.app.conftest import ADMIN, Player, new_study, wait_ready
-from tests.app.runs_support import TINY, create_run, run_app, wait_run
-from tests.support.web import browser, csrf_token, logged_in
+from tests.support.runs import TINY, create_run, run_app, wait_run
+from tests.support.studies import Player, new_study, wait_ready
+from tests.support.web import ADMIN, browser, csrf_token, logged_in
 
 pytestmark = pytest.mark.training
 

@@ -12,7 +12,7 @@ import pytest
 from axe_playwright_python.sync_playwright import Axe
 from playwright.sync_api import Browser, expect
 
-from .test_browser import DESKTOP, browser, new_page, server  # noqa: F401 (fixtures)
+from tests.support.browser import DESKTOP, new_page
 
 pytestmark = pytest.mark.browser
 # Swagger UI's own markup, not ACV's (docs/accessibility.md): each operation's summary is a

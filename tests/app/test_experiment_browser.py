@@ -21,10 +21,9 @@ from app.db import make_engine, make_sessions
 from app.runs import artefacts
 from tests.support.a11y import assert_accessible
 from tests.support.artefacts import report_body
+from tests.support.browser import ADMIN_TOKEN, DESKTOP, PHONE, new_page
 from tests.support.labelling import wait_until_prepared
 from tests.support.server import acv_serve, clean_env
-
-from .test_browser import ADMIN_TOKEN, DESKTOP, PHONE, browser, new_page  # noqa: F401
 
 pytestmark = pytest.mark.browser
 ADMIN = {"Authorization": f"Bearer {ADMIN_TOKEN}"}

@@ -22,11 +22,11 @@ from typer.testing import CliRunner
 from app.cli.root import cli
 from app.models import Run
 from app.runs import artefacts, comparison
-from tests.app.conftest import ADMIN, new_study
-from tests.app.runs_support import TINY, run_app
 from tests.support.artefacts import report_body
 from tests.support.labelling import label_bracket
-from tests.support.web import audit, csrf_token, logged_in
+from tests.support.runs import TINY, run_app
+from tests.support.studies import new_study
+from tests.support.web import ADMIN, audit, csrf_token, logged_in
 
 BODY = {"algo": "bipars-em", "timesteps": 512, **TINY}
 STEP = 256

@@ -17,9 +17,9 @@ from pydantic import ValidationError
 from app.http.ratelimit import FAILED_LOGINS_PER_MINUTE, LoginLimiter
 from app.main import create_app
 from app.settings import Settings
-from tests.app.conftest import ADMIN_TOKEN
-from tests.app.test_crowd_api import configure
+from tests.support.crowd import configure
 from tests.support.server import acv_serve, clean_env
+from tests.support.web import ADMIN_TOKEN
 
 WRONG = {"Authorization": "Bearer " + "x" * 40}
 

@@ -16,8 +16,9 @@ from engine.bracket import make_first_round
 from engine.candidates import sample_candidates, seed_abilities
 from engine.rl.checkpoint import find_checkpoint
 from engine.rl.trained import deterministic_policy, load_agent
-from tests.app.conftest import ADMIN, ADMIN_TOKEN, new_study, wait_ready
-from tests.app.runs_support import TINY, create_run, run_app, wait_run
+from tests.support.runs import TINY, create_run, run_app, wait_run
+from tests.support.studies import new_study, wait_ready
+from tests.support.web import ADMIN, ADMIN_TOKEN
 
 pytestmark = pytest.mark.training
 

@@ -11,15 +11,7 @@ import pytest
 from playwright.sync_api import Browser
 
 from tests.support.a11y import assert_accessible
-
-from .test_browser import (  # noqa: F401 (fixtures)
-    browser,
-    create_study_and_invite,
-    new_page,
-    server,
-    shown,
-    wait_for_match,
-)
+from tests.support.browser import create_study_and_invite, new_page, shown, wait_for_match
 
 pytestmark = pytest.mark.browser
 PRELOAD_TIMEOUT_S = 30.0

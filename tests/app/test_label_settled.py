@@ -19,17 +19,8 @@ import pytest
 from playwright.sync_api import Browser, Page, Request
 
 from tests.support.a11y import assert_accessible
-from tests.support.browser import slow_motion, wait_for_match
+from tests.support.browser import ADMIN_TOKEN, DESKTOP, PHONE, new_page, slow_motion, wait_for_match
 from tests.support.labelling import wait_until_prepared
-
-from .test_browser import (  # noqa: F401 (fixtures)
-    ADMIN_TOKEN,
-    DESKTOP,
-    PHONE,
-    browser,
-    new_page,
-    server,
-)
 
 pytestmark = pytest.mark.browser
 N_CANDIDATES = 8  # 7 matches: 4, 2 and the final

@@ -20,15 +20,15 @@ from app.models import token_digest
 from app.recruiting import members
 from app.recruiting.members import STUDY, SURVEY, CollectionKind
 from app.surveys import respond as survey_respond
-from tests.app.conftest import ADMIN, Player
-from tests.app.surveys_support import (
+from tests.support.studies import Player
+from tests.support.surveys import (
     Respondent,
     invite,
     paper_answers,
     paper_body,
     participant_trees,
 )
-from tests.support.web import browser
+from tests.support.web import ADMIN, browser
 
 #: Tokens of a shape we never issue: each is refused as unknown before any query.
 MALFORMED = ("not a token!", "a" * 257, "tok%en", "t.o.k", "tökén")

@@ -24,9 +24,9 @@ import httpx
 import pytest
 
 from app.http.ratelimit import FAILED_LOGINS_PER_MINUTE
-from tests.app.conftest import ADMIN, ADMIN_TOKEN
 from tests.support.net import free_port
 from tests.support.wait import wait_for
+from tests.support.web import ADMIN, ADMIN_TOKEN
 
 pytestmark = pytest.mark.process
 

@@ -18,9 +18,9 @@ from fastapi.testclient import TestClient
 from app.core.auth import PARTICIPANT_COOKIE
 from app.http.ratelimit import LoginLimiter
 from app.surveys.respond import RESPONDENT_COOKIE
-from tests.app.conftest import ADMIN, Player
-from tests.app.surveys_support import paper_body, participant_trees
-from tests.support.web import browser, csrf_token
+from tests.support.studies import Player
+from tests.support.surveys import paper_body, participant_trees
+from tests.support.web import ADMIN, browser, csrf_token
 
 FIRST = "?PROLIFIC_PID=p-{n}&STUDY_ID=st&SESSION_ID=attempt-1"
 COOKIES = {"s": PARTICIPANT_COOKIE, "q": RESPONDENT_COOKIE}

@@ -11,7 +11,7 @@ import json
 from pathlib import Path
 from typing import Any
 
-from tests.app.openapi_support import api_openapi
+from tests.support.openapi import api_openapi
 
 SURFACE = Path(__file__).with_name("openapi_surface.json")
 

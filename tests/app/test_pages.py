@@ -17,8 +17,8 @@ import pytest
 from fastapi.testclient import TestClient
 
 from engine.treefile import tree_from_json
-from tests.app.conftest import ADMIN, ADMIN_TOKEN, Player, wait_ready
-from tests.support.web import audit, browser, csrf_token, logged_in
+from tests.support.studies import Player, wait_ready
+from tests.support.web import ADMIN, ADMIN_TOKEN, audit, browser, csrf_token, logged_in
 
 
 @pytest.mark.parametrize(

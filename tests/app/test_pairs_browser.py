@@ -12,18 +12,10 @@ import httpx
 import pytest
 from playwright.sync_api import Browser, Page, expect
 
-from tests.app.runs_support import FINAL, TINY
-from tests.app.test_browser import (  # noqa: F401 (fixtures)
-    ADMIN_TOKEN,
-    DESKTOP,
-    PHONE,
-    browser,
-    new_page,
-    server,
-)
 from tests.support.a11y import assert_accessible
-from tests.support.browser import wait_until_still
+from tests.support.browser import ADMIN_TOKEN, DESKTOP, PHONE, new_page, wait_until_still
 from tests.support.labelling import label_bracket, wait_until_prepared
+from tests.support.runs import FINAL, TINY
 from tests.support.wait import wait_for
 
 pytestmark = pytest.mark.browser

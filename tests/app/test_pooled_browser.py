@@ -12,15 +12,9 @@ import httpx
 import pytest
 from playwright.sync_api import Browser, expect
 
-from tests.app.test_browser import (  # noqa: F401 (fixtures)
-    ADMIN_TOKEN,
-    browser,
-    new_page,
-    screens,
-    server,
-)
-from tests.app.test_surveys_browser import two_finished_participants
 from tests.support.a11y import assert_accessible
+from tests.support.browser import ADMIN_TOKEN, new_page
+from tests.support.surveys import two_finished_participants
 from tests.support.wait import wait_for
 
 pytestmark = [pytest.mark.browser, pytest.mark.training]

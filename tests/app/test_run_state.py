@@ -16,9 +16,9 @@ from app.models import Run, RunCheckpoint, RunMetric
 from app.runs import run_state
 from app.runtime import Runtime
 from app.settings import Settings
-from tests.app.conftest import ADMIN, new_study
-from tests.app.runs_support import TINY, create_run, run_app, wait_run
-from tests.support.web import logged_in
+from tests.support.runs import TINY, create_run, run_app, wait_run
+from tests.support.studies import new_study
+from tests.support.web import ADMIN, logged_in
 
 
 def _run_row(runtime: Runtime, study_id: int, **values: object) -> int:

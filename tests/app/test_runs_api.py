@@ -33,8 +33,7 @@ from engine.pipeline import replay_with_teacher
 from engine.rl.checkpoint import list_checkpoints
 from engine.rl.report import checkpoint_report
 from engine.treefile import tree_from_json, tree_to_json
-from tests.app.conftest import ADMIN, new_study
-from tests.app.runs_support import (
+from tests.support.runs import (
     ENDLESS,
     TINY,
     create_run,
@@ -44,6 +43,8 @@ from tests.app.runs_support import (
     run_app,
     wait_run,
 )
+from tests.support.studies import new_study
+from tests.support.web import ADMIN
 
 pytestmark = pytest.mark.training
 

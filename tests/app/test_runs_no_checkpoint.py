@@ -8,8 +8,9 @@ from collections.abc import Iterator
 import pytest
 from fastapi.testclient import TestClient
 
-from tests.app.conftest import ADMIN, new_study
-from tests.app.runs_support import TINY, create_run, finished_participant, run_app
+from tests.support.runs import TINY, create_run, finished_participant, run_app
+from tests.support.studies import new_study
+from tests.support.web import ADMIN
 
 #: Every operation that reads a checkpoint of a run (the latest one when none is named).
 ON_A_CHECKPOINT = [

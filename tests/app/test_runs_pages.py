@@ -13,8 +13,7 @@ import pytest
 from fastapi.testclient import TestClient
 
 from engine.judges import DIAGNOSTIC_JUDGES, JUDGES, VERDICT_JUDGES
-from tests.app.conftest import ADMIN, new_study
-from tests.app.runs_support import (
+from tests.support.runs import (
     ENDLESS,
     TINY,
     create_run,
@@ -23,7 +22,8 @@ from tests.app.runs_support import (
     run_app,
     wait_run,
 )
-from tests.support.web import audit, browser, csrf_token, logged_in
+from tests.support.studies import new_study
+from tests.support.web import ADMIN, audit, browser, csrf_token, logged_in
 
 pytestmark = pytest.mark.training
 

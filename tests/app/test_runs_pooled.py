@@ -21,9 +21,9 @@ from engine.judges import JUDGES
 from engine.pooling import pooled_tree
 from engine.rl.runner import load_run_pool
 from engine.treefile import tree_from_json, tree_to_json
-from tests.app.conftest import ADMIN, Player, new_study
-from tests.app.runs_support import TINY, create_run, finished_participant, run_app, wait_run
-from tests.support.web import audit, csrf_token, logged_in
+from tests.support.runs import TINY, create_run, finished_participant, run_app, wait_run
+from tests.support.studies import Player, new_study
+from tests.support.web import ADMIN, audit, csrf_token, logged_in
 
 pytestmark = pytest.mark.training
 

@@ -19,10 +19,11 @@ from pathlib import Path
 
 import pytest
 
-from tests.app.conftest import ADMIN, new_study
-from tests.app.runs_support import ENDLESS, TINY, create_run, progressed, run_app, wait_run
 from tests.support.net import free_port, listening
+from tests.support.runs import ENDLESS, TINY, create_run, progressed, run_app, wait_run
+from tests.support.studies import new_study
 from tests.support.wait import wait_for
+from tests.support.web import ADMIN
 
 pytestmark = [pytest.mark.ray, pytest.mark.training]
 RAY = Path(sys.executable).with_name("ray")

@@ -27,8 +27,7 @@ from app.db import make_engine, make_sessions
 from app.jobs import queue
 from app.models import Run, utcnow
 from engine.rl.logger import read_metrics
-from tests.app.conftest import ADMIN, new_study
-from tests.app.runs_support import (
+from tests.support.runs import (
     ENDLESS,
     TINY,
     create_run,
@@ -37,7 +36,9 @@ from tests.app.runs_support import (
     run_app,
     wait_run,
 )
+from tests.support.studies import new_study
 from tests.support.wait import wait_for
+from tests.support.web import ADMIN
 
 pytestmark = pytest.mark.training
 

@@ -9,7 +9,7 @@ from typing import Any
 import pytest
 from fastapi.testclient import TestClient
 
-from tests.app.conftest import ADMIN
+from tests.support.web import ADMIN
 
 
 def _field(client: TestClient, model: str, name: str) -> dict[str, Any]:

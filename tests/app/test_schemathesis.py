@@ -28,9 +28,9 @@ from schemathesis.generation.feedback import FeedbackSources
 from schemathesis.generation.overrides import Override
 
 from app.http.ratelimit import LoginLimiter
-from tests.app.conftest import ADMIN
-from tests.app.surveys_support import finished, paper_body
-from tests.app.surveys_support import invite as invite_respondents
+from tests.support.surveys import finished, paper_body
+from tests.support.surveys import invite as invite_respondents
+from tests.support.web import ADMIN
 
 EXAMPLES = int(os.environ.get("ACV_SCHEMATHESIS_EXAMPLES", "8"))
 #: Checks that need no knowledge of which ids exist (random ids are 404s, which is right).

@@ -21,8 +21,8 @@ from app.core import auth
 from app.http.deps import AJAX_HEADER
 from app.http.ratelimit import FAILED_LOGINS_PER_MINUTE
 from app.middleware import MAX_BODY_BYTES
-from tests.app.conftest import ADMIN, ADMIN_TOKEN, Player
-from tests.support.web import browser, csrf_token, logged_in
+from tests.support.studies import Player
+from tests.support.web import ADMIN, ADMIN_TOKEN, browser, csrf_token, logged_in
 
 AJAX = dict([AJAX_HEADER])
 

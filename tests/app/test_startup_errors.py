@@ -29,10 +29,10 @@ from app.models import Candidate, Study
 from app.runtime import Runtime
 from app.settings import Settings
 from app.studies.service import StudySpec, create_study
-from tests.app.conftest import ADMIN_TOKEN
 from tests.support.net import free_port, listening
 from tests.support.postgres import BACKENDS, empty_database
 from tests.support.server import clean_env
+from tests.support.web import ADMIN_TOKEN
 
 REPO = Path(__file__).resolve().parents[2]
 SERVE = [

@@ -17,8 +17,8 @@ from typing import Any
 import pytest
 from fastapi.testclient import TestClient
 
-from tests.app.openapi_support import api_openapi, json_operations
-from tests.app.surveys_support import scheme_headers
+from tests.support.openapi import api_openapi, json_operations
+from tests.support.surveys import scheme_headers
 
 #: The house rule: a JSON ``false`` is not an integer, nor is ``3.0`` (a float that happens
 #: to be whole), nor the text ``"1"``.

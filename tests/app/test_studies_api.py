@@ -14,7 +14,7 @@ from app.runtime import Runtime
 from app.studies.service import StudySpec, create_study
 from engine.bracket import make_first_round
 from engine.candidates import sample_candidates
-from tests.app.conftest import wait_ready
+from tests.support.studies import wait_ready
 
 
 def test_healthz(client) -> None:

@@ -15,15 +15,14 @@ from fastapi.testclient import TestClient
 
 from app.http.ratelimit import LoginLimiter
 from app.surveys.respond import RESPONDENT_COOKIE
-from tests.app.conftest import ADMIN
-from tests.app.surveys_support import (
+from tests.support.surveys import (
     Respondent,
     invite,
     paper_answers,
     paper_body,
     participant_trees,
 )
-from tests.support.web import audit, browser, csrf_token, logged_in
+from tests.support.web import ADMIN, audit, browser, csrf_token, logged_in
 
 SETTINGS = {"enabled": True, "max_participants": 50}
 PID = "?PROLIFIC_PID=abc123&STUDY_ID=s1&SESSION_ID=x1&other=ignored"

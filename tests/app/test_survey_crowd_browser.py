@@ -16,11 +16,10 @@ import httpx
 import pytest
 from playwright.sync_api import Browser, Page, Route, expect
 
-from tests.app.surveys_support import paper_body
-from tests.app.test_browser import ADMIN_TOKEN, browser, new_page, server  # noqa: F401
-from tests.app.test_crowd_browser import platform, turned_away  # noqa: F401 (fixture)
-from tests.app.test_surveys_browser import READY, two_finished_participants
 from tests.support.a11y import assert_accessible
+from tests.support.browser import ADMIN_TOKEN, new_page
+from tests.support.crowd import turned_away
+from tests.support.surveys import READY, paper_body, two_finished_participants
 
 pytestmark = pytest.mark.browser
 

@@ -20,9 +20,9 @@ from app.surveys import answers as survey_answers
 from app.surveys import crowd as survey_crowd
 from app.surveys import respond as survey_respond
 from app.surveys.answers import AnswerIn
-from tests.app.conftest import ADMIN, BACKENDS
-from tests.app.surveys_support import invite, paper_body, participant_trees
-from tests.support.postgres import empty_database
+from tests.support.postgres import BACKENDS, empty_database
+from tests.support.surveys import invite, paper_body, participant_trees
+from tests.support.web import ADMIN
 
 RESPONDENTS = 30
 

@@ -14,8 +14,8 @@ from typing import Any
 import pytest
 from fastapi.testclient import TestClient
 
-from tests.app.conftest import ADMIN, Player
-from tests.app.surveys_support import (
+from tests.support.studies import Player
+from tests.support.surveys import (
     finished,
     invite,
     paper_answers,
@@ -23,7 +23,7 @@ from tests.app.surveys_support import (
     run_with_artefact,
     tree_json,
 )
-from tests.support.web import logged_in
+from tests.support.web import ADMIN, logged_in
 
 
 @pytest.fixture(scope="module")

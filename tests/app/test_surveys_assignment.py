@@ -16,8 +16,8 @@ from scipy.stats import binomtest
 
 from app.models import Survey, SurveyScreen
 from app.surveys.respond import plan_screens, respondent_rng
-from tests.app.conftest import ADMIN
-from tests.app.surveys_support import finished, invite, paper_answers
+from tests.support.surveys import finished, invite, paper_answers
+from tests.support.web import ADMIN
 
 
 @pytest.fixture(scope="module")

@@ -20,39 +20,15 @@ from playwright.sync_api import Page, expect
 from app.db import make_engine, make_sessions
 from app.models import CheckpointArtefact, Run
 from app.settings import SQLITE_FILE
-from tests.app.test_browser import (  # noqa: F401 (fixtures)
-    ADMIN_TOKEN,
-    browser,
-    fits_width,
-    new_page,
-    screens,
-    server,
-)
 from tests.support.a11y import assert_accessible
-from tests.support.labelling import label_bracket, wait_until_prepared
+from tests.support.browser import ADMIN_TOKEN, fits_width, new_page
+from tests.support.surveys import READY, two_finished_participants
 
 pytestmark = pytest.mark.browser
 
 PHONE = {"width": 390, "height": 844}
 DESKTOP = {"width": 1280, "height": 900}
 ADMIN = {"Authorization": f"Bearer {ADMIN_TOKEN}"}
-#: A screen is shown and answerable (as a function: Playwright evaluates a bare expression
-#: string with eval, which the pages' policy forbids).
-READY = "() => document.getElementById('respond').dataset.ready === 'true'"
-
-
-def two_finished_participants(base: str) -> int:
-    """A ready 5-candidate study with two finished participants (API); returns the study."""
-    with httpx.Client(base_url=base, headers=ADMIN, timeout=60) as api:
-        study = api.post(
-            "/api/studies",
-            json={"name": "Survey trees", "env_id": "Hopper-v5", "n_candidates": 5, "seed": 4},
-        ).json()
-        wait_until_prepared(api, study["id"])
-        for side in ("a", "b"):
-            token = api.post(f"/api/studies/{study['id']}/participants").json()["token"]
-            label_bracket(api, token, lambda match, side=side: match[side]["candidate_id"])
-    return study["id"]
 
 
 def build_survey(page: Page, base: str) -> str:

@@ -11,7 +11,7 @@ import pytest
 from typer.testing import CliRunner
 
 from app.cli import cli
-from tests.app.surveys_support import Respondent, finished, paper_answers, tree_json
+from tests.support.surveys import Respondent, finished, paper_answers, tree_json
 
 
 @pytest.fixture

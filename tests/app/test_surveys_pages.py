@@ -11,9 +11,8 @@ from fastapi.testclient import TestClient
 
 from app.http.access_log import mask_invite_tokens
 from app.surveys.respond import RESPONDENT_COOKIE
-from tests.app.conftest import ADMIN, ADMIN_TOKEN
-from tests.app.surveys_support import finished, invite, paper_answers, paper_body
-from tests.app.test_pages import audit, browser, logged_in
+from tests.support.surveys import finished, invite, paper_answers, paper_body
+from tests.support.web import ADMIN, ADMIN_TOKEN, audit, browser, logged_in
 
 
 @pytest.fixture(scope="module")

@@ -22,8 +22,9 @@ import httpx
 import pytest
 
 from app.settings import Settings
-from tests.app.conftest import ADMIN, ADMIN_TOKEN, new_study
-from tests.app.runs_support import TINY, create_run, finished_participant, run_app, wait_run
+from tests.support.runs import TINY, create_run, finished_participant, run_app, wait_run
+from tests.support.studies import new_study
+from tests.support.web import ADMIN, ADMIN_TOKEN
 
 REPO = Path(__file__).resolve().parents[2]
 BLOCKER = '''

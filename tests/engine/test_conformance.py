@@ -16,7 +16,7 @@ from engine.conformance import (
 from engine.errors import InputError
 from engine.pipeline import replay
 from engine.tournament import ScoreJudge, score_winner
-from tests.engine.conftest import r_judged_doc
+from tests.support.candidates import r_judged_doc
 
 
 def test_reversed_judge_rejects_every_first_round_match() -> None:

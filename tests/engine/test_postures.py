@@ -10,7 +10,7 @@ from engine.envs import env_model
 from engine.errors import InputError
 from engine.postures import KNEE_TARGET, orthogonal_score
 from engine.teachers import make_teacher
-from tests.engine.conftest import make_candidates
+from tests.support.candidates import make_candidates
 
 
 def _joint(model: mujoco.MjModel, name: str) -> int:

@@ -15,7 +15,7 @@ from engine.preference_tree import from_dendrogram
 from engine.teachers import CoinJudge
 from engine.tournament import ScoreJudge, dendrogram, play
 from engine.treefile import make_document
-from tests.engine.conftest import make_candidates
+from tests.support.candidates import make_candidates
 
 
 def test_paper_figure2_shape_six_players_with_byes() -> None:

@@ -8,7 +8,7 @@ import pytest
 from engine.envs import env_model
 from engine.errors import InputError
 from engine.teachers import make_teacher
-from tests.engine.conftest import make_candidates
+from tests.support.candidates import make_candidates
 
 
 @pytest.fixture

@@ -23,7 +23,7 @@ from engine.verdict import (
     split_matches,
     verdict,
 )
-from tests.engine.conftest import r_judged_doc
+from tests.support.candidates import r_judged_doc
 
 N = 16
 #: seed noise against a latent preference of spread 1: seeds disagree often, as real judges do

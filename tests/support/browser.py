@@ -8,7 +8,11 @@ its result depend on timing. Every wait has a deadline (Playwright's ``timeout``
 
 from __future__ import annotations
 
-from playwright.sync_api import Page, expect
+from pathlib import Path
+
+from playwright.sync_api import Browser, BrowserContext, Page, expect
+
+from tests.support.a11y import assert_accessible
 
 SETTLE_TIMEOUT_MS = 30_000
 # Playwright's assertions wait 5 s by default, its actions 30 s here (new_page): on a loaded
@@ -51,3 +55,79 @@ def slow_motion(page: Page) -> None:
   const sheet = new CSSStyleSheet(); sheet.replaceSync({SLOW_MOTION_CSS!r});
   document.adoptedStyleSheets = [...document.adoptedStyleSheets, sheet]; }});"""
     )
+
+
+ADMIN_TOKEN = "browser-test-admin-token-0123456789"
+
+
+CHROMIUM = "/usr/bin/chromium"
+
+
+CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking"]
+
+
+PHONE = {"width": 375, "height": 667}
+
+
+DESKTOP = {"width": 1280, "height": 860}
+
+
+SCREENS_COPY = Path("/tmp/acv_screens")
+
+
+def watch_errors(page: Page, errors: list[str]) -> Page:
+    """Collect console errors (CSP violations among them) and uncaught script errors."""
+    page.on(
+        "console",
+        lambda m: (
+            errors.append(f"{m.text} ({m.location.get('url')})") if m.type == "error" else None
+        ),
+    )
+    page.on("pageerror", lambda exc: errors.append(str(exc)))
+    return page
+
+
+def new_page(browser: Browser, errors: list[str], **context_args) -> tuple[BrowserContext, Page]:
+    context = browser.new_context(**context_args)
+    context.set_default_timeout(30_000)
+    return context, watch_errors(context.new_page(), errors)
+
+
+def shown(page: Page, side: str) -> int:
+    """The candidate id shown on ``side`` (``a`` = left)."""
+    return int(page.get_attribute(f"#img-{side}", "alt").removeprefix("candidate "))
+
+
+def fits_width(page: Page) -> bool:
+    return page.evaluate("document.documentElement.scrollWidth <= window.innerWidth")
+
+
+def in_view(page: Page, selector: str) -> bool:
+    box = page.locator(selector).bounding_box()
+    return box is not None and box["y"] + box["height"] <= page.viewport_size["height"]
+
+
+N_CANDIDATES = 6  # 5 matches in 3 rounds (two byes)
+
+
+def create_study_and_invite(page: Page, base: str) -> tuple[str, str]:
+    """Log in by the ``#token=`` link, create a study through the form, invite one person.
+
+    Returns the study page URL and the invite link shown there.
+    """
+    page.goto(f"{base}/login#token={ADMIN_TOKEN}")
+    page.wait_for_url(f"{base}/studies")
+    assert ADMIN_TOKEN not in page.url and ADMIN_TOKEN not in page.content()
+    page.click("text=New study")
+    page.wait_for_selector("#sampling")
+    assert_accessible(page, "new-study form")
+    page.fill("#name", "Browser study")
+    page.fill("#n_candidates", str(N_CANDIDATES))
+    page.fill("#seed", "7")
+    page.click("button:has-text('Create study')")
+    expect(page.locator(".grid figure")).to_have_count(N_CANDIDATES, timeout=90_000)
+    page.fill("#count", "1")
+    page.click("button:has-text('Add participants')")
+    invite = page.locator("td.invite input").first.input_value()
+    assert invite.startswith(f"{base}/p/")
+    return page.url.split("?")[0], invite

@@ -6,10 +6,14 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+import httpx
 from fastapi.testclient import TestClient
 
 from app.models import CheckpointArtefact, Run
-from tests.app.conftest import ADMIN, Player
+from tests.support.browser import ADMIN_TOKEN as SERVER_ADMIN_TOKEN
+from tests.support.labelling import label_bracket, wait_until_prepared
+from tests.support.studies import Player
+from tests.support.web import ADMIN
 
 
 def finished(client: TestClient, study_id: int, side: str = "a") -> int:
@@ -149,3 +153,23 @@ def scheme_headers(client: TestClient, study_id: int) -> dict[str, dict[str, str
         "InviteToken": {"Authorization": f"Bearer {participant.json()['token']}"},
         "SurveyInviteToken": respondent.headers,
     }
+
+
+#: A screen is shown and answerable (as a function: Playwright evaluates a bare expression
+#: string with eval, which the pages' policy forbids).
+READY = "() => document.getElementById('respond').dataset.ready === 'true'"
+
+
+def two_finished_participants(base: str) -> int:
+    """A ready 5-candidate study with two finished participants (API); returns the study."""
+    admin = {"Authorization": f"Bearer {SERVER_ADMIN_TOKEN}"}  # the browser tests' server
+    with httpx.Client(base_url=base, headers=admin, timeout=60) as api:
+        study = api.post(
+            "/api/studies",
+            json={"name": "Survey trees", "env_id": "Hopper-v5", "n_candidates": 5, "seed": 4},
+        ).json()
+        wait_until_prepared(api, study["id"])
+        for side in ("a", "b"):
+            token = api.post(f"/api/studies/{study['id']}/participants").json()["token"]
+            label_bracket(api, token, lambda match, side=side: match[side]["candidate_id"])
+    return study["id"]

@@ -11,8 +11,9 @@ from fastapi.testclient import TestClient
 from app.jobs.settings import JobSettings
 from app.main import create_app
 from app.settings import Settings
-from tests.app.conftest import ADMIN, Player
+from tests.support.studies import Player
 from tests.support.wait import wait_for
+from tests.support.web import ADMIN
 
 #: A tiny PPO budget on the 5-candidate Hopper study: 128 steps per update.
 TINY = {"n_envs": 1, "num_steps": 128, "num_minibatches": 4, "update_epochs": 2}
