@@ -8,6 +8,10 @@ from sqlalchemy import inspect, text
 
 from app.db import downgrade, make_engine, upgrade
 from app.models import Base
+from tests.support.runs import run_app
+from tests.support.studies import new_study
+from tests.support.surveys import invite, paper_answers, paper_body, participant_trees
+from tests.support.web import ADMIN
 
 TABLES = set(Base.metadata.tables)
 
@@ -65,3 +69,38 @@ def test_sqlite_runs_in_wal_mode_with_foreign_keys(tmp_path) -> None:
             assert conn.execute(text("PRAGMA foreign_keys")).scalar() == 1
     finally:
         engine.dispose()
+
+
+_PEOPLE = ("participants", "labels", "survey_respondents", "survey_answers", "runs")
+
+
+def _counts(url: str) -> dict[str, int]:
+    engine = make_engine(url)
+    try:
+        with engine.connect() as conn:
+            return {
+                t: conn.execute(text(f"SELECT count(*) FROM {t}")).scalar_one() for t in _PEOPLE
+            }
+    finally:
+        engine.dispose()
+
+
+def test_the_run_state_revision_keeps_every_row(settings) -> None:
+    """A database filled at the previous head (0012) keeps every participant, label,
+    respondent, answer and run through ``upgrade head`` (0013 adds the run state tables)."""
+    with run_app(settings, worker=False) as client:
+        study = new_study(client)
+        trees = participant_trees(client, study["id"])
+        survey = client.post("/api/surveys", json=paper_body(*trees), headers=ADMIN).json()
+        [respondent] = invite(client, survey["id"])
+        while (screen := respondent.screen()) is not None:
+            assert respondent.answer(screen["position"], paper_answers(screen)).status_code == 201
+        body = {"study_id": study["id"], "algo": "ppo", "timesteps": 1000}
+        assert client.post("/api/runs", json=body, headers=ADMIN).status_code == 202
+    url = settings.sqlalchemy_url
+    downgrade(url, "0012")  # as it was filled at the previous head
+    before = _counts(url)
+    assert all(before.values()), before
+    upgrade(url)
+    assert _counts(url) == before
+    assert {"run_metrics", "run_checkpoints"} <= _tables(url)
