@@ -11,7 +11,7 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from app.labelling.simulate import simulate
-from app.models import Experiment, Label, Participant, Study
+from app.models import Experiment, Label, Participant, Study, StudyStatus
 from app.runs.experiments import ExperimentSpec, create_experiment
 from app.runs.spec import RunSpec
 from app.runtime import Runtime
@@ -44,12 +44,14 @@ def ensure_demo(runtime: Runtime) -> Demo:
     already played by the ``standing`` teacher, and one invite nobody has used yet."""
     with runtime.sessions() as session:
         study = session.scalar(
-            select(Study).where(Study.name == DEMO_NAME, Study.status != "failed").limit(1)
+            select(Study)
+            .where(Study.name == DEMO_NAME, Study.status != StudyStatus.FAILED)
+            .limit(1)
         )
         if study is None:
             spec = StudySpec(DEMO_NAME, "Humanoid-v5", 16, 0.9, 0, instructions=DEMO_INSTRUCTIONS)
             study = create_study(session, spec=spec)
-    if study.status == "preparing":
+    if study.status == StudyStatus.PREPARING:
         runtime.prepare(study.id)
     with runtime.sessions() as session:
         study = get_study(session, study_id=study.id)

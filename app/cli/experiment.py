@@ -11,6 +11,7 @@ import typer
 
 from app.cli.root import cli, fail
 from app.cli.serve import cli_runtime
+from app.models import RunStatus
 from app.runs import experiments
 from app.runs.experiments import DEFAULT_PILOT_SEEDS, DEFAULT_SEEDS, ExperimentSpec
 from app.runs.spec import RunSpec
@@ -62,7 +63,7 @@ def list_(study: Annotated[int | None, Opt(help="Only this study's.")] = None) -
     with cli_runtime() as runtime, runtime.sessions() as session:
         for experiment in experiments.list_experiments(session, study_id=study):
             members = experiments.members(session, experiment_id=experiment.id)
-            done = sum(run.status == "succeeded" for _, run in members)
+            done = sum(run.status == RunStatus.SUCCEEDED for _, run in members)
             typer.echo(
                 f"{experiment.id}\tstudy {experiment.study_id}\t{experiment.spec.get('algo')}\t"
                 f"{len(experiment.seeds)} seeds\t{done}/{len(members)} runs succeeded"

@@ -12,6 +12,7 @@ from app.cli.root import cli, fail
 from app.cli.serve import cli_runtime
 from app.labelling import simulate as simulation
 from app.labelling import trees
+from app.models import StudyStatus
 from app.studies import participants
 from app.studies import service as studies
 from app.studies.participants import invite_url
@@ -58,7 +59,7 @@ def create(
         runtime.prepare(study.id)
         with runtime.sessions() as session:
             study = studies.get_study(session, study_id=study.id)
-    if study.status != "ready":
+    if study.status != StudyStatus.READY:
         fail(f"study {study.id} could not be prepared: {study.error}")
     typer.echo(f"study {study.id} ready: {study.n_candidates} {study.env_id} candidates")
 

@@ -26,7 +26,7 @@ from sqlalchemy.orm import Session, sessionmaker
 from app.db import make_engine, make_sessions
 from app.jobs import queue
 from app.jobs.settings import run_dir
-from app.models import Run
+from app.models import Run, RunStatus
 from app.runs import artefacts, run_state
 from engine.errors import InputError
 
@@ -83,7 +83,7 @@ class _Job:
         self.out = out
         with self.sessions() as session:
             row = session.get(Run, self.run_id)
-        if row is None or row.worker != self.worker or row.status != "running":
+        if row is None or row.worker != self.worker or row.status != RunStatus.RUNNING:
             return "lost"
         if row.resume:  # a run trained before run state rows: its earlier rows first
             with self.sessions() as session:
@@ -93,8 +93,12 @@ class _Job:
                 _train(row, out, self.progress, self.should_stop, self.judge_checkpoint(row, out))
         except Exception as exc:  # any failure must end up on the run, not in a log only
             log.error("run %d failed:\n%s", self.run_id, traceback.format_exc())
-            return self._finish("failed", error_text(exc))
-        final = {None: "succeeded", "cancel": "cancelled", "interrupted": "interrupted"}
+            return self._finish(RunStatus.FAILED, error_text(exc))
+        final = {
+            None: RunStatus.SUCCEEDED,
+            "cancel": RunStatus.CANCELLED,
+            "interrupted": RunStatus.INTERRUPTED,
+        }
         if self.reason == "lost":
             return "lost"
         return self._finish(

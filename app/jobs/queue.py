@@ -23,7 +23,7 @@ from sqlalchemy import CursorResult, select, update
 from sqlalchemy.orm import Session
 
 from app.db import writing
-from app.models import Run, as_utc, utcnow
+from app.models import Run, RunStatus, as_utc, utcnow
 
 #: Seconds without a heartbeat after which a running run's worker counts as gone.
 STALE_S = 60.0
@@ -79,7 +79,7 @@ def claim_next(session: Session, *, worker: str, executor: str) -> int | None:
     """Take the oldest queued run for ``worker``; its id, or None when the queue is empty."""
     queued = list(
         session.scalars(
-            select(Run.id).where(Run.status == "queued").order_by(Run.id).limit(CLAIM_BATCH)
+            select(Run.id).where(Run.status == RunStatus.QUEUED).order_by(Run.id).limit(CLAIM_BATCH)
         )
     )
     session.rollback()  # end the read transaction before writing
@@ -87,8 +87,8 @@ def claim_next(session: Session, *, worker: str, executor: str) -> int | None:
     for run_id in queued:
         if update_if(
             session,
-            (Run.id == run_id, Run.status == "queued"),
-            status="running",
+            (Run.id == run_id, Run.status == RunStatus.QUEUED),
+            status=RunStatus.RUNNING,
             worker=worker,
             executor=executor,
             started_at=now,
@@ -104,7 +104,7 @@ def heartbeat(session: Session, *, worker: str) -> None:
     with writing(session):
         session.execute(
             update(Run)
-            .where(Run.worker == worker, Run.status == "running")
+            .where(Run.worker == worker, Run.status == RunStatus.RUNNING)
             .values(heartbeat_at=utcnow())
             .execution_options(synchronize_session=False)
         )
@@ -116,7 +116,7 @@ def stop_reason(session: Session, *, run_id: int, worker: str) -> str | None:
         select(Run.status, Run.worker, Run.cancel_requested).where(Run.id == run_id)
     ).one_or_none()
     session.rollback()
-    if row is None or row.status != "running" or row.worker != worker:
+    if row is None or row.status != RunStatus.RUNNING or row.worker != worker:
         return "lost"
     return "cancel" if row.cancel_requested else None
 
@@ -125,7 +125,7 @@ def finish(
     session: Session, *, run_id: int, worker: str, status: str, error: str | None = None
 ) -> bool:
     """Move a run this worker is running to its final ``status`` (or ``interrupted``)."""
-    finished_at = None if status == "interrupted" else utcnow()
+    finished_at = None if status == RunStatus.INTERRUPTED else utcnow()
     return update_if(
         session, ours(run_id, worker), status=status, error=error, finished_at=finished_at
     )
@@ -138,8 +138,8 @@ def interrupt_worker_runs(session: Session, *, worker: str, reason: str = INTERR
             CursorResult[Any],
             session.execute(
                 update(Run)
-                .where(Run.worker == worker, Run.status == "running")
-                .values(status="interrupted", error=reason)
+                .where(Run.worker == worker, Run.status == RunStatus.RUNNING)
+                .values(status=RunStatus.INTERRUPTED, error=reason)
                 .execution_options(synchronize_session=False)
             ),
         )
@@ -158,7 +158,7 @@ def recover(
     heartbeat for ``stale_s`` seconds.
     """
     rows = session.execute(
-        select(Run.id, Run.worker, Run.heartbeat_at).where(Run.status == "running")
+        select(Run.id, Run.worker, Run.heartbeat_at).where(Run.status == RunStatus.RUNNING)
     ).all()
     session.rollback()
     cutoff = utcnow() - timedelta(seconds=stale_s)
@@ -176,10 +176,10 @@ def recover(
             session,
             (
                 Run.id == rid,
-                Run.status == "running",
+                Run.status == RunStatus.RUNNING,
                 Run.worker.is_(None) if w is None else Run.worker == w,
             ),
-            status="interrupted",
+            status=RunStatus.INTERRUPTED,
             error=INTERRUPTED,
         )
     ]
@@ -187,4 +187,4 @@ def recover(
 
 def ours(run_id: int, worker: str) -> tuple:
     """The conditions under which run ``run_id`` is still ``worker``'s to run."""
-    return Run.id == run_id, Run.worker == worker, Run.status == "running"
+    return Run.id == run_id, Run.worker == worker, Run.status == RunStatus.RUNNING

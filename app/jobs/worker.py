@@ -24,6 +24,7 @@ from app.jobs import queue
 from app.jobs.backfill import Backfiller
 from app.jobs.local import Finished, LocalExecutor
 from app.jobs.settings import JobSettings
+from app.models import RunStatus
 from app.settings import Settings
 
 log = logging.getLogger(__name__)
@@ -154,14 +155,16 @@ class Worker:
                     session,
                     run_id=run_id,
                     worker=self.id,
-                    status="failed",
+                    status=RunStatus.FAILED,
                     error=f"could not start the run: {type(exc).__name__}: {exc}",
                 )
         return claimed
 
     def _reap(self, session: Session, ended: Finished) -> None:
         error = ended.error or "the run process exited without reporting a result"
-        if queue.finish(session, run_id=ended.run_id, worker=self.id, status="failed", error=error):
+        if queue.finish(
+            session, run_id=ended.run_id, worker=self.id, status=RunStatus.FAILED, error=error
+        ):
             log.error("run %d failed: %s", ended.run_id, error)
 
     def shutdown(self, grace_s: float = STOP_GRACE_S) -> None:

@@ -21,6 +21,7 @@ from app.http.csrf import CsrfChecked, FormFields
 from app.http.deps import MAX_DB_ID, DbId, SessionDep
 from app.http.guards import ResearcherPage
 from app.http.rendering import PageRoute, redirect, render
+from app.models import StudyStatus
 from app.runs import experiments, run_state
 from app.runs import service as runs
 from app.runs.experiments import DEFAULT_SEEDS
@@ -67,7 +68,7 @@ def run_list(
         {
             "study": study,
             "runs": [RunOut.of(r) for r in runs.list_runs(session, study_id=study_id)],
-            "studies": [s for s in studies.list_studies(session) if s.status == "ready"],
+            "studies": [s for s in studies.list_studies(session) if s.status == StudyStatus.READY],
         },
     )
 
@@ -143,7 +144,9 @@ def new_run_form(
             "run_pick_study.html",
             {
                 "study": None,
-                "studies": [s for s in studies.list_studies(session) if s.status == "ready"],
+                "studies": [
+                    s for s in studies.list_studies(session) if s.status == StudyStatus.READY
+                ],
             },
         )
     return _form_page(request, session, study_id, dict(FORM_DEFAULTS), {})

@@ -18,7 +18,7 @@ from sqlalchemy import delete, exists, insert, select, update
 from sqlalchemy.orm import Session, sessionmaker
 
 from app.db import writing
-from app.models import Run, RunCheckpoint, RunMetric, utcnow
+from app.models import Run, RunCheckpoint, RunMetric, RunStatus, utcnow
 from app.runs.artefacts import checkpoint_steps as folder_checkpoints
 
 #: Per-episode lists of a metrics row: kept in the run folder only.
@@ -96,7 +96,9 @@ def unimported(session: Session) -> list[int]:
     stored in the database (their folders still hold it)."""
     has_rows = exists().where(RunMetric.run_id == Run.id)
     return list(
-        session.scalars(select(Run.id).where(Run.progress > 0, ~has_rows, Run.status != "running"))
+        session.scalars(
+            select(Run.id).where(Run.progress > 0, ~has_rows, Run.status != RunStatus.RUNNING)
+        )
     )
 
 

@@ -169,11 +169,11 @@ def cancel_run(session: Session, *, run_id: int) -> Run:
     get_run(session, run_id=run_id)
     if not update_if(
         session,
-        (Run.id == run_id, Run.status.in_(("queued", "interrupted"))),
-        status="cancelled",
+        (Run.id == run_id, Run.status.in_((RunStatus.QUEUED, RunStatus.INTERRUPTED))),
+        status=RunStatus.CANCELLED,
         finished_at=utcnow(),
     ) and not update_if(
-        session, (Run.id == run_id, Run.status == "running"), cancel_requested=True
+        session, (Run.id == run_id, Run.status == RunStatus.RUNNING), cancel_requested=True
     ):
         raise ConflictError(f"run {run_id} has already ended")
     return _fresh(session, run_id)
@@ -196,7 +196,7 @@ def resume_run(session: Session, *, run_id: int) -> Run:
     if not update_if(
         session,
         (Run.id == run_id, Run.status == run.status),
-        status="queued",
+        status=RunStatus.QUEUED,
         resume=True,
         cancel_requested=False,
         error=None,

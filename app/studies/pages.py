@@ -19,6 +19,7 @@ from app.http.deps import DbId, RuntimeDep, SessionDep
 from app.http.guards import ResearcherPage
 from app.http.rendering import PageRoute, redirect, render, thumb_template
 from app.http.urls import image_url
+from app.models import StudyStatus
 from app.runs import power as study_power
 from app.runs.experiments import DEFAULT_SEEDS
 from app.studies import participants
@@ -133,8 +134,12 @@ def study_page(
             "thumb_template": thumb_template(study_id),
             "candidates": _candidates(session, study_id),
             "participants": _participants(request, session, study_id),
-            **(crowd_context(request, session, study_id) if study.status == "ready" else {}),
-            **(_power(session, study_id) if study.status == "ready" else {}),
+            **(
+                crowd_context(request, session, study_id)
+                if study.status == StudyStatus.READY
+                else {}
+            ),
+            **(_power(session, study_id) if study.status == StudyStatus.READY else {}),
         },
     )
 

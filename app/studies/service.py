@@ -131,7 +131,7 @@ def prepare_study(
     with sessions() as session:
         study = session.get(Study, study_id)
         baseline = None if study is None else study_baseline_id(session, study)
-    if study is None or study.status != "preparing":
+    if study is None or study.status != StudyStatus.PREPARING:
         return
     try:  # the slow part holds no database connection
         runs = runs_dir or data_dir / "runs"
@@ -148,8 +148,10 @@ def prepare_study(
         with sessions() as session, writing(session):  # unless another process finished it
             session.execute(
                 update(Study)
-                .where(Study.id == study_id, Study.status == "preparing")
-                .values(status="failed", error=f"{type(exc).__name__}: {exc}".splitlines()[0])
+                .where(Study.id == study_id, Study.status == StudyStatus.PREPARING)
+                .values(
+                    status=StudyStatus.FAILED, error=f"{type(exc).__name__}: {exc}".splitlines()[0]
+                )
             )
 
 
@@ -195,7 +197,7 @@ def _store(
         session.add_all(
             BracketSlot(study_id=study_id, slot=k, a=a, b=b) for k, (a, b) in enumerate(bracket)
         )
-        session.execute(update(Study).where(Study.id == study_id).values(status="ready"))
+        session.execute(update(Study).where(Study.id == study_id).values(status=StudyStatus.READY))
 
 
 def _or_nones(values: list[float] | None, n: int) -> list[float | None]:
@@ -218,7 +220,7 @@ def get_study(session: Session, *, study_id: int) -> Study:
 def get_ready_study(session: Session, *, study_id: int) -> Study:
     """The study if its candidates and bracket exist; :class:`ConflictError` otherwise."""
     study = get_study(session, study_id=study_id)
-    if study.status != "ready":
+    if study.status != StudyStatus.READY:
         raise ConflictError(
             f"study {study_id} is {study.status}, not ready"
             + (f": {study.error}" if study.error else "")
@@ -269,4 +271,4 @@ def engine_candidates_of(session: Session, *, study_id: int) -> list[engine_cand
 
 def preparing_study_ids(session: Session) -> list[int]:
     """Studies left ``preparing`` (e.g. by a restart), to prepare again."""
-    return list(session.scalars(select(Study.id).where(Study.status == "preparing")))
+    return list(session.scalars(select(Study.id).where(Study.status == StudyStatus.PREPARING)))

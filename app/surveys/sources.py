@@ -16,7 +16,7 @@ from sqlalchemy.orm import Session
 
 from app.core.errors import ConflictError, NotFoundError
 from app.labelling.trees import participant_tree
-from app.models import CheckpointArtefact, Participant, Run, Study
+from app.models import CheckpointArtefact, Participant, Run, Study, StudyStatus
 from app.runs.artefacts import FAILURE, judged
 from engine.conformance import compare
 from engine.errors import InputError
@@ -176,7 +176,9 @@ def source_menus(session: Session) -> dict[str, list[dict[str, Any]]]:
         "studies": [
             {"study_id": sid, "name": name}
             for sid, name in session.execute(
-                select(Study.id, Study.name).where(Study.status == "ready").order_by(Study.id)
+                select(Study.id, Study.name)
+                .where(Study.status == StudyStatus.READY)
+                .order_by(Study.id)
             )
         ],
     }
