@@ -21,6 +21,8 @@ from app.db import writing
 from app.models import Run, RunCheckpoint, RunMetric, RunStatus, utcnow
 from app.runs.artefacts import checkpoint_steps as folder_checkpoints
 
+#: The largest step a 64-bit column holds.
+_MAX_STEP = 2**63 - 1
 #: Per-episode lists of a metrics row: kept in the run folder only.
 EPISODE_KEYS = ("episode_returns", "episode_shaped_returns")
 
@@ -71,6 +73,7 @@ def record_update(
 
 def metrics_rows(session: Session, *, run_id: int, after: int = -1) -> list[dict[str, Any]]:
     """The run's metrics rows with ``timesteps`` above ``after``, in order."""
+    after = min(after, _MAX_STEP)  # a larger ``after`` asks for nothing, and overflows SQLite
     return list(
         session.scalars(
             select(RunMetric.row)

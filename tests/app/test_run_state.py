@@ -59,6 +59,7 @@ def test_an_update_stores_progress_metrics_and_checkpoint_in_one_go(settings, re
         assert rows[0]["episodic_return"] is None and "episode_returns" not in rows[0]
         assert run_state.checkpoint_steps(session, run_id=run_id) == [256]
         assert run_state.metrics_rows(session, run_id=run_id, after=256)[0]["timesteps"] == 384
+        assert run_state.metrics_rows(session, run_id=run_id, after=10**22) == []  # no overflow
         assert session.get(Run, run_id).progress == 384
     runtime.close()
 
