@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Annotated
 
 from pydantic import BaseModel, ConfigDict, Field
 
 from app.core.json_types import JsonInt
-from app.labelling.service import MAX_RESPONSE_MS
+from app.labelling.service import MAX_RESPONSE_MS, BracketCell
 from app.studies.schemas import ProgressOut
 
 
@@ -86,14 +87,9 @@ class UndoOut(BaseModel):
     progress: ProgressOut
 
 
-class BracketCellOut(BaseModel):
-    round: int
-    slot: int
-    a: int | None
-    b: int | None
-    winner: int | None
-    match_id: int | None
-    is_bye: bool
+@dataclass(frozen=True)
+class BracketCellOut(BracketCell):
+    """One slot of the live bracket (the service's record)."""
 
 
 class BracketOut(BaseModel):

@@ -4,14 +4,15 @@ checkpoint report), converted once from :class:`engine.conformance.Conformance` 
 
 from __future__ import annotations
 
-from dataclasses import asdict
-from typing import Any
+from dataclasses import asdict, dataclass, field
+from typing import Annotated, Any
 
 from pydantic import BaseModel, ConfigDict, Field
 
 from app.runs.comparison import CheckpointView, highlights, score_column, verdict
 from engine.conformance import Conformance
 from engine.judges import LEGACY_JUDGES
+from engine.records import CandidateRow
 
 #: An ``acv.tree/1`` document (see ``engine.treefile``), passed on as stored.
 TreeJson = dict[str, Any]
@@ -88,21 +89,18 @@ class JudgeOut(BaseModel):
     contested: ContestedOut
 
 
-class CandidateRowOut(BaseModel):
-    """One candidate: R, F, z, z F, the judges' scores, V."""
+@dataclass(frozen=True)
+class CandidateRowOut(CandidateRow):
+    """One candidate: R, F, z, z F, the judges' scores, V (the engine's record, and the
+    score of the judge asked for)."""
 
-    id: int
-    reward: float
-    advice: float
-    z: float
-    shaping: float
-    shaped: float
-    value: float
-    behaviour: float
-    env_return: float | None = Field(
-        None, description="The return judge's score (none in reports from before that judge)."
+    env_return: Annotated[
+        float | None,
+        Field(description="The return judge's score (none in reports from before that judge)."),
+    ] = None
+    score: Annotated[float, Field(description="The selected judge's score of this candidate.")] = (
+        field(kw_only=True)
     )
-    score: float = Field(description="The selected judge's score of this candidate.")
 
 
 class HighlightsOut(BaseModel):
