@@ -41,8 +41,9 @@ def new_study(client: TestClient, **overrides: Any) -> dict[str, Any]:
 
 
 @dataclass
-class Player:
-    """A participant driving the REST API with their invite token."""
+class Member:
+    """Someone invited to a collection (a study's participant, a survey's respondent),
+    driving the REST API with their invite token."""
 
     client: TestClient
     id: int
@@ -52,6 +53,11 @@ class Player:
     @property
     def headers(self) -> dict[str, str]:
         return {"Authorization": f"Bearer {self.token}"}
+
+
+@dataclass
+class Player(Member):
+    """A participant playing their bracket."""
 
     def next_match(self) -> dict[str, Any] | None:
         response = self.client.get("/api/participants/me/next-match", headers=self.headers)

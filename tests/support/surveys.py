@@ -12,7 +12,7 @@ from fastapi.testclient import TestClient
 from app.models import CheckpointArtefact, Run
 from tests.support.browser import ADMIN_TOKEN as SERVER_ADMIN_TOKEN
 from tests.support.labelling import label_bracket, wait_until_prepared
-from tests.support.studies import Player
+from tests.support.studies import Member, Player
 from tests.support.web import ADMIN
 
 
@@ -90,17 +90,8 @@ def paper_body(tree1: dict[str, Any], tree2: dict[str, Any], **extra: Any) -> di
 
 
 @dataclass
-class Respondent:
-    """A respondent driving the API with their invite token."""
-
-    client: TestClient
-    id: int
-    token: str
-    invite_url: str
-
-    @property
-    def headers(self) -> dict[str, str]:
-        return {"Authorization": f"Bearer {self.token}"}
+class Respondent(Member):
+    """A respondent answering their screens."""
 
     def screen(self) -> dict[str, Any] | None:
         response = self.client.get("/api/surveys/me/screen", headers=self.headers)
