@@ -7,10 +7,10 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, field
 from typing import Annotated, Any
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, TypeAdapter
 
 from app.runs.comparison import CheckpointView, highlights, score_column, verdict
-from engine.conformance import Conformance
+from engine.conformance import Conformance, Contested, Rejection
 from engine.judges import LEGACY_JUDGES
 from engine.records import CandidateRow
 
@@ -28,47 +28,37 @@ class MetricsRowOut(BaseModel):
     update: int
 
 
-class RejectionOut(BaseModel):
+@dataclass(frozen=True)
+class RejectionOut(Rejection):
     """A human match the agent decided the other way."""
 
-    round: int
-    a: int
-    b: int
-    human_winner: int
-    agent_winner: int | None
-    contested: bool = Field(description="The human's winner has the lower environment reward.")
+    contested: Annotated[
+        bool, Field(description="The human's winner has the lower environment reward.")
+    ] = field()  # required here, as the API always sends it
 
 
-class ContestedOut(BaseModel):
+@dataclass(frozen=True)
+class ContestedOut(Contested):
     """Agreement over the human's contested matches (where the advice goes against R)."""
 
-    n: int
-    kept: int
-    agreement: float | None
-    agreement_ci: tuple[float, float] | None
 
-
-class ConformanceOut(BaseModel):
+@dataclass(frozen=True)
+class ConformanceOut(Conformance):
     """The metrics of ``acv compare --json``."""
 
-    n_matches: int
-    n_agree: int
-    match_agreement: float
-    match_agreement_ci: tuple[float, float]
-    kendall_tau_b: float | None
-    tree_edit_distance: float
-    same_champion: bool
-    rejected: list[RejectionOut]
+    rejected: list[RejectionOut]  # type: ignore[assignment]  # a list of the subclass
     contested: ContestedOut
-    reference_agreement: float = Field(
-        description="The match agreement of a judge by the environment's reward R alone."
-    )
+    reference_agreement: Annotated[
+        float,
+        Field(description="The match agreement of a judge by the environment's reward R alone."),
+    ]
 
     @classmethod
     def of(cls, m: Conformance) -> ConformanceOut:
-        return cls.model_validate(asdict(m))
+        return TypeAdapter(cls).validate_python(asdict(m))
 
 
+@dataclass(frozen=True)
 class CurvePointOut(ConformanceOut):
     """The conformance at one checkpoint."""
 
@@ -76,7 +66,7 @@ class CurvePointOut(ConformanceOut):
 
     @classmethod
     def at(cls, step: int, m: Conformance) -> CurvePointOut:
-        return cls.model_validate({**asdict(m), "checkpoint": step})
+        return TypeAdapter(cls).validate_python({**asdict(m), "checkpoint": step})
 
 
 class JudgeOut(BaseModel):
@@ -176,7 +166,7 @@ class CheckpointReportOut(BaseModel):
                     n_matches=c.n_matches,
                     n_agree=c.n_agree,
                     match_agreement=c.match_agreement,
-                    contested=ContestedOut.model_validate(asdict(c.contested)),
+                    contested=ContestedOut(**asdict(c.contested)),
                 )
                 for j, c in view.conformance.items()
             ],
