@@ -11,8 +11,13 @@ It prints each arm's verdict per judge and the ground truth: the teacher's own k
 over 5 deterministic episodes per run, from reset seeds 10000-10004, which no judge uses.
 Finished runs in ``--out`` (named ``<arm>-<seed>``) are reused, so a stopped run resumes.
 
+With ``--eval-candidates N`` the verdicts are taken on a second bracket instead: N candidates
+sampled in the ``informative`` mode from the first pilot's deterministic policy (a no-advice
+run on seeds of its own), and the teacher's tree over them, the same taste as the advice the
+runs trained on, asked on postures that a trained agent reaches.
+
     PYTHONPATH=. .venv/bin/python -m benchmarks.positive_control [--steps 245760] \\
-        [--out /tmp/positive-control] [--jobs 2]
+        [--out /tmp/positive-control] [--jobs 2] [--eval-candidates 32]
 """
 
 from __future__ import annotations
@@ -24,15 +29,16 @@ from pathlib import Path
 
 import numpy as np
 
+from engine.candidates import sample_candidates
 from engine.envs import make_env
 from engine.gym_types import box, mujoco_base
-from engine.pipeline import replay_with_teacher, run_tournament
+from engine.pipeline import replay_with_teacher, run_tournament, teacher_bracket
 from engine.postures import orthogonal_score
 from engine.rl.checkpoint import find_checkpoint, list_checkpoints
 from engine.rl.config import TrainConfig
 from engine.rl.runner import train
 from engine.rl.trained import deterministic_policy, load_agent
-from engine.treefile import dump_tree, load_tree
+from engine.treefile import TreeDocument, dump_tree, load_tree
 from engine.verdict_runs import runs_verdict
 
 ENV = "Hopper-v5"
@@ -90,15 +96,28 @@ def knee_score(run: Path, episodes: int = 5) -> float:
     return float(np.mean(scores))
 
 
+def evaluation_tree(pilot: Path, n_candidates: int) -> TreeDocument:
+    """The teacher's tree over ``n_candidates`` states sampled in the ``informative`` mode
+    from ``pilot``'s deterministic policy (seeded, apart from every training seed)."""
+    rng = np.random.default_rng(20_000)
+    policy = deterministic_policy(load_agent(find_checkpoint(pilot)))
+    candidates = sample_candidates(ENV, n_candidates, rng=rng, mode="informative", policy=policy)
+    return teacher_bracket(ENV, candidates, rng, p=0.9, seed=20_000, teacher="orthogonal")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=245_760)
     parser.add_argument("--out", type=Path, default=Path("/tmp/positive-control"))
     parser.add_argument("--jobs", type=int, default=2)
+    parser.add_argument("--eval-candidates", type=int, default=0)
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     runs = train_arms(args.out, args.steps, args.jobs)
     advice = load_tree(args.out / "advice.json")
+    if args.eval_candidates:
+        advice = evaluation_tree(runs["pilot"][0], args.eval_candidates)
+        print(f"evaluation bracket: {args.eval_candidates} informative candidates", flush=True)
     for arm in ("advised", "shuffled", "baseline"):
         knees = " ".join(f"{knee_score(r):.2f}" for r in runs[arm])
         print(f"{arm}: knee score per seed {knees}", flush=True)
