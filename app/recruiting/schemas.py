@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, TypeVar
 
 from pydantic import BaseModel, ConfigDict, Field, StrictBool
 
@@ -11,8 +11,10 @@ from app.recruiting.links import (
     DEFAULT_EXTERNAL_PARAMS,
     MAX_PARTICIPANTS,
     REDIRECT_URL_PATTERN,
+    LinkOptions,
 )
 
+Options = TypeVar("Options", bound=LinkOptions)
 ParamName = Annotated[str, Field(pattern=r"^[A-Za-z][A-Za-z0-9_]{0,63}$")]
 
 
@@ -39,6 +41,10 @@ class OpenLinkIn(BaseModel):
         pattern=REDIRECT_URL_PATTERN,
         description="An http(s) URL to send people to.",
     )
+
+    def options(self, kind: type[Options] = LinkOptions) -> Options:  # type: ignore[assignment]
+        """The options the services take (``kind``: a subclass with a kind's own options)."""
+        return kind(**{**self.model_dump(), "external_params": tuple(self.external_params)})
 
 
 class SurveyCrowdOut(OpenLinkIn):

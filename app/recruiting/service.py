@@ -20,6 +20,7 @@ from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from app.core.auth import new_token
+from app.core.errors import NotFoundError
 from app.db import writing
 from app.models import CrowdSettings, SurveyCrowdSettings
 from app.recruiting import links as open_links
@@ -60,6 +61,10 @@ class LinkKind(Generic[Link, Member]):
         """The path of the open link ``slug``."""
         return f"{self.prefix}{slug}"
 
+    def open_url(self, base_url: object, slug: str) -> str:
+        """The open link ``slug`` under ``base_url`` (a request's, e.g. ``http://host/``)."""
+        return str(base_url).rstrip("/") + self.open_path(slug)
+
     def owner_id(self, link: Link) -> int:
         """The id of the collection that owns ``link``."""
         return int(getattr(link, self.members.owner))
@@ -72,6 +77,18 @@ class LinkKind(Generic[Link, Member]):
 def settings(session: Session, kind: LinkKind[Link, Member], owner_id: int) -> Link | None:
     """The collection's open link and options, or ``None`` when never set."""
     return session.get(kind.link, owner_id)
+
+
+def configured(session: Session, kind: LinkKind[Link, Member], owner_id: int) -> Link:
+    """The collection's open link and options.
+
+    Raises:
+        NotFoundError: never set.
+    """
+    link = settings(session, kind, owner_id)
+    if link is None:
+        raise NotFoundError(f"{kind.members.noun} {owner_id} has no open link")
+    return link
 
 
 def configure(

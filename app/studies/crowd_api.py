@@ -32,7 +32,7 @@ router = APIRouter(prefix="/studies", tags=["crowd"])
 
 
 def crowd_out(request: Request, row: CrowdSettings) -> CrowdOut:
-    url = str(request.base_url).rstrip("/") + crowd.LINK.open_path(row.slug)
+    url = crowd.LINK.open_url(request.base_url, row.slug)
     return CrowdOut.model_validate(
         {**{k: getattr(row, k) for k in CrowdOut.model_fields if k != "url"}, "url": url}
     )
@@ -44,19 +44,14 @@ def set_crowd(
 ) -> CrowdOut:
     """Set the study's open link ``/s/<slug>`` (on or off, largest number of participants,
     external id parameters, consent, completion) and its label-quality options."""
-    options = crowd.CrowdOptions(
-        **{**body.model_dump(), "external_params": tuple(body.external_params)}
-    )
+    options = body.options(crowd.CrowdOptions)
     return crowd_out(request, crowd.configure(session, study_id=study_id, options=options))
 
 
 @router.get("/{study_id}/crowd")
 def get_crowd(study_id: DbId, request: Request, session: SessionDep, _: ResearcherDep) -> CrowdOut:
     """The study's open link and options; 404 until they are set."""
-    row = recruiting.settings(session, crowd.LINK, study_id)
-    if row is None:
-        raise NotFoundError(f"study {study_id} has no open link")
-    return crowd_out(request, row)
+    return crowd_out(request, recruiting.configured(session, crowd.LINK, study_id))
 
 
 def _bias(b: crowd_stats.agreement.SideBias) -> SideBiasOut:

@@ -59,9 +59,7 @@ def crowd_context(request: Request, session: Session, study_id: int) -> dict[str
     return {
         "crowd": row,
         "crowd_defaults": crowd.CrowdOptions(),
-        "open_url": None
-        if row is None
-        else str(request.base_url).rstrip("/") + crowd.LINK.open_path(row.slug),
+        "open_url": None if row is None else crowd.LINK.open_url(request.base_url, row.slug),
         "quality": crowd_stats.quality(session, study_id=study_id),
         "agreement": agreement,
         "heat_rows": heat_map(agreement),
@@ -80,9 +78,7 @@ def _options(fields: dict[str, str]) -> crowd.CrowdOptions:
             "speed_threshold_ms": whole(fields, "speed_threshold_ms"),
         },
     )
-    return crowd.CrowdOptions(
-        **{**body.model_dump(), "external_params": tuple(body.external_params)}
-    )
+    return body.options(crowd.CrowdOptions)
 
 
 @router.post("/studies/{study_id}/crowd", dependencies=[CsrfChecked])

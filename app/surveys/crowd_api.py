@@ -7,11 +7,9 @@ from __future__ import annotations
 from fastapi import APIRouter, Request
 from sqlalchemy.orm import Session
 
-from app.core.errors import NotFoundError
 from app.http.deps import DbId, ResearcherDep, SessionDep
 from app.models import SurveyCrowdSettings
 from app.recruiting import service as recruiting
-from app.recruiting.links import LinkOptions
 from app.recruiting.schemas import OpenLinkIn, SurveyCrowdOut
 from app.surveys import crowd as survey_crowd
 
@@ -21,7 +19,7 @@ router = APIRouter(prefix="/surveys", tags=["surveys"])
 def survey_crowd_out(
     request: Request, session: Session, row: SurveyCrowdSettings
 ) -> SurveyCrowdOut:
-    url = str(request.base_url).rstrip("/") + survey_crowd.LINK.open_path(row.slug)
+    url = survey_crowd.LINK.open_url(request.base_url, row.slug)
     fields = {
         k: getattr(row, k) for k in SurveyCrowdOut.model_fields if k not in ("url", "completed")
     }
@@ -36,8 +34,7 @@ def set_survey_crowd(
 ) -> SurveyCrowdOut:
     """Set the survey's open link ``/q/<slug>``: on or off, largest number of respondents,
     external id parameters, consent text, completion code and redirect URL."""
-    options = LinkOptions(**{**body.model_dump(), "external_params": tuple(body.external_params)})
-    row = recruiting.configure(session, survey_crowd.LINK, survey_id, options)
+    row = recruiting.configure(session, survey_crowd.LINK, survey_id, body.options())
     return survey_crowd_out(request, session, row)
 
 
@@ -46,7 +43,5 @@ def get_survey_crowd(
     survey_id: DbId, request: Request, session: SessionDep, _: ResearcherDep
 ) -> SurveyCrowdOut:
     """The survey's open link, options and counts; 404 until they are set."""
-    row = recruiting.settings(session, survey_crowd.LINK, survey_id)
-    if row is None:
-        raise NotFoundError(f"survey {survey_id} has no open link")
+    row = recruiting.configured(session, survey_crowd.LINK, survey_id)
     return survey_crowd_out(request, session, row)

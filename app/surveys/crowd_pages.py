@@ -16,7 +16,6 @@ from app.http.guards import ResearcherPage
 from app.http.rendering import redirect
 from app.recruiting import pages as open_links
 from app.recruiting import service as recruiting
-from app.recruiting.links import LinkOptions
 from app.recruiting.schemas import OpenLinkIn
 from app.surveys import crowd as survey_crowd
 from app.surveys import service as surveys
@@ -36,6 +35,5 @@ def set_crowd(survey_id: DbId, session: SessionDep, fields: FormFields) -> Respo
     """Save the open-link form (validated like ``PUT /api/surveys/{id}/crowd``), then show
     the survey page's crowd section."""
     body = open_links.validated(OpenLinkIn, open_links.link_form(fields))
-    options = LinkOptions(**{**body.model_dump(), "external_params": tuple(body.external_params)})
-    recruiting.configure(session, survey_crowd.LINK, survey_id, options)
+    recruiting.configure(session, survey_crowd.LINK, survey_id, body.options())
     return redirect(f"/surveys/{survey_id}#crowd")

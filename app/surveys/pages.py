@@ -61,11 +61,10 @@ def crowd_context(request: Request, session: Session, survey_id: int) -> dict[st
     """What the survey page's "Crowd: open link" section shows (the form posts to
     :mod:`app.surveys.crowd_pages`)."""
     row = recruiting.settings(session, survey_crowd.LINK, survey_id)
-    base = str(request.base_url).rstrip("/")
     return {
         "crowd": row,
         "crowd_defaults": LinkOptions(),
-        "open_url": None if row is None else base + survey_crowd.LINK.open_path(row.slug),
+        "open_url": None if row is None else survey_crowd.LINK.open_url(request.base_url, row.slug),
         "completed": survey_crowd.completed(session, survey_id=survey_id),
     }
 
