@@ -153,3 +153,25 @@ def test_compare_page_and_curve_without_torch_or_mujoco(bare_server: str, judged
         assert report.json()["judge"] == "behaviour" and report.json()["candidates"]
         tree = web.get(f"/api/runs/{run_id}/agent-tree?checkpoint=256&judge=behaviour", **api)
         assert tree.status_code == 200 and tree.json()["judge"] == "agent:behaviour@256"
+
+
+def test_the_run_is_served_from_rows_with_its_folder_gone(
+    bare_server: str, judged_run: dict, settings: Settings
+) -> None:
+    """Issue 26 §4: the web reads a run's state from the database, never its folder (which
+    may be on another machine): with the folder moved away, its metrics, its checkpoints and
+    its HTML report still answer, from a server that cannot import torch or MuJoCo."""
+    run_id = judged_run["id"]
+    folder = settings.data_dir / "runs" / str(run_id)
+    away = folder.with_name(f"{run_id}-away")
+    folder.rename(away)
+    try:
+        with httpx.Client(base_url=bare_server, timeout=60, headers=ADMIN) as api:
+            metrics = api.get(f"/api/runs/{run_id}/metrics").json()
+            checkpoints = api.get(f"/api/runs/{run_id}/checkpoints").json()
+            report = api.get(f"/api/runs/{run_id}/report.html")
+        assert [m["timesteps"] for m in metrics] == [128, 256, 384, 512]
+        assert [c["checkpoint"] for c in checkpoints] == [256, 512]
+        assert report.status_code == 200 and "Agent Preference Tree" in report.text
+    finally:
+        away.rename(folder)
