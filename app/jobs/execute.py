@@ -58,14 +58,16 @@ def execute_run(
     """
     engine = make_engine(database_url)
     try:
-        job = _Job(make_sessions(engine), run_id, worker, interrupted or (lambda: False))
-        return job.run(run_dir(runs_dir, run_id))
+        out = run_dir(runs_dir, run_id)
+        return _Job(
+            make_sessions(engine), run_id, worker, interrupted or (lambda: False), out
+        ).run()
     finally:
         engine.dispose()
 
 
 class _Job:
-    """The state of one execution: why it stopped, if it did."""
+    """The state of one execution of the run in ``out``: why it stopped, if it did."""
 
     def __init__(
         self,
@@ -73,23 +75,23 @@ class _Job:
         run_id: int,
         worker: str,
         interrupted: Callable[[], bool],
+        out: Path,
     ) -> None:
         self.sessions, self.run_id, self.worker = sessions, run_id, worker
-        self.interrupted = interrupted
+        self.interrupted, self.out = interrupted, out
         self.reason: str | None = None  # cancel, lost, interrupted
-        self.out = Path()
 
-    def run(self, out: Path) -> str:
-        self.out = out
+    def run(self) -> str:
+        out = self.out
         with self.sessions() as session:
             row = session.get(Run, self.run_id)
         if row is None or row.worker != self.worker or row.status != RunStatus.RUNNING:
             return "lost"
-        if row.resume:  # a run trained before run state rows: its earlier rows first
-            with self.sessions() as session:
-                run_state.import_folder(session, run_id=self.run_id, out=out)
         try:
             with run_lock(out):
+                if row.resume:  # a run trained before run state rows: its earlier rows first
+                    with self.sessions() as session:
+                        run_state.import_folder(session, run_id=self.run_id, out=out)
                 _train(row, out, self.progress, self.should_stop, self.judge_checkpoint(row, out))
         except Exception as exc:  # any failure must end up on the run, not in a log only
             log.error("run %d failed:\n%s", self.run_id, traceback.format_exc())

@@ -149,15 +149,15 @@ def open_link_router(pages: LinkPages[Any, Any]) -> APIRouter:
         """The consent page, or straight on; "full" past the maximum."""
         link = recruiting.open_link(session, kind, slug)
         ids = recruiting.external_ids(link, query(request))
-        token = request.cookies.get(kind.members.cookie)
-        if recruiting.returning(session, kind, link=link, ids=ids, token=token) is None:
+        person = _returning(kind, request, session, link, ids)
+        if person is None:
             check_open(link, what=kind.members.noun)
             if is_full(link):
                 return pages.full(request, session, link)
             if link.consent_text:
                 name, action = pages.name(session, link), kind.open_path(link.slug)
                 return consent(request, name, link, action, ids)
-        return _enter(pages, request, session, link, ids)
+        return _enter(pages, request, session, link, ids, person)
 
     @router.post(path, dependencies=[CsrfChecked])
     def agree_or_decline(
@@ -168,9 +168,24 @@ def open_link_router(pages: LinkPages[Any, Any]) -> APIRouter:
         if fields.get("decision") != "agree":
             recruiting.decline(session, kind, link=link)
             return message(request, pages.name(session, link), "You declined", DECLINED)
-        return _enter(pages, request, session, link, recruiting.external_ids(link, fields))
+        ids = recruiting.external_ids(link, fields)
+        return _enter(
+            pages, request, session, link, ids, _returning(kind, request, session, link, ids)
+        )
 
     return router
+
+
+def _returning(
+    kind: LinkKind[Link, Member],
+    request: Request,
+    session: Session,
+    link: Link,
+    ids: dict[str, str],
+) -> Member | None:
+    """The member this visitor already is (by their cookie or first external id), or None."""
+    token = request.cookies.get(kind.members.cookie)
+    return recruiting.returning(session, kind, link=link, ids=ids, token=token)
 
 
 def _enter(
@@ -179,12 +194,11 @@ def _enter(
     session: Session,
     link: Link,
     ids: dict[str, str],
+    person: Member | None,
 ) -> Response:
-    """Resume a returning visitor, or make a member of a new one (rate-limited); "full"
-    past the maximum. Their cookie is set on the way to their next page."""
+    """Resume ``person`` (a returning visitor), or make a member of a new one (rate-limited);
+    "full" past the maximum. Their cookie is set on the way to their next page."""
     kind = pages.kind
-    token = request.cookies.get(kind.members.cookie)
-    person = recruiting.returning(session, kind, link=link, ids=ids, token=token)
     if person is None:
         try:
             person = admit(request, lambda: recruiting.join(session, kind, link=link, ids=ids))

@@ -132,8 +132,8 @@ def conformance_curve(
 )
 def conformance_csv(at: AtCheckpointDep) -> Response:
     """The metrics as CSV: one row per judged checkpoint, or only ``checkpoint``'s."""
-    runs.advice_of(runs.get_run(at.session, run_id=at.run_id))
     if at.checkpoint is None:
+        runs.advice_of(runs.get_run(at.session, run_id=at.run_id))  # 409 without advice
         rows = comparison.conformance_curve(at.session, run_id=at.run_id, judge=at.judge)
     else:
         view = at.view()[1]
@@ -155,9 +155,8 @@ def tree_image(
     settings: SettingsDep,
 ) -> Response:
     """A tree as SVG or PNG with thumbnails; the rejected advice is drawn in red."""
-    run = runs.get_run(at.session, run_id=at.run_id)
-    thumbs = run_report.thumb_paths(at.session, data_dir=settings.data_dir, study_id=run.study_id)
     run, view = at.view()
+    thumbs = run_report.thumb_paths(at.session, data_dir=settings.data_dir, study_id=run.study_id)
     data = run_report.tree_image(run, view, at.judge, which, thumbs, fmt)
     return attachment(data, FORMATS[fmt], f"run-{at.run_id}-{which}-tree-{view.step}.{fmt}")
 

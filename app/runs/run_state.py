@@ -9,7 +9,7 @@ backfill).
 
 from __future__ import annotations
 
-import json
+import logging
 import math
 from pathlib import Path
 from typing import Any
@@ -20,6 +20,10 @@ from sqlalchemy.orm import Session, sessionmaker
 from app.db import writing
 from app.models import Run, RunCheckpoint, RunMetric, RunStatus, utcnow
 from app.runs.artefacts import checkpoint_steps as folder_checkpoints
+from engine.errors import InputError
+from engine.rl.logger import METRICS_FILE, read_metrics
+
+log = logging.getLogger(__name__)
 
 #: The largest step a 64-bit column holds.
 _MAX_STEP = 2**63 - 1
@@ -108,14 +112,12 @@ def unimported(session: Session) -> list[int]:
 def import_folder(session: Session, *, run_id: int, out: Path) -> int:
     """Store the metrics rows and checkpoints of ``out`` (the run folder of ``run_id``) as
     rows, once: a run that has rows already is left alone. Returns the rows stored."""
-    path = out / "metrics.jsonl"
-    rows = {}
-    for line in path.read_text().splitlines() if path.is_file() else []:
-        try:
-            row = json.loads(line)
-        except json.JSONDecodeError:  # a line cut short by a kill
-            continue
-        rows[int(row["timesteps"])] = scalar_metrics(row)
+    try:
+        found = read_metrics(out) if (out / METRICS_FILE).is_file() else []
+    except InputError as exc:  # a damaged file: its run keeps no rows, and says why in the log
+        log.warning("run %d: metrics not imported: %s", run_id, exc)
+        found = []
+    rows = {int(row["timesteps"]): scalar_metrics(row) for row in found}
     steps = folder_checkpoints(out)
     with writing(session):
         if session.scalar(select(exists().where(RunMetric.run_id == run_id))):

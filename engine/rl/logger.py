@@ -7,8 +7,6 @@ import math
 from pathlib import Path
 from typing import Any
 
-from torch.utils.tensorboard import SummaryWriter
-
 from engine.errors import InputError
 
 METRICS_FILE = "metrics.jsonl"
@@ -28,6 +26,10 @@ class RunLogger:
     """
 
     def __init__(self, run_dir: Path, start: int = 0):
+        # Here, not at the top: reading metrics (read_metrics) must not import torch, since web
+        # processes import run folders of runs trained before run state rows existed.
+        from torch.utils.tensorboard import SummaryWriter
+
         self.path = Path(run_dir) / METRICS_FILE
         self._truncate(start)
         self.writer = SummaryWriter(str(run_dir), purge_step=start if start else None)
