@@ -23,8 +23,8 @@ WEB_LIBRARIES = ("fastapi", "starlette", "sqlalchemy", "jinja2", "uvicorn", "ale
 ROUTE_SUFFIXES = ("api", "pages", "downloads")
 
 
-def module_name(path: Path) -> str:
-    return ".".join(path.relative_to(ROOT).with_suffix("").parts)
+def module_name(path: Path, root: Path = ROOT) -> str:
+    return ".".join(path.relative_to(root).with_suffix("").parts)
 
 
 def imports(path: Path) -> Iterator[str]:
@@ -46,41 +46,13 @@ def is_route(module: str) -> bool:
     )
 
 
-def violations(package: str, forbidden: Callable[[str, str], bool]) -> list[str]:
+def violations(package: str, forbidden: Callable[[str, str], bool], root: Path = ROOT) -> list[str]:
     """``source imports module`` for each import of ``package`` that ``forbidden`` names."""
     found = []
-    for path in sorted((ROOT / package.replace(".", "/")).rglob("*.py")):
-        source = module_name(path)
+    for path in sorted((root / package.replace(".", "/")).rglob("*.py")):
+        source = module_name(path, root)
         found += [f"{source} imports {m}" for m in imports(path) if forbidden(source, m)]
     return found
-
-
-def test_the_engine_imports_no_app_and_no_web_library() -> None:
-    assert not violations("engine", lambda _, m: m.split(".")[0] in WEB_LIBRARIES)
-
-
-def test_core_knows_no_feature_and_no_http() -> None:
-    assert not violations(
-        "app.core", lambda _, m: m.split(".")[:2] in [["app", f] for f in (*FEATURES, "http")]
-    )
-
-
-def test_http_knows_no_feature_but_the_member_lookup() -> None:
-    def forbidden(_: str, m: str) -> bool:
-        allowed = m in ("app.recruiting", "app.recruiting.members") or m.startswith(
-            "app.recruiting.members."
-        )
-        return m.split(".")[:2] in [["app", f] for f in FEATURES] and not allowed
-
-    assert not violations("app.http", forbidden)
-
-
-@pytest.mark.parametrize("feature", FEATURES)
-def test_services_import_no_http_and_no_route(feature: str) -> None:
-    def forbidden(source: str, m: str) -> bool:
-        return not is_route(source) and (m.startswith("app.http") or is_route(m))
-
-    assert not violations(f"app.{feature}", forbidden)
 
 
 def feature_of(module: str) -> str | None:
@@ -92,28 +64,91 @@ def feature_of(module: str) -> str | None:
     return parts[1] if parts[1] in LEVEL else None
 
 
-@pytest.mark.parametrize("feature", [*FEATURES, "jobs"])
-def test_services_build_only_on_earlier_features(feature: str) -> None:
-    def forbidden(source: str, m: str) -> bool:
-        target = feature_of(m)
-        return not is_route(source) and target is not None and LEVEL[target] > LEVEL[feature]
-
-    assert not violations(f"app.{feature}", forbidden)
+# --- the rules: forbidden(source module, imported module) -----------------------------------
 
 
-def test_only_routes_import_routes() -> None:
-    def forbidden(source: str, m: str) -> bool:
-        return is_route(m) and not is_route(source) and source not in ("app.routes",)
+def engine_rule(_: str, m: str) -> bool:
+    return m.split(".")[0] in WEB_LIBRARIES
 
-    assert not violations("app", forbidden)
+
+def core_rule(_: str, m: str) -> bool:
+    return m.split(".")[:2] in [["app", f] for f in (*FEATURES, "http")]
+
+
+def http_rule(_: str, m: str) -> bool:
+    lookup = m in ("app.recruiting", "app.recruiting.members") or m.startswith(
+        "app.recruiting.members."
+    )
+    return m.split(".")[:2] in [["app", f] for f in FEATURES] and not lookup
+
+
+def service_rule(source: str, m: str) -> bool:
+    """A feature's service (not its routes) importing the HTTP layer or a route."""
+    service = source.split(".")[:2] in [["app", f] for f in FEATURES] and not is_route(source)
+    return service and (m.startswith("app.http") or is_route(m))
+
+
+def chain_rule(source: str, m: str) -> bool:
+    """A service importing a feature after its own (``source`` names its feature)."""
+    own, target = feature_of(source), feature_of(m)
+    if is_route(source) or own is None or target is None:
+        return False
+    return LEVEL[target] > LEVEL[own]
+
+
+def route_rule(source: str, m: str) -> bool:
+    return is_route(m) and not is_route(source) and source != "app.routes"
+
+
+RULES: dict[str, tuple[str, Callable[[str, str], bool]]] = {
+    "the engine imports no app and no web library": ("engine", engine_rule),
+    "core knows no feature and no http": ("app.core", core_rule),
+    "http knows no feature but the member lookup": ("app.http", http_rule),
+    "services import no http and no route": ("app", service_rule),
+    "services build only on earlier features": ("app", chain_rule),
+    "only routes import routes": ("app", route_rule),
+}
+
+
+@pytest.mark.parametrize("rule", RULES)
+def test_the_rule_holds(rule: str) -> None:
+    package, forbidden = RULES[rule]
+    assert not violations(package, forbidden)
+
+
+#: One import that breaks each rule, planted alone in a tree of its own.
+PLANTED = {
+    "the engine imports no app and no web library": ("engine/x.py", "import fastapi"),
+    "core knows no feature and no http": ("app/core/x.py", "from app.http import deps"),
+    "http knows no feature but the member lookup": (
+        "app/http/x.py",
+        "from app.studies import service",
+    ),
+    "services import no http and no route": ("app/runs/x.py", "from app.http import deps"),
+    "services build only on earlier features": (
+        "app/studies/x.py",
+        "from app.runs import service",
+    ),
+    "only routes import routes": ("app/runs/x.py", "from app.studies import api"),
+}
+
+
+@pytest.mark.parametrize("rule", RULES)
+def test_each_rule_sees_a_planted_break(rule: str, tmp_path: Path) -> None:
+    """The checker itself: a tree holding one forbidden import is refused by its rule."""
+    package, forbidden = RULES[rule]
+    where, line = PLANTED[rule]
+    (tmp_path / where).parent.mkdir(parents=True)
+    (tmp_path / where).write_text(line + "\n")
+    found = violations(package, forbidden, tmp_path)
+    assert found and all(v.startswith(where.removesuffix(".py").replace("/", ".")) for v in found)
 
 
 def test_the_old_flat_layers_are_gone() -> None:
     assert not [p for p in ("services", "api", "web") if (ROOT / "app" / p).exists()]
 
 
-def test_the_rules_see_a_break() -> None:
-    """The checker itself: route modules are told from services, and imports are read."""
+def test_routes_and_features_are_told_apart() -> None:
     assert is_route("app.studies.crowd_api") and is_route("app.runs.pages")
     assert not is_route("app.studies.service") and not is_route("app.recruiting.members")
     assert "app.http.deps" in set(imports(ROOT / "app" / "studies" / "api.py"))
