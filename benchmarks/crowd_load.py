@@ -126,7 +126,10 @@ def start_training(base: str, study_id: int) -> int:
     body = {"study_id": study_id, "algo": "ppo", "timesteps": 10_000_000, "n_envs": 1,
             "num_steps": 128, "num_minibatches": 4, "update_epochs": 2}  # fmt: skip
     run_id = int(httpx.post(f"{base}/api/runs", json=body, headers=ADMIN).json()["id"])
+    deadline = time.monotonic() + 300
     while httpx.get(f"{base}/api/runs/{run_id}/metrics", headers=ADMIN).json() == []:
+        if time.monotonic() > deadline:  # the run never trained: say so, measure nothing
+            raise SystemExit(f"training run {run_id} stored no metrics row in 300 s")
         time.sleep(0.2)  # training: the first metrics row is stored
     return run_id
 
