@@ -18,6 +18,7 @@ from sqlalchemy import (
     Boolean,
     CheckConstraint,
     DateTime,
+    Enum,
     Float,
     ForeignKey,
     ForeignKeyConstraint,
@@ -29,6 +30,9 @@ from sqlalchemy import (
     UniqueConstraint,
 )
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, validates
+
+from engine.rl.config import Algo
+from engine.teachers import Teacher
 
 
 class StudyStatus(StrEnum):
@@ -61,6 +65,22 @@ class ExperimentRole(StrEnum):
 
 STUDY_STATUSES: tuple[str, ...] = tuple(s.value for s in StudyStatus)
 RUN_STATUSES: tuple[str, ...] = tuple(s.value for s in RunStatus)
+
+
+def enum_type(members: type[StrEnum], length: int = 16) -> Enum:
+    """A ``VARCHAR(length)`` column of ``members``' values, read back as members.
+
+    Not a database enum type (``native_enum=False``) and no constraint of its own: the schema
+    stays the migrations' (``status`` has :func:`status_check`), and a row written before a
+    member was added still loads.
+    """
+    return Enum(
+        members,
+        native_enum=False,
+        create_constraint=False,
+        length=length,
+        values_callable=lambda enum: [member.value for member in enum],
+    )
 
 
 def status_check(statuses: type[StrEnum]) -> CheckConstraint:
@@ -112,7 +132,9 @@ class Study(Base):
     instructions: Mapped[str] = mapped_column(Text)
     #: Extra pairs each participant is asked after the bracket (:class:`DisagreementPair`).
     disagreement_pairs: Mapped[int] = mapped_column(Integer, default=0)
-    status: Mapped[str] = mapped_column(String(16), default="preparing")
+    status: Mapped[StudyStatus] = mapped_column(
+        enum_type(StudyStatus), default=StudyStatus.PREPARING
+    )
     error: Mapped[str | None] = mapped_column(Text, default=None)
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
 
@@ -347,15 +369,17 @@ class Run(Base):
     participant_id: Mapped[int | None] = mapped_column(
         ForeignKey("participants.id", ondelete="CASCADE"), default=None
     )
-    teacher: Mapped[str | None] = mapped_column(String(16), default=None)
-    algo: Mapped[str] = mapped_column(String(16))
+    teacher: Mapped[Teacher | None] = mapped_column(enum_type(Teacher), default=None)
+    algo: Mapped[Algo] = mapped_column(enum_type(Algo))
     timesteps: Mapped[int] = mapped_column(BigInteger)
     seed: Mapped[int] = mapped_column(BigInteger)
     n_envs: Mapped[int] = mapped_column(Integer)
     config: Mapped[dict] = mapped_column(JSON)
     advice: Mapped[dict | None] = mapped_column(JSON, default=None)
     advice_pool: Mapped[list | None] = mapped_column(JSON, default=None)
-    status: Mapped[str] = mapped_column(String(16), default="queued", index=True)
+    status: Mapped[RunStatus] = mapped_column(
+        enum_type(RunStatus), default=RunStatus.QUEUED, index=True
+    )
     resume: Mapped[bool] = mapped_column(Boolean, default=False)
     cancel_requested: Mapped[bool] = mapped_column(Boolean, default=False)
     executor: Mapped[str | None] = mapped_column(String(16), default=None)
@@ -405,7 +429,7 @@ class ExperimentRun(Base):
     run_id: Mapped[int] = mapped_column(
         ForeignKey("runs.id", ondelete="CASCADE"), primary_key=True, index=True
     )
-    role: Mapped[str] = mapped_column(String(8))
+    role: Mapped[ExperimentRole] = mapped_column(enum_type(ExperimentRole, length=8))
 
 
 class CheckpointArtefact(Base):

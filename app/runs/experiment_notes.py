@@ -13,6 +13,7 @@ from typing import Any
 
 from sqlalchemy.orm import Session
 
+from app.models import ExperimentRole
 from app.runs.experiments import (
     ExperimentVerdict,
     experiment_verdict,
@@ -97,14 +98,14 @@ def verdict_rows(
         "auc": v.auc,
         "outcome": v.outcome,
     }
-    ca = {"advised": v.ca_advised, "baseline": v.ca_baseline}
+    ca = {ExperimentRole.ADVISED: v.ca_advised, ExperimentRole.BASELINE: v.ca_baseline}
     return [
         shared | {"role": role, "run_id": run_id, "seed": seeds[run_id], "ca": _at(ca, role, i)}
-        for role in ("advised", "baseline", "pilot")
+        for role in ExperimentRole
         for i, run_id in enumerate(found.runs.get(role, []))
     ]
 
 
-def _at(ca: dict[str, tuple[float, ...]], role: str, i: int) -> float | None:
+def _at(ca: dict[ExperimentRole, tuple[float, ...]], role: ExperimentRole, i: int) -> float | None:
     values = ca.get(role, ())
     return values[i] if i < len(values) else None

@@ -14,6 +14,7 @@ from fastapi.responses import HTMLResponse
 from app.http.deps import DbId, SessionDep
 from app.http.guards import ResearcherPage
 from app.http.rendering import PageRoute, render
+from app.models import ExperimentRole
 from app.runs import experiments
 from app.runs import service as runs
 from app.runs.compare_pages import JUDGE_LABELS
@@ -34,7 +35,7 @@ def experiment_page(
 ) -> HTMLResponse:
     experiment = experiments.get_experiment(session, experiment_id=experiment_id)
     members = experiments.members(session, experiment_id=experiment_id)
-    advised = next(run for role, run in members if role == "advised")
+    advised = next(run for role, run in members if role == ExperimentRole.ADVISED)
     try:
         found = experiments.experiment_verdict(session, experiment_id=experiment_id, judge=judge)
         problem = None

@@ -39,6 +39,9 @@ DEFAULT_PILOT_SEEDS, MAX_PILOT_SEEDS = 2, 10
 #: Pilot seeds start here, far from any evaluation seed (those are below it).
 PILOT_SEED_BASE = 1_000_000
 #: Fewest runs per role with a judged checkpoint before a verdict is attempted.
+#: role -> run id -> step -> the per-candidate rows of that judged checkpoint.
+JudgedTables = dict[ExperimentRole, dict[int, dict[int, list[dict[str, Any]]]]]
+
 MIN_JUDGED = {ExperimentRole.ADVISED: 2, ExperimentRole.BASELINE: 2, ExperimentRole.PILOT: 1}
 
 
@@ -73,7 +76,7 @@ class ExperimentVerdict:
     judge: str
     step: int
     verdict: Verdict
-    runs: dict[str, list[int]] = field(default_factory=dict)
+    runs: dict[ExperimentRole, list[int]] = field(default_factory=dict)
 
 
 def create_experiment(session: Session, *, spec: ExperimentSpec) -> Experiment:
@@ -99,7 +102,7 @@ def create_experiment(session: Session, *, spec: ExperimentSpec) -> Experiment:
     with writing(session):
         session.add(experiment)
         session.flush()
-        for role, members in (("advised", advised), ("baseline", baseline), ("pilot", pilot)):
+        for role, members in zip(ExperimentRole, (advised, baseline, pilot), strict=True):
             for run in members:
                 session.add(ExperimentRun(experiment_id=experiment.id, run_id=run.id, role=role))
     return experiment
@@ -151,15 +154,15 @@ def list_experiments(session: Session, *, study_id: int | None = None) -> list[E
     return list(session.scalars(query))
 
 
-def members(session: Session, *, experiment_id: int) -> list[tuple[str, Run]]:
+def members(session: Session, *, experiment_id: int) -> list[tuple[ExperimentRole, Run]]:
     """``(role, run)`` for every run of the experiment: advised, baseline, pilot, by seed."""
     rows = session.execute(
         select(ExperimentRun.role, Run)
         .join(Run, Run.id == ExperimentRun.run_id)
         .where(ExperimentRun.experiment_id == experiment_id)
     ).all()
-    order = {role.value: i for i, role in enumerate(ExperimentRole)}
-    return sorted(((role, run) for role, run in rows), key=lambda m: (order[m[0]], m[1].seed))
+    order = list(ExperimentRole)
+    return sorted(((role, run) for role, run in rows), key=lambda m: (order.index(m[0]), m[1].seed))
 
 
 def experiments_of_run(session: Session, *, run_id: int) -> list[int]:
@@ -187,15 +190,15 @@ def experiment_verdict(
         role: {rid: t[step] for rid, t in by_run.items() if step in t}
         for role, by_run in judged.items()
     }
-    if any(len(table[role.value]) < n for role, n in MIN_JUDGED.items()):
+    if any(len(table[role]) < n for role, n in MIN_JUDGED.items()):
         return None
     advice = _advice_of(session, experiment)
     arrays = {role: _scores(list(rows.values()), judge) for role, rows in table.items()}
     inputs = VerdictInputs(
         advice=advice_scores(advice),
-        advised=arrays["advised"],
-        baseline=arrays["baseline"],
-        pilot=arrays["pilot"],
+        advised=arrays[ExperimentRole.ADVISED],
+        baseline=arrays[ExperimentRole.BASELINE],
+        pilot=arrays[ExperimentRole.PILOT],
         matches=bracket_pairs(advice) + _pairs_of(session, experiment),
         reward=np.array([c.env_reward for c in advice.candidates]),
     )
@@ -204,13 +207,9 @@ def experiment_verdict(
     return ExperimentVerdict(judge=judge, step=step, verdict=result, runs=used)
 
 
-def _judged_tables(
-    session: Session, members_: list[tuple[str, Run]]
-) -> dict[str, dict[int, dict[int, list[dict[str, Any]]]]]:
+def _judged_tables(session: Session, members_: list[tuple[ExperimentRole, Run]]) -> JudgedTables:
     """role -> run id -> step -> the per-candidate rows of that judged checkpoint."""
-    tables: dict[str, dict[int, dict[int, list[dict[str, Any]]]]] = {
-        r.value: {} for r in ExperimentRole
-    }
+    tables: JudgedTables = {role: {} for role in ExperimentRole}
     for role, run in members_:
         bodies = artefacts.payloads(session, run_id=run.id)
         tables[role][run.id] = {
@@ -219,12 +218,12 @@ def _judged_tables(
     return tables
 
 
-def _verdict_step(judged: dict[str, dict[int, dict[int, list[dict[str, Any]]]]]) -> int | None:
+def _verdict_step(judged: JudgedTables) -> int | None:
     """The latest step judged in at least :data:`MIN_JUDGED` runs of every role."""
     steps: set[int] | None = None
     for role, needed in MIN_JUDGED.items():
         counts: dict[int, int] = {}
-        for by_step in judged[role.value].values():
+        for by_step in judged[role].values():
             for step in by_step:
                 counts[step] = counts.get(step, 0) + 1
         enough = {step for step, n in counts.items() if n >= needed}
@@ -249,7 +248,9 @@ def _scores(tables: list[list[dict[str, Any]]], judge: str) -> np.ndarray:
 
 def _advised_run(session: Session, experiment: Experiment) -> Run:
     return next(
-        run for role, run in members(session, experiment_id=experiment.id) if role == "advised"
+        run
+        for role, run in members(session, experiment_id=experiment.id)
+        if role == ExperimentRole.ADVISED
     )
 
 

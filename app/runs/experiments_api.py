@@ -8,7 +8,7 @@ runs of every role have a judged checkpoint, then the verdict at the latest such
 from __future__ import annotations
 
 from datetime import datetime
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any
 
 from fastapi import APIRouter, Query, Response
 from fastapi.responses import JSONResponse
@@ -18,7 +18,7 @@ from app.core.csv_export import csv_text
 from app.core.json_types import JsonInt, UtcDatetime
 from app.http.deps import DbId, ResearcherDep, SessionDep
 from app.http.files import attachment
-from app.models import Experiment
+from app.models import Experiment, ExperimentRole, RunStatus
 from app.runs import experiment_notes, experiments
 from app.runs.experiments import (
     DEFAULT_PILOT_SEEDS,
@@ -33,6 +33,7 @@ from app.runs.schemas import Judge, RunCreate
 from app.runs.spec import RunSpec
 from app.studies.schemas import ProgressOut
 from engine.judges import DEFAULT_JUDGE
+from engine.rl.config import Algo
 
 router = APIRouter(prefix="/experiments", tags=["experiments"])
 PENDING: dict[int | str, dict[str, Any]] = {
@@ -60,10 +61,10 @@ class ExperimentCreate(RunCreate):
 
 class ExperimentRunOut(BaseModel):
     id: int
-    role: Literal["advised", "baseline", "pilot"]
-    algo: str
+    role: ExperimentRole
+    algo: Algo
     seed: int
-    status: str
+    status: RunStatus
     progress: ProgressOut
 
 
@@ -84,7 +85,7 @@ class VerdictOut(BaseModel):
 
     judge: str
     step: int
-    runs: dict[str, list[int]] = Field(description="The run ids it rests on, by role.")
+    runs: dict[ExperimentRole, list[int]] = Field(description="The run ids it rests on, by role.")
     verdict: dict[str, Any]
 
 

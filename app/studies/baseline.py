@@ -47,7 +47,7 @@ def baseline_run(session: Session, *, env_id: str, before: datetime | None = Non
         .where(
             Study.env_id == env_id,
             Run.algo == "ppo",
-            Run.status == RunStatus.SUCCEEDED.value,
+            Run.status == RunStatus.SUCCEEDED,
             Run.finished_at <= (before or utcnow()),
         )
         .order_by(Run.finished_at.desc(), Run.id.desc())
