@@ -34,19 +34,20 @@ from app.surveys import crowd_pages as survey_link_pages
 from app.surveys import pages as surveys_pages
 
 api_router = APIRouter(prefix="/api", responses=errors.RESPONSES)
-for _api in (
-    studies_api,
-    participants_api,
-    matches_api,
-    runs_api,
-    checkpoint_api,
-    advisors_api,
-    experiments_api,
-    surveys_api,
-    study_crowd_api,
-    survey_crowd_api,
+for _router in (
+    studies_api.router,
+    participants_api.router,
+    matches_api.router,
+    runs_api.router,
+    checkpoint_api.router,
+    advisors_api.router,
+    experiments_api.router,
+    surveys_api.router,
+    study_crowd_api.link_router,
+    study_crowd_api.router,
+    survey_crowd_api.router,
 ):
-    api_router.include_router(_api.router)
+    api_router.include_router(_router)
 
 pages_router = APIRouter()
 for _pages in (

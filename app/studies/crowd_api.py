@@ -7,15 +7,14 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from fastapi import APIRouter, Request, Response
+from fastapi import APIRouter, Response
 
 from app.core.errors import NotFoundError
 from app.http.deps import DbId, ResearcherDep, SessionDep
 from app.http.files import attachment
 from app.labelling import label_export
 from app.labelling import quality as crowd_stats
-from app.models import CrowdSettings
-from app.recruiting import service as recruiting
+from app.recruiting.api import LinkApi, open_link_api_router
 from app.studies import crowd
 from app.studies.crowd_schemas import (
     AgreementOut,
@@ -31,27 +30,21 @@ from app.studies.crowd_schemas import (
 router = APIRouter(prefix="/studies", tags=["crowd"])
 
 
-def crowd_out(request: Request, row: CrowdSettings) -> CrowdOut:
-    url = crowd.LINK.open_url(request.base_url, row.slug)
-    return CrowdOut.model_validate(
-        {**{k: getattr(row, k) for k in CrowdOut.model_fields if k != "url"}, "url": url}
+#: ``/studies/{study_id}/crowd``: the study's open link ``/s/<slug>`` with its label-quality
+#: options.
+link_router = open_link_api_router(
+    LinkApi(
+        kind=crowd.LINK,
+        collections="studies",
+        tag="crowd",
+        body=CrowdIn,
+        out=CrowdOut,
+        options=crowd.CrowdOptions,
+        configure=lambda session, study_id, options: crowd.configure(
+            session, study_id=study_id, options=options
+        ),
     )
-
-
-@router.put("/{study_id}/crowd")
-def set_crowd(
-    study_id: DbId, body: CrowdIn, request: Request, session: SessionDep, _: ResearcherDep
-) -> CrowdOut:
-    """Set the study's open link ``/s/<slug>`` (on or off, largest number of participants,
-    external id parameters, consent, completion) and its label-quality options."""
-    options = body.options(crowd.CrowdOptions)
-    return crowd_out(request, crowd.configure(session, study_id=study_id, options=options))
-
-
-@router.get("/{study_id}/crowd")
-def get_crowd(study_id: DbId, request: Request, session: SessionDep, _: ResearcherDep) -> CrowdOut:
-    """The study's open link and options; 404 until they are set."""
-    return crowd_out(request, recruiting.configured(session, crowd.LINK, study_id))
+)
 
 
 def _bias(b: crowd_stats.agreement.SideBias) -> SideBiasOut:
