@@ -13,6 +13,7 @@ from fastapi import APIRouter, Path, Request
 from pydantic import BaseModel
 from sqlalchemy.orm import Session
 
+from app.core.rows import from_row
 from app.http.deps import MAX_DB_ID, ResearcherDep, SessionDep
 from app.recruiting import service as recruiting
 from app.recruiting.links import LinkOptions
@@ -49,9 +50,8 @@ def open_link_api_router(api: LinkApi) -> APIRouter:
     path = f"/{{{id_name}}}/crowd"
 
     def out(request: Request, session: Session, row: Any) -> BaseModel:
-        extra = api.counts(session, row) | {"url": api.kind.open_url(request.base_url, row.slug)}
-        columns = {k: getattr(row, k) for k in api.out.model_fields if k not in extra}
-        return api.out.model_validate(columns | extra)
+        url = api.kind.open_url(request.base_url, row.slug)
+        return from_row(api.out, row, url=url, **api.counts(session, row))
 
     own = ", and its own options" if api.body is not OpenLinkIn else ""
     set_doc = (

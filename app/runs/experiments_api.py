@@ -16,6 +16,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from app.core.csv_export import csv_text
 from app.core.json_types import JsonInt, UtcDatetime
+from app.core.rows import from_row
 from app.http.deps import DbId, ResearcherDep, SessionDep
 from app.http.files import attachment
 from app.models import Experiment, ExperimentRole, RunStatus
@@ -102,15 +103,7 @@ def _out(session: SessionDep, experiment: Experiment) -> ExperimentOut:
         for role, run in experiments.members(session, experiment_id=experiment.id)
     ]
     created: datetime = experiment.created_at
-    return ExperimentOut(
-        id=experiment.id,
-        study_id=experiment.study_id,
-        spec=experiment.spec,
-        seeds=experiment.seeds,
-        pilot_seeds=experiment.pilot_seeds,
-        created_at=created,
-        runs=runs,
-    )
+    return from_row(ExperimentOut, experiment, created_at=created, runs=runs)
 
 
 @router.post("", status_code=202)

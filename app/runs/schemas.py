@@ -7,6 +7,7 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, StrictBool
 
 from app.core.json_types import JsonFloat, JsonInt, UtcDatetime
+from app.core.rows import from_row
 from app.models import Run, RunStatus
 from app.runs.pools import members
 from app.runs.service import MAX_TIMESTEPS, advice_label
@@ -110,27 +111,12 @@ class RunOut(BaseModel):
     @classmethod
     def of(cls, run: Run) -> RunOut:
         config = TrainConfig.from_json(run.config)
-        return cls(
-            id=run.id,
-            study_id=run.study_id,
-            participant_id=run.participant_id,
+        return from_row(
+            cls,
+            run,
             participant_ids=members(run),
-            teacher=run.teacher,
             advice=advice_label(run),
-            algo=run.algo,
-            timesteps=run.timesteps,
-            seed=run.seed,
-            n_envs=run.n_envs,
-            config=run.config,
-            status=RunStatus(run.status),
             progress=ProgressOut(done=run.progress, total=config.num_updates * config.batch_size),
-            metrics=run.metrics,
-            error=run.error,
-            cancel_requested=run.cancel_requested,
-            executor=run.executor,
-            created_at=run.created_at,
-            started_at=run.started_at,
-            finished_at=run.finished_at,
         )
 
 

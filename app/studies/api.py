@@ -9,6 +9,7 @@ from fastapi import APIRouter, Query, Request, Response
 from fastapi.responses import FileResponse
 
 from app.core.errors import NotFoundError
+from app.core.rows import from_row
 from app.http.deps import (
     CandidateId,
     DbId,
@@ -83,12 +84,9 @@ def study_power(
 def list_candidates(study_id: DbId, session: SessionDep, _: ResearcherDep) -> list[CandidateOut]:
     """The candidate states with their images (empty while the study is preparing)."""
     return [
-        CandidateOut(
-            id=c.id,
-            env_reward=c.env_reward,
-            baseline_return=c.baseline_return,
-            qpos=c.qpos,
-            qvel=c.qvel,
+        from_row(
+            CandidateOut,
+            c,
             image_url=image_url(study_id, c.id),
             thumb_url=image_url(study_id, c.id, "thumb"),
         )
@@ -156,12 +154,7 @@ def add_participants(
 
 
 def _created(request: Request, person: Participant) -> ParticipantCreated:
-    return ParticipantCreated(
-        id=person.id,
-        study_id=person.study_id,
-        token=person.token,
-        invite_url=invite_url(request, person.token),
-    )
+    return from_row(ParticipantCreated, person, invite_url=invite_url(request, person.token))
 
 
 @router.get("/{study_id}/participants")
@@ -178,16 +171,12 @@ def list_participants(
 def participant_out(
     request: Request, person: Participant, progress: participants.Progress
 ) -> ParticipantOut:
-    return ParticipantOut(
-        id=person.id,
-        study_id=person.study_id,
-        token=person.token,
-        name=person.name,
+    return from_row(
+        ParticipantOut,
+        person,
         invite_url=invite_url(request, person.token),
         progress=ProgressOut(done=progress.done, total=progress.total),
         finished=progress.finished,
-        created_at=person.created_at,
-        finished_at=person.finished_at,
     )
 
 

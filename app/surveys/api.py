@@ -13,6 +13,7 @@ from fastapi.responses import FileResponse
 
 from app.core import auth
 from app.core.errors import AuthError, NotFoundError
+from app.core.rows import from_row
 from app.http.deps import (
     AdminCredentials,
     CandidateId,
@@ -49,29 +50,18 @@ router = APIRouter(prefix="/surveys", tags=["surveys"])
 
 
 def survey_out(survey: Survey, stimuli: list[dict[str, Any]] | None = None) -> SurveyOut:
-    return SurveyOut(
-        id=survey.id,
-        name=survey.name,
-        intro=survey.intro,
-        template=survey.template,
-        questions=survey.questions,
-        highlights=survey.highlights,
-        assignment=survey.assignment,
-        exclusion_rule=surveys.exclusion_text(survey),
-        seed=survey.seed,
-        stimuli=stimuli or [],
+    return from_row(
+        SurveyOut, survey, exclusion_rule=surveys.exclusion_text(survey), stimuli=stimuli or []
     )
 
 
 def respondent_out(request: Request, person: SurveyRespondent) -> RespondentOut:
-    return RespondentOut(
-        id=person.id,
-        token=person.token,
-        stimulus_id=person.stimulus_id,
+    return from_row(
+        RespondentOut,
+        person,
         invite_url=str(request.base_url).rstrip("/") + survey_respond.invite_path(person.token),
         started=person.started_at is not None,
         finished=person.finished_at is not None,
-        external_id=person.external_id,
         external_ids=person.external_ids or {},
     )
 
