@@ -30,6 +30,7 @@ from app.core.errors import AuthError, ConflictError, NotFoundError
 from app.db import writing
 from app.labelling.shape import BracketShape, shape_of
 from app.models import Label, Match, Participant, as_utc, utcnow
+from app.recruiting.members import STUDY
 from app.studies.participants import ParticipantKey, Progress
 from app.studies.sides import a_on_left
 from engine.errors import InputError
@@ -213,7 +214,7 @@ def _submit(
 ) -> LabelResult:
     now, pid = utcnow(), participant.id
     if conn.execute(_LOCK, {"pid": pid}).rowcount == 0:
-        raise AuthError("unknown invite token")
+        raise AuthError(STUDY.unknown)
     row = conn.execute(_MATCH_ROW, {"pid": pid, "mid": match_id}).one_or_none()
     if row is None:
         raise NotFoundError(f"match {match_id} not found among this participant's matches")

@@ -56,7 +56,7 @@ def open_link_api_router(api: LinkApi) -> APIRouter:
     own = ", and its own options" if api.body is not OpenLinkIn else ""
     set_doc = (
         f"Set the {noun}'s open link ``{link}<slug>``: on or off, largest number of "
-        f"{api.kind.people}, external id parameters, consent text, completion code and "
+        f"{api.kind.members.people}, external id parameters, consent text, completion code and "
         f"redirect URL{own}."
     )
     get_doc = f"The {noun}'s open link, options and counts; 404 until they are set."

@@ -53,16 +53,30 @@ Member = TypeVar("Member", Participant, SurveyRespondent)
 class CollectionKind(Generic[Member]):
     """A kind of collection (studies, surveys) as the people code needs to know it."""
 
-    #: The collection's noun (``study``), its table's model, and its members' model.
+    #: The collection's noun (``study``), its table's model, its members' model and noun
+    #: (``participant``).
     noun: str
     collection: type[Study] | type[Survey]
     member: type[Member]
+    person: str
     #: Where an invite link points (this prefix and the token), and the cookie it sets.
     invite_prefix: str
     cookie: str
-    #: What a caller is told: no token sent; a token that names nobody of this kind.
-    missing: str
-    unknown: str
+
+    @property
+    def people(self) -> str:
+        """What the members are called together (``participants``)."""
+        return f"{self.person}s"
+
+    @property
+    def missing(self) -> str:
+        """What a caller who sent no token is told."""
+        return f"a {self.person} invite token is required"
+
+    @property
+    def unknown(self) -> str:
+        """What a caller whose token names nobody of this kind is told."""
+        return f"unknown {self.person} invite token"
 
     @property
     def owner(self) -> str:
@@ -78,19 +92,17 @@ STUDY = CollectionKind(
     noun="study",
     collection=Study,
     member=Participant,
+    person="participant",
     invite_prefix="/p/",
     cookie=auth.PARTICIPANT_COOKIE,
-    missing="a participant invite token is required",
-    unknown="unknown invite token",
 )
 SURVEY = CollectionKind(
     noun="survey",
     collection=Survey,
     member=SurveyRespondent,
+    person="respondent",
     invite_prefix="/r/",
     cookie=auth.RESPONDENT_COOKIE,
-    missing="a survey invite token is required",
-    unknown="unknown survey invite token",
 )
 
 

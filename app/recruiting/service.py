@@ -38,9 +38,7 @@ class LinkKind(Generic[Link, Member]):
     link: type[Link]
     #: The link's path is this prefix and its slug (``/s/``, ``/q/``).
     prefix: str
-    #: What the collection's members are called (``participants``), and the error raised
-    #: when every seat is taken.
-    people: str
+    #: The error raised when every seat is taken.
     full_error: type[LinkFullError]
     #: Refuses (raises) a collection that cannot take people now: a study not ready yet.
     check_collection: Callable[[Session, int], object]
@@ -54,7 +52,7 @@ class LinkKind(Generic[Link, Member]):
         noun = self.members.noun
         return (
             f"This {noun} is full",
-            f"This {noun} has all the {self.people} it needs. Thank you for your interest.",
+            f"This {noun} has all the {self.members.people} it needs. Thank you for your interest.",
         )
 
     def open_path(self, slug: str) -> str:

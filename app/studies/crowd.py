@@ -56,7 +56,6 @@ LINK = recruiting.LinkKind(
     link=CrowdSettings,
     prefix="/s/",
     full_error=StudyFullError,
-    people="participants",
     check_collection=lambda session, study_id: get_ready_study(session, study_id=study_id),
     stage=_stage,
 )

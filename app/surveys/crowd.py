@@ -29,7 +29,6 @@ LINK = recruiting.LinkKind(
     # /q/ (questionnaire), apart from the studies' /s/: each kind of link has its own table.
     prefix="/q/",
     full_error=SurveyFullError,
-    people="respondents",
     check_collection=lambda session, survey_id: get_survey(session, survey_id=survey_id),
     stage=lambda session, person: session.add(person),
 )
