@@ -9,6 +9,7 @@ from typing import Annotated, Any
 
 import typer
 
+from app.cli.options import JsonOpt, NEnvsOpt
 from app.cli.root import cli, fail
 from app.cli.serve import cli_runtime
 from app.models import RunStatus
@@ -32,7 +33,7 @@ def create(
     seeds: Annotated[int, Opt(help="Evaluation seeds per arm (2..20).")] = DEFAULT_SEEDS,
     pilot_seeds: Annotated[int, Opt(help="Pilot runs (1..10).")] = DEFAULT_PILOT_SEEDS,
     first_seed: Annotated[int, Opt(help="The first evaluation seed.")] = 0,
-    n_envs: Annotated[int, Opt(help="Parallel envs per run.")] = 4,
+    n_envs: NEnvsOpt = 4,
     advice_scale: Annotated[float | None, Opt(help="Multiplies F (advised runs).")] = None,
     checkpoint_every: Annotated[int | None, Opt(help="Env steps between checkpoints.")] = None,
     num_steps: Annotated[int | None, Opt(help="Steps per env per rollout.")] = None,
@@ -75,7 +76,7 @@ def verdict(
     experiment: Annotated[int, typer.Argument(help="The experiment's id.")],
     judge: Annotated[str, Opt(help="How the runs score states.")] = DEFAULT_JUDGE,
     step: Annotated[int | None, Opt(help="Checkpoint (default: latest judged).")] = None,
-    as_json: Annotated[bool, Opt("--json", help="Print JSON instead of the sentence.")] = False,
+    as_json: JsonOpt = False,
 ) -> None:
     """The verdict: advised runs against the matched baseline, on the matches that can tell."""
     with cli_runtime() as runtime, runtime.sessions() as session:

@@ -9,6 +9,7 @@ from typing import Annotated
 
 import typer
 
+from app.cli.options import CandidatesOpt, CoinOpt, EnvOpt, NEnvsOpt, NumStepsOpt
 from app.cli.root import cli
 from app.reproduce.plan import ReproduceConfig
 from engine.envs import DEFAULT_ENV_ID, check_env_id
@@ -31,12 +32,12 @@ def reproduce(
     extra_seeds: Annotated[
         int, Opt(help="Training seeds of the other arms (Case 1 tree, MGL, ablations).")
     ] = 1,
-    env: Annotated[str, Opt(help="Gymnasium MuJoCo env id.")] = DEFAULT_ENV_ID,
-    n_envs: Annotated[int, Opt(help="Parallel envs per run.")] = 4,
-    num_steps: Annotated[int, Opt(help="Steps per env per rollout.")] = 512,
+    env: EnvOpt = DEFAULT_ENV_ID,
+    n_envs: NEnvsOpt = 4,
+    num_steps: NumStepsOpt = 512,
     checkpoint_every: Annotated[int, Opt(help="Checkpoint period in env steps.")] = 50_000,
-    candidates: Annotated[int, Opt(help="Candidate states in the shared bracket.")] = 16,
-    p: Annotated[float, Opt(help="Braverman-Mossel coin probability.")] = 0.9,
+    candidates: CandidatesOpt = 16,
+    p: CoinOpt = 0.9,
     bracket_seed: Annotated[int, Opt(help="Seed of the candidates and the bracket.")] = 0,
     study: Annotated[
         int | None, Opt(help="Use a real participant's tree from this study as the Case 2 advice.")

@@ -8,6 +8,7 @@ from typing import Annotated
 
 import typer
 
+from app.cli.options import CandidatesOpt, CoinOpt, EnvOpt, NoiseOpt, SamplingOpt, TeacherOpt
 from app.cli.root import cli, fail
 from app.cli.serve import cli_runtime
 from app.labelling import simulate as simulation
@@ -16,10 +17,8 @@ from app.models import StudyStatus
 from app.studies import participants
 from app.studies import service as studies
 from app.studies.participants import invite_url
-from engine.candidates import SAMPLING_MODES
 from engine.disagreement import MAX_PAIRS
 from engine.envs import DEFAULT_ENV_ID
-from engine.teachers import TEACHERS
 from engine.treefile import dump_tree
 
 study_cli = typer.Typer(help="Create and list studies.", no_args_is_help=True)
@@ -31,11 +30,11 @@ cli.add_typer(participant_cli, name="participant")
 @study_cli.command("create")
 def create(
     name: Annotated[str, typer.Option(help="Shown to the researcher.")],
-    env: Annotated[str, typer.Option(help="Gymnasium MuJoCo env id.")] = DEFAULT_ENV_ID,
-    candidates: Annotated[int, typer.Option(help="Number of candidate states (2..128).")] = 16,
-    p: Annotated[float, typer.Option(help="Braverman-Mossel coin probability.")] = 0.9,
+    env: EnvOpt = DEFAULT_ENV_ID,
+    candidates: CandidatesOpt = 16,
+    p: CoinOpt = 0.9,
     seed: Annotated[int, typer.Option(help="Seed for sampling and seeding.")] = 0,
-    sampling: Annotated[str, typer.Option(help=" or ".join(SAMPLING_MODES))] = "uniform",
+    sampling: SamplingOpt = "uniform",
     disagreement_pairs: Annotated[
         int,
         typer.Option(
@@ -106,11 +105,11 @@ def tree(
 @cli.command()
 def simulate(
     study: Annotated[int, typer.Option(help="Study id.")],
-    teacher: Annotated[str, typer.Option(help=f"Judge: {', '.join(TEACHERS)}.")] = "standing",
+    teacher: TeacherOpt = "standing",
     participants_: Annotated[
         int, typer.Option("--participants", help="How many simulated participants.")
     ] = 1,
-    noise: Annotated[float, typer.Option(help="Probability of flipping each decision.")] = 0.0,
+    noise: NoiseOpt = 0.0,
     seed: Annotated[int, typer.Option(help="Seed of the teacher's noise.")] = 0,
 ) -> None:
     """Simulated participants label the study's bracket through the service layer."""

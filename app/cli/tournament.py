@@ -10,6 +10,15 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
+from app.cli.options import (
+    CandidatesOpt,
+    CoinOpt,
+    EnvOpt,
+    JsonOpt,
+    NoiseOpt,
+    SamplingOpt,
+    TeacherOpt,
+)
 from app.cli.root import cli, fail
 from engine.candidates import BASELINE_MODES, SAMPLING_MODES, Policy, SamplingMode
 from engine.conformance import Conformance, compare
@@ -23,13 +32,13 @@ from engine.treefile import TreeDocument, dump_tree, load_tree
 @cli.command()
 def tournament(
     out: Annotated[Path, typer.Option(help="Where to write the acv.tree/1 document.")],
-    env: Annotated[str, typer.Option(help="Gymnasium MuJoCo env id.")] = DEFAULT_ENV_ID,
-    candidates: Annotated[int, typer.Option(help="Number of candidate states (2..128).")] = 16,
-    p: Annotated[float, typer.Option(help="Braverman-Mossel coin probability.")] = 0.9,
+    env: EnvOpt = DEFAULT_ENV_ID,
+    candidates: CandidatesOpt = 16,
+    p: CoinOpt = 0.9,
     seed: Annotated[int, typer.Option(help="Seed for sampling, seeding and noise.")] = 0,
-    teacher: Annotated[str, typer.Option(help=f"Judge: {', '.join(TEACHERS)}.")] = "standing",
-    noise: Annotated[float, typer.Option(help="Probability of flipping each decision.")] = 0.0,
-    sampling: Annotated[str, typer.Option(help=" or ".join(SAMPLING_MODES))] = "uniform",
+    teacher: TeacherOpt = "standing",
+    noise: NoiseOpt = 0.0,
+    sampling: SamplingOpt = "uniform",
     baseline: Annotated[
         Path | None,
         typer.Option(
@@ -100,7 +109,7 @@ def _check_new(env: str, candidates: int, p: float, seed: int, sampling: str) ->
 def compare_cmd(
     human: Annotated[Path, typer.Argument(help="The Human Preference Tree (acv.tree/1).")],
     agent: Annotated[Path, typer.Argument(help="The other tree, over the same bracket.")],
-    as_json: Annotated[bool, typer.Option("--json", help="Print JSON instead of a table.")] = False,
+    as_json: JsonOpt = False,
 ) -> None:
     """Conformance metrics of the second tree to the first."""
     result = compare(load_tree(human), load_tree(agent))
@@ -157,8 +166,8 @@ def _contested_text(c: Conformance) -> str:
 
 @cli.command()
 def demo(
-    env: Annotated[str, typer.Option(help="Gymnasium MuJoCo env id.")] = DEFAULT_ENV_ID,
-    candidates: Annotated[int, typer.Option(help="Number of candidate states.")] = 16,
+    env: EnvOpt = DEFAULT_ENV_ID,
+    candidates: CandidatesOpt = 16,
     seed: Annotated[int, typer.Option(help="Seed.")] = 0,
 ) -> None:
     """The engine end to end: a `standing` teacher's tree against its `good` replay."""

@@ -9,6 +9,7 @@ from typing import Annotated
 import numpy as np
 import typer
 
+from app.cli.options import JsonOpt
 from app.cli.root import cli, fail
 from engine.judges import DEFAULT_JUDGE
 from engine.treefile import load_tree
@@ -37,7 +38,7 @@ def verdict_cmd(
         float, Opt(help="Share of the pilot scores' range a pilot preference must reach.")
     ] = 0.05,
     seed: Annotated[int, Opt(help="Seed of the bootstrap interval.")] = 0,
-    as_json: Annotated[bool, Opt("--json", help="Print JSON instead of the sentence.")] = False,
+    as_json: JsonOpt = False,
 ) -> None:
     """Did the advised runs keep the advice more than runs without it? Scores each run's last
     checkpoint with the judge, then tests the difference (exact permutation test, α = 0.05)."""

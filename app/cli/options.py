@@ -1,0 +1,23 @@
+"""Options that several ``acv`` commands take, each written once (typer reads the flag and
+its help from the ``Annotated`` alias; each command gives its own default)."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+import typer
+
+from engine.candidates import SAMPLING_MODES
+from engine.teachers import TEACHERS
+
+EnvOpt = Annotated[str, typer.Option(help="Gymnasium MuJoCo env id.")]
+CandidatesOpt = Annotated[int, typer.Option(help="Number of candidate states (2..128).")]
+CoinOpt = Annotated[float, typer.Option(help="Braverman-Mossel coin probability.")]
+SamplingOpt = Annotated[
+    str, typer.Option(help=f"How candidates are sampled: {' or '.join(SAMPLING_MODES)}.")
+]
+TeacherOpt = Annotated[str, typer.Option(help=f"Judge: {', '.join(TEACHERS)}.")]
+NoiseOpt = Annotated[float, typer.Option(help="Probability of flipping each decision.")]
+NEnvsOpt = Annotated[int, typer.Option(help="Parallel envs per run.")]
+NumStepsOpt = Annotated[int, typer.Option(help="Steps per env per rollout.")]
+JsonOpt = Annotated[bool, typer.Option("--json", help="Print JSON instead of text.")]
