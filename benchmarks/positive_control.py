@@ -30,15 +30,13 @@ from pathlib import Path
 import numpy as np
 
 from engine.candidates import sample_candidates
-from engine.envs import make_env
-from engine.gym_types import box, mujoco_base
 from engine.pipeline import replay_with_teacher, run_tournament, teacher_bracket
-from engine.postures import orthogonal_score
 from engine.rl.checkpoint import find_checkpoint, list_checkpoints
 from engine.rl.config import TrainConfig
 from engine.rl.runner import train
 from engine.rl.trained import deterministic_policy, load_agent
 from engine.treefile import TreeDocument, dump_tree, load_tree
+from engine.validation.measure import teacher_truth
 from engine.verdict_runs import runs_verdict
 
 ENV = "Hopper-v5"
@@ -80,20 +78,7 @@ def train_arms(root: Path, steps: int, jobs: int) -> dict[str, list[Path]]:
 
 def knee_score(run: Path, episodes: int = 5) -> float:
     """The `orthogonal` teacher's mean score over the run's deterministic episodes."""
-    act = deterministic_policy(load_agent(find_checkpoint(run)))
-    env = make_env(ENV)
-    space = box(env.action_space)
-    scores: list[float] = []
-    for episode in range(episodes):
-        obs, _ = env.reset(seed=10_000 + episode)
-        for _ in range(1000):
-            obs, _, terminated, truncated, _ = env.step(np.clip(act(obs), space.low, space.high))
-            base = mujoco_base(env)
-            scores.append(float(orthogonal_score(base.data.qpos[None], base.model)[0]))
-            if terminated or truncated:
-                break
-    env.close()
-    return float(np.mean(scores))
+    return teacher_truth(run, ENV, "orthogonal", episodes)
 
 
 def evaluation_tree(pilot: Path, n_candidates: int) -> TreeDocument:

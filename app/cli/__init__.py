@@ -21,6 +21,7 @@ def _register_commands() -> None:
         survey,
         tournament,
         train,
+        validate,
         verdict,
         worker,
     )

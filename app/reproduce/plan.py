@@ -22,7 +22,6 @@ run, so an interrupted reproduction loses at most one checkpoint period.
 
 from __future__ import annotations
 
-import json
 import shutil
 from collections.abc import Callable, Iterator
 from concurrent.futures import ProcessPoolExecutor
@@ -35,6 +34,7 @@ from typing import Any
 from app.reproduce.arms import ARMS, Arm
 from engine.envs import DEFAULT_ENV_ID
 from engine.errors import InputError
+from engine.pinned import pin_settings
 from engine.pipeline import replay_with_teacher, run_tournament
 from engine.treefile import TreeDocument, dump_tree, load_tree
 
@@ -110,18 +110,12 @@ def prepare(
     Raises:
         InputError: ``out`` holds a reproduction with another configuration.
     """
-    out.mkdir(parents=True, exist_ok=True)
-    path = out / CONFIG_FILE
-    if path.is_file():
-        saved = ReproduceConfig.from_json(json.loads(path.read_text()))
-        if saved != config:
-            diff = [k for k, v in config.to_json().items() if saved.to_json()[k] != v]
-            raise InputError(
-                f"{out} holds a reproduction with other settings "
-                f"({', '.join(diff)}): resume it as it was or choose another --out"
-            )
-    else:
-        path.write_text(json.dumps(config.to_json(), indent=1) + "\n")
+    pin_settings(
+        out / CONFIG_FILE,
+        config.to_json(),
+        "a reproduction",
+        normalize=lambda saved: ReproduceConfig.from_json(saved).to_json(),
+    )
     return advice_trees(out, config, participant_tree)
 
 

@@ -46,7 +46,7 @@ from engine.rl.config import TrainConfig
 from engine.rl.judge_cache import cached_array
 from engine.rl.returns import ReturnOptions, return_scores
 from engine.rl.runner import advice_reward, load_run_advice, load_run_pool, pool_reward
-from engine.rl.shaping import AdviceFn, EnvRewardAdvice
+from engine.rl.shaping import AdviceFn, EnvRewardAdvice, scaled_advice
 from engine.rl.trained import TrainedAgent, deterministic_policy, load_agent
 from engine.tournament import ScoreJudge
 from engine.treefile import TreeDocument
@@ -117,14 +117,15 @@ def candidate_terms(
 def _advice_values(
     cfg: TrainConfig, doc: TreeDocument, advice: AdviceFn | None, reward: np.ndarray
 ) -> np.ndarray:
-    """F at the candidates, times ``advice_scale``; 0 for a run without advice."""
+    """F at the candidates as the run was shaped (:func:`scaled_advice`); 0 for a run
+    without advice."""
     if not cfg.uses_advice:
         return np.zeros(len(doc.candidates))
     f = advice if advice is not None else advice_reward(cfg, doc)
     raw = (
         reward if isinstance(f, EnvRewardAdvice) else f(np.stack([c.qpos for c in doc.candidates]))
     )
-    return cfg.advice_scale * np.asarray(raw, dtype=np.float64)
+    return scaled_advice(raw, cfg.advice_scale, cfg.advice_offset)
 
 
 def term_scores(terms: CandidateTerms, judge: str, doc: TreeDocument) -> dict[int, float]:

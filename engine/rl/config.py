@@ -95,6 +95,10 @@ class TrainConfig:
     """width of the two hidden layers of every network"""
     advice_scale: float = 1.0
     """multiplies F(s) before shaping"""
+    advice_offset: float = 0.0
+    """added to F(s) before ``advice_scale``: with F >= -offset (the leaves' -r_b bounds the
+    tree's F from below), advice cannot be escaped by ending the episode early, which an env
+    that terminates on falling (Hopper) otherwise pays for when F < 0 where the agent starts"""
     advice_mode: str = "nearest"
     """one of :data:`ADVICE_MODES`: how F is made from the advice tree, or ``reward`` (F = R)"""
     advice_depth_factor: str = "none"
@@ -136,6 +140,10 @@ class TrainConfig:
             (self.checkpoint_every > 0, "checkpoint-every must be positive"),
             (0 < abs(self.z_init) < self.z_max, "z_init must satisfy 0 < |z_init| < z_max"),
             (self.advice_scale > 0, f"advice-scale must be positive, got {self.advice_scale}"),
+            (
+                0 <= self.advice_offset <= 100,
+                f"advice-offset must be in [0, 100], got {self.advice_offset}",
+            ),
             *self._advice_checks(),
         ]
         return [message for ok, message in checks if not ok]

@@ -71,7 +71,8 @@ def reached_qpos(info: dict[str, Any], done: np.ndarray) -> np.ndarray:
 class AdviceShaping(gym.vector.VectorWrapper):
     """Add the advice terms of each step to ``info``; the returned reward stays R.
 
-    ``info["advice"]``: ``scale * F(s')`` of the reached states s', shape (B,);
+    ``info["advice"]``: ``scale * (F(s') + offset)`` of the reached states s', shape (B,)
+    (:func:`scaled_advice`);
     ``info["env_reward"]``: the environment reward R, shape (B,).
 
     Args:
@@ -79,12 +80,19 @@ class AdviceShaping(gym.vector.VectorWrapper):
         advice: the advice reward F (:class:`EnvRewardAdvice` for F = R), or None for zeros
             (the ``ppo`` baseline).
         scale: multiplies F (``--advice-scale``).
+        offset: added to F before ``scale`` (:attr:`TrainConfig.advice_offset`).
     """
 
-    def __init__(self, env: gym.vector.VectorEnv, advice: AdviceFn | None, scale: float = 1.0):
+    def __init__(
+        self,
+        env: gym.vector.VectorEnv,
+        advice: AdviceFn | None,
+        scale: float = 1.0,
+        offset: float = 0.0,
+    ):
         super().__init__(env)
         self.advice = advice
-        self.scale = scale
+        self.scale, self.offset = scale, offset
 
     def step(
         self, actions: np.ndarray
@@ -94,8 +102,14 @@ class AdviceShaping(gym.vector.VectorWrapper):
         if self.advice is None:
             info["advice"] = np.zeros_like(reward)
         elif isinstance(self.advice, EnvRewardAdvice):
-            info["advice"] = self.scale * np.asarray(reward, dtype=np.float64)
+            info["advice"] = scaled_advice(reward, self.scale, self.offset)
         else:
             qpos = reached_qpos(info, terminated | truncated)
-            info["advice"] = self.scale * np.asarray(self.advice(qpos), dtype=np.float64)
+            info["advice"] = scaled_advice(self.advice(qpos), self.scale, self.offset)
         return obs, reward, terminated, truncated, info
+
+
+def scaled_advice(raw: np.ndarray, scale: float, offset: float) -> np.ndarray:
+    """The shaping term's F: ``scale * (F + offset)``, the one place both are applied."""
+    scaled: np.ndarray = scale * (np.asarray(raw, dtype=np.float64) + offset)
+    return scaled

@@ -39,7 +39,9 @@ class Trainer:
     def __init__(self, cfg: TrainConfig, advice: AdviceFn | None):
         self.cfg = cfg
         self.rng = np.random.default_rng(cfg.seed)
-        self.envs = make_vec_env(cfg.env_id, cfg.n_envs, advice, cfg.advice_scale)
+        self.envs = make_vec_env(
+            cfg.env_id, cfg.n_envs, advice, cfg.advice_scale, cfg.advice_offset
+        )
         first_obs, _ = self.envs.reset(seed=cfg.seed)
         obs_dim = box(self.envs.single_observation_space).shape[0]
         act_dim = box(self.envs.single_action_space).shape[0]

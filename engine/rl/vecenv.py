@@ -18,7 +18,11 @@ if TYPE_CHECKING:
 
 
 def make_vec_env(
-    env_id: str, n_envs: int, advice: AdviceFn | None, advice_scale: float = 1.0
+    env_id: str,
+    n_envs: int,
+    advice: AdviceFn | None,
+    advice_scale: float = 1.0,
+    advice_offset: float = 0.0,
 ) -> AdviceShaping:
     """``n_envs`` copies of ``env_id`` in a ``SyncVectorEnv`` with same-step autoreset.
 
@@ -35,7 +39,7 @@ def make_vec_env(
     vec = gym.vector.SyncVectorEnv(
         [thunk] * n_envs, autoreset_mode=gym.vector.AutoresetMode.SAME_STEP
     )
-    return AdviceShaping(vec, advice, advice_scale)
+    return AdviceShaping(vec, advice, advice_scale, advice_offset)
 
 
 def _time_limit(env: gym.Env[Any, Any]) -> gym.wrappers.TimeLimit[Any, Any] | None:

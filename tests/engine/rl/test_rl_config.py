@@ -15,6 +15,8 @@ from engine.rl.config import ALGOS, TrainConfig
         ({"total_timesteps": -5}, "timesteps must be positive"),
         ({"total_timesteps": 0}, "timesteps must be positive"),
         ({"advice_scale": 0.0}, "advice-scale"),
+        ({"advice_offset": -1.0}, "advice-offset"),
+        ({"advice_offset": 101.0}, "advice-offset"),
         ({"checkpoint_every": 0}, "checkpoint-every"),
         ({"z_init": 3.0}, "z_init"),
         ({"num_minibatches": 10**9}, "num_minibatches"),

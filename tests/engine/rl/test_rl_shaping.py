@@ -20,10 +20,14 @@ def test_reached_qpos_of_a_finished_env_comes_from_final_info() -> None:
     assert info["qpos"][1, 0] == 1.0  # the caller's info is not modified
 
 
-def test_advice_term_is_scaled_f_of_the_reached_state() -> None:
+@pytest.mark.parametrize("offset", [0.0, 2.0])
+def test_advice_term_is_scaled_f_of_the_reached_state(offset: float) -> None:
     """Against single envs stepped alongside: F of the state each step reached, read before
-    any reset (so a finished episode's term is its last state, not the next one's first)."""
-    envs = make_vec_env("InvertedPendulum-v5", 3, advice=lambda q: q[:, 1] * 10.0, advice_scale=0.5)
+    any reset (so a finished episode's term is its last state, not the next one's first),
+    plus the offset, times the scale."""
+    envs = make_vec_env(
+        "InvertedPendulum-v5", 3, lambda q: q[:, 1] * 10.0, advice_scale=0.5, advice_offset=offset
+    )
     envs.reset(seed=0)
     refs = [make_env("InvertedPendulum-v5") for _ in range(3)]
     for i, ref in enumerate(refs):
@@ -33,7 +37,7 @@ def test_advice_term_is_scaled_f_of_the_reached_state() -> None:
         _, reward, _, _, info = envs.step(np.full((3, 1), 3.0))
         for i, ref in enumerate(refs):
             _, ref_reward, ref_term, ref_trunc, _ = ref.step(np.array([3.0]))
-            assert info["advice"][i] == 0.5 * 10.0 * ref.unwrapped.data.qpos[1]
+            assert info["advice"][i] == 0.5 * (10.0 * ref.unwrapped.data.qpos[1] + offset)
             assert info["env_reward"][i] == reward[i] == ref_reward
             if ref_term or ref_trunc:
                 finished += 1

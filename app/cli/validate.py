@@ -1,0 +1,91 @@
+"""``acv validate``: the verdict checked on agents whose answer is known (issue 27,
+docs/validation.md). Resumable: a second call with the same settings goes on where the first
+stopped, and reuses every finished run."""
+
+from __future__ import annotations
+
+import threading
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+
+from app.cli.options import CandidatesOpt, EnvOpt, NEnvsOpt, NumStepsOpt, TeacherOpt
+from app.cli.root import cli
+from app.cli.serve import service_errors
+from engine.envs import check_env_id
+from engine.errors import InputError
+from engine.validation.design import ARMS, Plan
+
+Opt = typer.Option
+
+
+@cli.command()
+def validate(
+    out: Annotated[Path, Opt(help="Validation folder (outside the repository).")],
+    env: EnvOpt = "Hopper-v5",
+    teacher: TeacherOpt = "orthogonal",
+    seeds: Annotated[int, Opt(help="Evaluation seeds per arm.")] = 8,
+    timesteps: Annotated[int, Opt(help="Env steps per run.")] = 500_000,
+    pilot_seeds: Annotated[int, Opt(help="No-advice pilot runs on seeds of their own.")] = 2,
+    brackets: Annotated[int, Opt(help="Evaluation brackets (bracket 0 is the advice).")] = 5,
+    candidates: CandidatesOpt = 16,
+    n_envs: NEnvsOpt = 4,
+    num_steps: NumStepsOpt = 512,
+    arms: Annotated[
+        str, Opt(help=f"Comma-separated arms: {', '.join(a.name for a in ARMS)}.")
+    ] = ",".join(a.name for a in ARMS),
+    jobs: Annotated[int, Opt(help="Runs trained at once (one core each).")] = 1,
+) -> None:
+    """Train every arm (or reuse finished runs), measure, and write summary.json and
+    report.md with each pre-registered criterion under each judge."""
+    with service_errors():
+        check_env_id(env)
+        plan = Plan(
+            env_id=env,
+            teacher=teacher,
+            timesteps=timesteps,
+            seeds=seeds,
+            pilot_seeds=pilot_seeds,
+            brackets=brackets,
+            candidates=candidates,
+            n_envs=n_envs,
+            num_steps=num_steps,
+            arms=tuple(a.strip() for a in arms.split(",") if a.strip()),
+        )
+        if jobs < 1:
+            raise InputError(f"--jobs must be at least 1, got {jobs}")
+        _run_with_progress(out, plan, jobs)
+    typer.echo(f"wrote {out / 'summary.json'} and {out / 'report.md'}")
+
+
+def _run_with_progress(out: Path, plan: Plan, jobs: int) -> None:
+    """:func:`engine.validation.validate.validate` in a thread, with a bar per arm (steps
+    logged by its runs) and the time left, polled from the runs' metrics files."""
+    from engine.validation.runs import arm_tasks, pilot_tasks
+    from engine.validation.validate import steps_done, validate
+
+    tasks = [*pilot_tasks(plan), *arm_tasks(plan)]
+    failure: list[BaseException] = []
+
+    def work() -> None:
+        try:
+            validate(out, plan, jobs=jobs)
+        except BaseException as exc:  # re-raised in the main thread, where the CLI reports it
+            failure.append(exc)
+
+    thread = threading.Thread(target=work, daemon=True)
+    columns = (TextColumn("{task.description:>10}"), BarColumn(), TimeRemainingColumn())
+    with Progress(*columns) as progress:
+        bars = {}
+        for name in dict.fromkeys(name for name, _ in tasks):
+            runs = [t for t in tasks if t[0] == name]
+            bars[name] = (progress.add_task(name, total=len(runs) * plan.timesteps), runs)
+        thread.start()
+        while thread.is_alive():
+            for bar, runs in bars.values():
+                progress.update(bar, completed=sum(steps_done(out, t) for t in runs))
+            thread.join(timeout=2.0)
+    if failure:
+        raise failure[0]

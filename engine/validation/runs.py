@@ -1,0 +1,178 @@
+"""Train and measure the validation's agents, resumably (docs/validation.md §3).
+
+The output folder holds ``validate.json`` (the :class:`Plan`; another plan in the same folder
+is refused), ``runs/<arm>-<seed>/`` (ordinary training runs, resumed from their last
+checkpoint), ``brackets/bracket_<b>.json`` (the teacher's tree over informative candidates
+sampled from a pilot's policy), ``advice/{advice,shuffled,inverted}.json`` (what the arms
+train on: bracket 0's tree and its two controls) and ``measures/<arm>-<seed>.json`` (each
+finished run's judge scores on every bracket and its ground truth U, measured once).
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor
+from multiprocessing import get_context
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from engine.candidates import sample_candidates
+from engine.errors import InputError
+from engine.pinned import pin_settings
+from engine.pipeline import replay, replay_with_teacher, teacher_bracket
+from engine.rl.checkpoint import list_checkpoints
+from engine.rl.config import TrainConfig
+from engine.rl.runner import train
+from engine.tournament import ScoreJudge
+from engine.treefile import TreeDocument, dump_tree, load_tree
+from engine.validation.design import ARM_BY_NAME, BRACKET_SEED0, PILOT, AdviceKind, Arm, Plan
+
+PLAN_FILE = "validate.json"
+#: Checkpoints per run: an interrupted validation loses at most a tenth of a run.
+CHECKPOINTS = 10
+Task = tuple[str, int]  # (arm name, seed)
+#: F + 1 >= 0 (a tree's leaves are worth -r_b = -1): no arm can escape its advice by falling.
+#: Without it ``p1-10`` learned to end Hopper's episodes in 6 steps (F < 0 where it starts);
+#: the shuffled arms, offset alike, control for the alive bonus it adds.
+ADVICE_OFFSET = 1.0
+
+
+def prepare(out: Path, plan: Plan) -> None:
+    """Write ``validate.json``, or check that ``out`` holds this same plan.
+
+    Raises:
+        InputError: ``out`` holds a validation with another plan.
+    """
+    pin_settings(
+        out / PLAN_FILE,
+        plan.to_json(),
+        "a validation",
+        normalize=lambda saved: Plan.from_json(saved).to_json(),
+    )
+
+
+def run_dir(out: Path, arm: str, seed: int) -> Path:
+    return out / "runs" / f"{arm}-{seed}"
+
+
+def pilot_tasks(plan: Plan) -> list[Task]:
+    return [(PILOT.name, s) for s in plan.pilot_seed_list()]
+
+
+def arm_tasks(plan: Plan) -> list[Task]:
+    """Every arm's runs, seed by seed (so that seed 0 of every arm comes first)."""
+    return [(arm.name, seed) for seed in range(plan.seeds) for arm in plan.chosen]
+
+
+def finished(out: Path, plan: Plan, task: Task) -> bool:
+    folder = run_dir(out, *task)
+    return folder.is_dir() and plan.timesteps in list_checkpoints(folder)
+
+
+def train_config(plan: Plan, arm: Arm, seed: int) -> TrainConfig:
+    return TrainConfig(
+        algo=arm.algo,
+        env_id=plan.env_id,
+        total_timesteps=plan.timesteps,
+        seed=seed,
+        n_envs=plan.n_envs,
+        num_steps=plan.num_steps,
+        checkpoint_every=max(1, plan.timesteps // CHECKPOINTS),
+        advice_scale=arm.scale if arm.scale > 0 else 1.0,
+        advice_offset=ADVICE_OFFSET if arm.advice is not AdviceKind.NONE else 0.0,
+    )
+
+
+def train_task(out: Path, plan: Plan, task: Task) -> Task:
+    """Train one run to the end (one torch thread), resuming it where it stopped."""
+    if not finished(out, plan, task):
+        arm = ARM_BY_NAME[task[0]]
+        advice = None if arm.advice is AdviceKind.NONE else load_tree(advice_path(out, arm))
+        folder = run_dir(out, *task)
+        resume = folder.is_dir() and bool(list_checkpoints(folder))
+        train(train_config(plan, arm, task[1]), advice, folder, resume=resume)
+    return task
+
+
+def train_tasks(
+    out: Path, plan: Plan, tasks: list[Task], jobs: int, done: Callable[[Task], None]
+) -> None:
+    """Train ``tasks``, ``jobs`` at a time; ``done`` is called as each one finishes."""
+    todo = [t for t in tasks if not finished(out, plan, t)]
+    for task in set(tasks) - set(todo):
+        done(task)
+    if jobs <= 1:
+        for task in todo:
+            done(train_task(out, plan, task))
+        return
+    # Runs are independent and single-threaded: processes give a near-linear speed-up;
+    # spawn, because torch and MuJoCo are not fork-safe.
+    with ProcessPoolExecutor(max_workers=jobs, mp_context=get_context("spawn")) as pool:
+        for future in [pool.submit(train_task, out, plan, t) for t in todo]:
+            done(future.result())
+
+
+def make_brackets(out: Path, plan: Plan) -> list[TreeDocument]:
+    """The evaluation brackets (made once from the finished pilots, then reloaded) and the
+    advice files of bracket 0."""
+    folder = out / "brackets"
+    paths = [folder / f"bracket_{b}.json" for b in range(plan.brackets)]
+    if not all(p.is_file() for p in paths):
+        folder.mkdir(parents=True, exist_ok=True)
+        for b, path in enumerate(paths):
+            dump_tree(_bracket(out, plan, b), path)
+    trees = [load_tree(p) for p in paths]
+    _write_advice(out, trees[0])
+    return trees
+
+
+def _bracket(out: Path, plan: Plan, b: int) -> TreeDocument:
+    """The teacher's tree over candidates sampled (``informative``) from pilot ``b mod k``'s
+    deterministic policy, all draws from ``BRACKET_SEED0 + b``."""
+    from engine.rl.checkpoint import find_checkpoint
+    from engine.rl.trained import deterministic_policy, load_agent
+
+    seeds = plan.pilot_seed_list()
+    pilot = run_dir(out, PILOT.name, seeds[b % len(seeds)])
+    policy = deterministic_policy(load_agent(find_checkpoint(pilot)))
+    rng = np.random.default_rng(BRACKET_SEED0 + b)
+    candidates = sample_candidates(
+        plan.env_id, plan.candidates, rng=rng, mode="informative", policy=policy
+    )
+    return teacher_bracket(
+        plan.env_id, candidates, rng, p=plan.p, seed=BRACKET_SEED0 + b, teacher=plan.teacher
+    )
+
+
+def advice_path(out: Path, arm: Arm) -> Path:
+    return out / "advice" / f"{arm.advice.value}.json"
+
+
+def _write_advice(out: Path, advice: TreeDocument) -> None:
+    folder = out / "advice"
+    if (folder / "inverted.json").is_file():
+        return
+    folder.mkdir(parents=True, exist_ok=True)
+    dump_tree(advice, folder / "advice.json")
+    dump_tree(replay_with_teacher(advice, "random"), folder / "shuffled.json")
+    dump_tree(inverted(advice), folder / "inverted.json")
+
+
+def inverted(advice: TreeDocument) -> TreeDocument:
+    """The advice turned around: the same bracket judged by score ``1 - s``.
+
+    Raises:
+        InputError: the advice records no scores (a human's tree: there is no s to invert).
+    """
+    if advice.scores is None:
+        raise InputError("inverted advice needs the teacher's scores in the advice tree")
+    flipped = {cid: 1.0 - s for cid, s in advice.scores.items()}
+    return replay(advice, ScoreJudge(flipped), f"{advice.judge}-inverted", scores=flipped)
+
+
+def read_json(path: Path) -> dict[str, Any]:
+    data: dict[str, Any] = json.loads(path.read_text())
+    return data

@@ -1,0 +1,93 @@
+"""``acv validate`` end to end: pilots, brackets, every arm, measures, then ``summary.json`` and
+``report.md`` (docs/validation.md). Every step resumes where an earlier call stopped."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+from engine.rl.logger import METRICS_FILE
+from engine.validation.analysis import judge_summary
+from engine.validation.design import Plan
+from engine.validation.figures import draw
+from engine.validation.measure import JUDGES, measure
+from engine.validation.runs import (
+    Task,
+    arm_tasks,
+    make_brackets,
+    pilot_tasks,
+    prepare,
+    run_dir,
+    train_tasks,
+)
+
+
+def validate(
+    out: Path, plan: Plan, *, jobs: int = 1, done: Callable[[Task], None] = lambda task: None
+) -> dict[str, Any]:
+    """Train what is not trained yet, measure, analyse; returns the summary it wrote."""
+    prepare(out, plan)
+    train_tasks(out, plan, pilot_tasks(plan), jobs, done)
+    brackets = make_brackets(out, plan)
+    train_tasks(out, plan, arm_tasks(plan), jobs, done)
+    tasks = [*pilot_tasks(plan), *arm_tasks(plan)]
+    measures = {task: measure(out, plan, task, brackets) for task in tasks}
+    summary = {
+        "schema": "acv.validation/1",
+        "plan": plan.to_json(),
+        "judges": {j: judge_summary(measures, plan, j, brackets) for j in JUDGES},
+    }
+    (out / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
+    figures = draw(summary, out)
+    (out / "report.md").write_text(report(summary, figures))
+    return summary
+
+
+def steps_done(out: Path, task: Task) -> int:
+    """Env steps a run has logged so far (0 before its first update): for progress bars."""
+    path = run_dir(out, *task) / METRICS_FILE
+    if not path.is_file():
+        return 0
+    lines = path.read_bytes().rstrip().splitlines()
+    try:
+        return int(json.loads(lines[-1])["timesteps"]) if lines else 0
+    except (ValueError, KeyError):  # a line being written: the next poll reads it
+        return 0
+
+
+def report(summary: dict[str, Any], figures: Sequence[Path] = ()) -> str:
+    """``report.md``: each criterion under each judge, pass or fail, with its interval, and
+    the figures (paths relative to the report)."""
+    plan = summary["plan"]
+    lines = [
+        f"# Validation: {plan['env_id']}, teacher `{plan['teacher']}`",
+        "",
+        f"{plan['seeds']} seeds per arm x {plan['timesteps']} steps, {plan['brackets']} "
+        f"brackets of {plan['candidates']} informative candidates, {plan['pilot_seeds']} pilots; "
+        "criteria and their thresholds: docs/validation.md §4.",
+        "",
+        "| judge | criterion | value | 95% interval | passed | note |",
+        "| --- | --- | --- | --- | --- | --- |",
+    ]
+    for judge, found in summary["judges"].items():
+        for c in found["criteria"]:
+            lines.append(
+                f"| {judge} | {c['name']} | {_num(c['value'])} | {_interval(c)} | "
+                f"{_passed(c['passed'])} | {c['note']} |"
+            )
+    lines += ["", *(f"![{p.stem}](figures/{p.name})" for p in figures)]
+    return "\n".join(lines) + "\n"
+
+
+def _num(x: float | None) -> str:
+    return "n/a" if x is None else f"{x:.3f}"
+
+
+def _interval(c: dict[str, Any]) -> str:
+    return "" if c["low"] is None else f"[{c['low']:.3f}, {c['high']:.3f}]"
+
+
+def _passed(passed: bool | None) -> str:
+    return {True: "yes", False: "**no**", None: "could not compute"}[passed]

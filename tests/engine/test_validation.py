@@ -1,0 +1,201 @@
+"""``acv validate``'s design and pre-registered analysis, without training: synthetic judge
+statistics at advised and unadvised candidates, and synthetic CA tables (issue 27)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from engine.errors import InputError
+from engine.pipeline import run_tournament
+from engine.rl.agent_judge import CandidateTerms, term_scores
+from engine.rl.behaviour import occupancy_scores
+from engine.treefile import TreeDocument
+from engine.validation import criteria
+from engine.validation.analysis import arm_table, judge_summary
+from engine.validation.criteria import ArmData
+from engine.validation.design import ARMS, PILOT, Plan
+from engine.validation.figures import draw
+from engine.validation.power import power
+from engine.validation.runs import inverted, prepare
+from engine.validation.validate import report
+from engine.verdict import advice_scores
+
+SEEDS, PILOTS = 5, 2  # 5: the exact one-sided test of ΔU reaches p = 1/32 < 0.05
+
+
+@pytest.fixture(scope="module")
+def advice() -> TreeDocument:
+    return run_tournament(env_id="Hopper-v5", n_candidates=8, p=0.9, seed=1, teacher="orthogonal")
+
+
+def _plan(arms: tuple[str, ...] = ("n1", "n2-1", "n2-10", "p1-10")) -> Plan:
+    return Plan(
+        env_id="Hopper-v5", teacher="orthogonal", timesteps=1000, seeds=SEEDS,
+        pilot_seeds=PILOTS, brackets=1, candidates=8, arms=arms,
+    )  # fmt: skip
+
+
+def _statistic(judge: str, doc: TreeDocument, toward: np.ndarray, rng: np.random.Generator):
+    """A judge's scores of an agent drawn to the candidates ``toward`` ranks high: the
+    behaviour judge from synthetic visited states, the others from synthetic values."""
+    order = np.argsort(-toward)
+    if judge == "behaviour":
+        near = np.array([doc.candidates[i].qpos for i in order[: len(order) // 2]])
+        visited = np.repeat(near, 20, axis=0) + rng.normal(0, 1e-3, (20 * len(near), near.shape[1]))
+        return list(occupancy_scores(visited, doc).values())
+    values = toward + rng.normal(0, 1e-3, len(toward))
+    zeros = np.zeros_like(values)
+    terms = CandidateTerms(reward=zeros, advice=zeros, z=zeros, value=values)
+    return list(term_scores(terms, "shaped-value", doc).values())
+
+
+def _measures(judge: str, doc: TreeDocument, plan: Plan) -> dict:
+    """Advised arms drawn to the advice's favourites, every other run to its least liked."""
+    rng = np.random.default_rng(0)
+    s = advice_scores(doc)
+    runs = {(a, k) for a in plan.arms for k in range(SEEDS)} | {
+        (PILOT.name, k) for k in plan.pilot_seed_list()
+    }
+    return {
+        (arm, k): {
+            "truth": float(arm.startswith("p1")) + rng.normal(0, 0.01),
+            "scores": {judge: [_statistic(judge, doc, s if arm.startswith("p1") else -s, rng)]},
+            "reward": [np.zeros(len(s)).tolist()],
+        }
+        for arm, k in runs
+    }
+
+
+@pytest.mark.parametrize("judge", ["return", "behaviour", "shaped-value"])
+def test_advised_agents_are_told_apart_by_every_judge_statistic(
+    judge: str, advice: TreeDocument
+) -> None:
+    plan = _plan()
+    table = arm_table(_measures(judge, advice, plan), plan, judge, [advice])
+    found = criteria.separation(table, np.random.default_rng(0), n_boot=200)
+    assert found.value == 1.0 and found.low == 1.0 and found.passed
+    assert (table["p1-10"].run_ca > table["n1"].run_ca.max()).all()
+
+
+def test_the_summary_reports_every_criterion_and_what_it_could_not_compute(
+    advice: TreeDocument, tmp_path: Path
+) -> None:
+    plan = _plan()
+    summary = judge_summary(_measures("return", advice, plan), plan, "return", [advice])
+    by_name = {c["name"]: c for c in summary["criteria"]}
+    assert by_name["AUC p1-10 vs n1+n2"]["passed"] is True
+    assert by_name["delta(n3)"]["passed"] is None
+    assert "n3" in by_name["delta(n3)"]["note"]
+    assert summary["verdicts"]["p1-10"]["outcome"] == "used"
+    assert summary["known"]["p1-10"] == "follows"
+    whole = {"plan": plan.to_json(), "judges": {"return": summary}}
+    (figure,) = draw(whole, tmp_path)
+    assert Image.open(figure).size == (1300, 400)
+    text = report(whole, [figure])
+    assert "| return | delta(n3) | n/a |  | could not compute | arms not trained: n3 |" in text
+    assert text.endswith("![return](figures/return.png)\n")
+
+
+def _table(shifts: dict[str, float], seeds: int = 8, seed: int = 0) -> dict[str, ArmData]:
+    rng = np.random.default_rng(seed)
+    return {
+        arm: ArmData(
+            np.clip(0.3 + shift + rng.normal(0, 0.02, (seeds, 3)), 0, 1),
+            shift + rng.normal(0, 0.01, seeds),
+        )
+        for arm, shift in shifts.items()
+    }
+
+
+def test_inverted_advice_is_seen_as_rejection_and_the_dose_as_a_dose() -> None:
+    rng = np.random.default_rng(1)
+    table = _table(
+        {"n1": 0, "n2-1": 0, "n2-10": 0, "n3": -0.2, "p1-1": 0.1, "p1-3": 0.2, "p1-10": 0.4}
+    )
+    rejection = criteria.rejection(table, rng, n_boot=200)
+    assert rejection.value is not None and rejection.value < 0 and rejection.passed
+    dose = criteria.dose_response(table, rng, n_boot=200)
+    assert dose.value is not None and dose.value > 0.8 and dose.passed
+    pooled, within = criteria.truth_agreement(table)
+    assert pooled.passed and set(within) == set(table) - {"n1"}
+
+
+def test_no_effect_fails_the_separation_and_the_rejection() -> None:
+    rng = np.random.default_rng(2)
+    table = _table({"n1": 0, "n2-1": 0, "n2-10": 0, "n3": 0, "p1-10": 0})
+    assert not criteria.separation(table, rng, n_boot=200).passed
+    assert not criteria.rejection(table, rng, n_boot=200).passed
+
+
+@pytest.mark.parametrize(
+    ("delta_u", "expected"),
+    [
+        (np.full(8, 0.1) + np.linspace(0, 0.01, 8), "follows"),
+        (-np.full(8, 0.1), "rejects"),
+        (np.array([0.1, -0.1] * 4), "unknown"),
+        (np.zeros(8), "unknown"),
+        (np.array([0.1]), "unknown"),
+        (np.full(4, 0.1), "unknown"),  # 4 seeds: the smallest one-sided p is 1/16
+    ],
+)
+def test_known_direction_is_an_exact_one_sided_test(delta_u: np.ndarray, expected: str) -> None:
+    assert criteria.known_direction(delta_u) == expected
+
+
+def test_verdict_criteria_read_the_product_outcomes() -> None:
+    assert criteria.no_false_use({"n2-1": "no-different", "n2-10": "cannot-tell"}).passed
+    assert not criteria.no_false_use({"n2-1": "used", "n2-10": "no-different"}).passed
+    assert criteria.no_false_use({"n2-1": "no-different"}).passed is None
+    assert criteria.placebo(["no-different"] * 18 + ["used", "against"]).passed
+    assert not criteria.placebo(["no-different"] * 17 + ["used"] * 3).passed
+    follows = _table({"n1": 0, "p1-1": 0.3, "bipars-em": 0})
+    assert criteria.hard_cases({"p1-1": "used"}, follows).passed
+    assert not criteria.hard_cases({"p1-1": "no-different"}, follows).passed
+
+
+def test_inverted_advice_reverses_every_match(advice: TreeDocument) -> None:
+    flipped = inverted(advice)
+    assert flipped.first_round == advice.first_round
+    assert all(flipped.results[m] != w for m, w in advice.results.items() if m in flipped.results)
+    scores = dict(advice.scores or {})
+    scores.popitem()
+    with pytest.raises(InputError, match="scores"):
+        inverted(
+            run_tournament(env_id="Hopper-v5", n_candidates=4, p=0.9, seed=0, teacher="random")
+        )
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        ({"seeds": 0}, "seeds must be at least 1"),
+        ({"candidates": 2}, "candidates must be at least 4"),
+        ({"arms": ("p1-10",)}, "must include n1"),
+        ({"arms": ("n1", "p9")}, "unknown p9"),
+    ],
+)
+def test_a_bad_plan_is_refused(change: dict, message: str) -> None:
+    with pytest.raises(InputError, match=message):
+        Plan(**({"env_id": "Hopper-v5", "teacher": "orthogonal", "timesteps": 10} | change))
+
+
+def test_a_folder_holds_one_plan(tmp_path: Path) -> None:
+    prepare(tmp_path, _plan())
+    prepare(tmp_path, _plan())  # the same plan resumes
+    assert json.loads((tmp_path / "validate.json").read_text())["arms"] == list(_plan().arms)
+    with pytest.raises(InputError, match="arms"):
+        prepare(tmp_path, _plan(("n1",)))
+
+
+def test_the_power_simulation_separates_an_effect_from_none() -> None:
+    rng = np.random.default_rng(0)
+    none = power(0.0, seeds=8, brackets=3, rng=rng, simulations=5, n_boot=50)
+    large = power(0.5, seeds=8, brackets=3, rng=rng, simulations=5, n_boot=50)
+    assert none["AUC p1-10 vs n1+n2"] == 0.0 and large["AUC p1-10 vs n1+n2"] == 1.0
+    assert set(none) == set(large) and len(none) == 7
+    assert {a.name for a in ARMS} >= {"n1", "p1-10"}
