@@ -117,8 +117,7 @@ def candidate_terms(
 def _advice_values(
     cfg: TrainConfig, doc: TreeDocument, advice: AdviceFn | None, reward: np.ndarray
 ) -> np.ndarray:
-    """F at the candidates as the run was shaped (:func:`scaled_advice`); 0 for a run
-    without advice."""
+    """F at the candidates as the run was shaped (:func:`scaled_advice`); 0 without advice."""
     if not cfg.uses_advice:
         return np.zeros(len(doc.candidates))
     f = advice if advice is not None else advice_reward(cfg, doc)
