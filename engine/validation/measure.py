@@ -9,10 +9,13 @@ never resets from, so that ``behaviour`` and U do not average over the same stat
 from __future__ import annotations
 
 import json
+from concurrent.futures import ProcessPoolExecutor
+from multiprocessing import get_context
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+import torch
 
 from engine.envs import make_env
 from engine.errors import InputError
@@ -61,6 +64,7 @@ def measure(out: Path, plan: Plan, task: Task, brackets: list[TreeDocument]) -> 
     path = out / "measures" / f"{task[0]}-{task[1]}.json"
     if path.is_file():
         return read_json(path)
+    torch.set_num_threads(1)  # one core per run: measure_all measures several at once
     run = run_dir(out, *task)
     found = {
         "truth": teacher_truth(run, plan.env_id, plan.teacher, plan.truth_episodes),
@@ -74,3 +78,15 @@ def measure(out: Path, plan: Plan, task: Task, brackets: list[TreeDocument]) -> 
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(found) + "\n")
     return found
+
+
+def measure_all(
+    out: Path, plan: Plan, tasks: list[Task], brackets: list[TreeDocument], jobs: int
+) -> dict[Task, dict[str, Any]]:
+    """Every run's measures, ``jobs`` runs at a time (each one core: rollouts and judges)."""
+    if jobs <= 1:
+        return {task: measure(out, plan, task, brackets) for task in tasks}
+    # spawn, because torch and MuJoCo are not fork-safe
+    with ProcessPoolExecutor(max_workers=jobs, mp_context=get_context("spawn")) as pool:
+        futures = {task: pool.submit(measure, out, plan, task, brackets) for task in tasks}
+        return {task: future.result() for task, future in futures.items()}

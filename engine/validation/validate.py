@@ -12,7 +12,7 @@ from engine.rl.logger import METRICS_FILE
 from engine.validation.analysis import judge_summary
 from engine.validation.design import Plan
 from engine.validation.figures import draw
-from engine.validation.measure import JUDGES, measure
+from engine.validation.measure import JUDGES, measure_all
 from engine.validation.runs import (
     Task,
     arm_tasks,
@@ -33,7 +33,7 @@ def validate(
     brackets = make_brackets(out, plan)
     train_tasks(out, plan, arm_tasks(plan), jobs, done)
     tasks = [*pilot_tasks(plan), *arm_tasks(plan)]
-    measures = {task: measure(out, plan, task, brackets) for task in tasks}
+    measures = measure_all(out, plan, tasks, brackets, jobs)
     summary = {
         "schema": "acv.validation/1",
         "plan": plan.to_json(),
