@@ -107,15 +107,26 @@ class PooledAdvice:
 
     Attributes:
         members: one F per person (for example :class:`AdviceReward` of each tree).
+        weights: one per member, such as each person's reliability
+            (:func:`engine.reliability.competence`); None for the plain mean.
     """
 
     members: tuple[Callable[[np.ndarray], np.ndarray], ...]
+    weights: tuple[float, ...] | None = None
+
+    def __post_init__(self) -> None:
+        if self.weights is not None and (
+            len(self.weights) != len(self.members)
+            or min(self.weights) < 0
+            or sum(self.weights) <= 0
+        ):
+            raise InputError("pool weights must be one per member, >= 0, and not all 0")
 
     def __call__(self, qpos: np.ndarray) -> np.ndarray:
-        """Mean F over the members: ``qpos`` shape ``(B, nq)`` -> shape ``(B,)``."""
-        mean: np.ndarray = np.mean(
-            [np.asarray(f(qpos), dtype=np.float64) for f in self.members], axis=0
-        )
+        """Mean F over the members, weighted when ``weights`` are given: ``qpos`` shape
+        ``(B, nq)`` -> shape ``(B,)``."""
+        values = [np.asarray(f(qpos), dtype=np.float64) for f in self.members]
+        mean: np.ndarray = np.average(values, axis=0, weights=self.weights)
         return mean
 
 

@@ -34,8 +34,11 @@ def pooled_advice(
     mode: str = "nearest",
     depth_factor: str = "none",
     kappa: float = 10.0,
+    *,
+    weights: Sequence[float] | None = None,
 ) -> PooledAdvice:
-    """F of the pool: the mean of each tree's :class:`AdviceReward` (same options for all)."""
+    """F of the pool: the mean of each tree's :class:`AdviceReward` (same options for all),
+    weighted by ``weights`` (one per tree) when given."""
     check_pool(docs)
     return PooledAdvice(
         tuple(
@@ -46,7 +49,8 @@ def pooled_advice(
                 kappa=kappa,
             )
             for d in docs
-        )
+        ),
+        None if weights is None else tuple(float(w) for w in weights),
     )
 
 
@@ -55,13 +59,16 @@ def pooled_tree(
     mode: str = "nearest",
     depth_factor: str = "none",
     kappa: float = 10.0,
+    *,
+    weights: Sequence[float] | None = None,
 ) -> TreeDocument:
     """The pooled verdict: the shared bracket replayed by the pool's mean F at each candidate,
-    with the F options the run trains with (:func:`pooled_advice`).
+    with the F options the run trains with (:func:`pooled_advice`), weighted when
+    ``weights`` are given.
 
     Its ``judge`` is ``pooled:<judge>,<judge>,...``; its scores are the mean F.
     """
-    f = pooled_advice(docs, mode, depth_factor, kappa)
+    f = pooled_advice(docs, mode, depth_factor, kappa, weights=weights)
     base = docs[0]
     values = f(np.stack([c.qpos for c in base.candidates]))
     scores = {c.id: float(v) for c, v in zip(base.candidates, values, strict=True)}
