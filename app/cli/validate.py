@@ -4,6 +4,8 @@ stopped, and reuses every finished run."""
 
 from __future__ import annotations
 
+import shlex
+import sys
 import threading
 from pathlib import Path
 from typing import Annotated
@@ -71,7 +73,7 @@ def _run_with_progress(out: Path, plan: Plan, jobs: int) -> None:
 
     def work() -> None:
         try:
-            validate(out, plan, jobs=jobs)
+            validate(out, plan, jobs=jobs, command=shlex.join(["acv", *sys.argv[1:]]))
         except BaseException as exc:  # re-raised in the main thread, where the CLI reports it
             failure.append(exc)
 

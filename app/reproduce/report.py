@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import io
 import json
-import subprocess
 from pathlib import Path
 from typing import Any
 
@@ -29,6 +28,7 @@ from app.reproduce.markdown import readme
 from app.reproduce.plan import ReproduceConfig
 from app.reproduce.predictions import predictions
 from app.reproduce.summary import arm_entry
+from engine.provenance import git_commit
 from engine.rl.plot import plot_runs
 from engine.treefile import TreeDocument, tree_from_json
 
@@ -169,21 +169,3 @@ def render_thumbs(out: Path, doc: TreeDocument) -> dict[int, np.ndarray]:
         (folder / f"{c.id}.png").write_bytes(data)
         thumbs[c.id] = np.asarray(Image.open(io.BytesIO(data)).convert("RGB"))
     return thumbs
-
-
-def git_commit() -> str | None:
-    """The commit of the code that wrote the report (``+dirty`` with local changes)."""
-    root = Path(__file__).resolve().parents[2]
-    try:
-        head = subprocess.run(
-            ["git", "rev-parse", "HEAD"], cwd=root, capture_output=True, text=True, check=True
-        ).stdout.strip()
-        dirty = subprocess.run(
-            ["git", "status", "--porcelain", "--untracked-files=no"],
-            cwd=root,
-            capture_output=True,
-            text=True,
-        ).stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        return None
-    return head + ("+dirty" if dirty else "")

@@ -8,6 +8,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
+from engine.provenance import git_commit
 from engine.rl.logger import METRICS_FILE
 from engine.validation.analysis import judge_summary
 from engine.validation.design import Plan
@@ -25,9 +26,15 @@ from engine.validation.runs import (
 
 
 def validate(
-    out: Path, plan: Plan, *, jobs: int = 1, done: Callable[[Task], None] = lambda task: None
+    out: Path,
+    plan: Plan,
+    *,
+    jobs: int = 1,
+    command: str = "",
+    done: Callable[[Task], None] = lambda task: None,
 ) -> dict[str, Any]:
-    """Train what is not trained yet, measure, analyse; returns the summary it wrote."""
+    """Train what is not trained yet, measure, analyse; returns the summary it wrote, which
+    names the ``command`` and the commit that wrote it."""
     prepare(out, plan)
     train_tasks(out, plan, pilot_tasks(plan), jobs, done)
     brackets = make_brackets(out, plan)
@@ -36,6 +43,8 @@ def validate(
     measures = measure_all(out, plan, tasks, brackets, jobs)
     summary = {
         "schema": "acv.validation/1",
+        "command": command,
+        "commit": git_commit(),
         "plan": plan.to_json(),
         "judges": {j: judge_summary(measures, plan, j, brackets) for j in JUDGES},
     }
@@ -67,6 +76,8 @@ def report(summary: dict[str, Any], figures: Sequence[Path] = ()) -> str:
         f"{plan['seeds']} seeds per arm x {plan['timesteps']} steps, {plan['brackets']} "
         f"brackets of {plan['candidates']} informative candidates, {plan['pilot_seeds']} pilots; "
         "criteria and their thresholds: docs/validation.md §4.",
+        "",
+        f"`{summary['command']}` (commit `{summary['commit']}`)",
         "",
         "| judge | criterion | value | 95% interval | passed | note |",
         "| --- | --- | --- | --- | --- | --- |",

@@ -93,12 +93,14 @@ def test_the_summary_reports_every_criterion_and_what_it_could_not_compute(
     assert "n3" in by_name["delta(n3)"]["note"]
     assert summary["verdicts"]["p1-10"]["outcome"] == "used"
     assert summary["known"]["p1-10"] == "follows"
-    whole = {"plan": plan.to_json(), "judges": {"return": summary}}
+    whole = {"command": "acv validate", "commit": "abc", "plan": plan.to_json()}
+    whole["judges"] = {"return": summary}
     (figure,) = draw(whole, tmp_path)
     assert Image.open(figure).size == (1300, 400)
     text = report(whole, [figure])
     assert "| return | delta(n3) | n/a |  | could not compute | arms not trained: n3 |" in text
     assert text.endswith("![return](figures/return.png)\n")
+    assert "`acv validate` (commit `abc`)" in text
 
 
 def _table(shifts: dict[str, float], seeds: int = 8, seed: int = 0) -> dict[str, ArmData]:
