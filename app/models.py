@@ -70,14 +70,15 @@ RUN_STATUSES: tuple[str, ...] = tuple(s.value for s in RunStatus)
 def enum_type(members: type[StrEnum], length: int = 16) -> Enum:
     """A ``VARCHAR(length)`` column of ``members``' values, read back as members.
 
-    Not a database enum type (``native_enum=False``) and no constraint of its own: the schema
-    stays the migrations' (``status`` has :func:`status_check`), and a row written before a
-    member was added still loads.
+    Not a database enum type (``native_enum=False``) and no constraint of its own, so the
+    schema stays the migrations' (``status`` and ``role`` have CHECK constraints). A value
+    that is no member is refused when written (``validate_strings``): loading one would fail.
     """
     return Enum(
         members,
         native_enum=False,
         create_constraint=False,
+        validate_strings=True,
         length=length,
         values_callable=lambda enum: [member.value for member in enum],
     )
