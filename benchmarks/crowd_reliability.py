@@ -1,5 +1,5 @@
 """Reliability-weighted pooling against the plain mean, on simulated crowds whose truth is
-known (issue 28 §2; docs/method.md §2.12).
+known (issue 28 §2; docs/method.md §2.13).
 
 One Humanoid-v5 study (16 uniform candidates, p = 0.9, seed 0); each replicate crowd labels
 its bracket: 7 `standing` teachers and 6 `orthogonal` (arms raised) teachers, each deciding

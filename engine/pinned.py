@@ -24,13 +24,19 @@ def pin_settings(
             keys of older versions dropped).
 
     Raises:
-        InputError: ``path`` holds other settings; the message names them.
+        InputError: ``path`` holds other settings (the message names them), or is no
+            settings file.
     """
     if not path.is_file():
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_text(json.dumps(settings, indent=1) + "\n")
         return
-    saved = normalize(json.loads(path.read_text()))
+    try:
+        saved = normalize(json.loads(path.read_text()))
+    except (ValueError, TypeError, KeyError) as exc:  # not JSON, or not settings ACV wrote
+        raise InputError(
+            f"{path} does not hold {what}'s settings ({exc}): choose another --out"
+        ) from exc
     changed = [k for k, v in settings.items() if saved.get(k) != v]
     if changed:
         raise InputError(

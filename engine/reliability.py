@@ -1,5 +1,5 @@
 """How much to trust each participant's labels, from the answers whose right answer is known
-(issue 28 §2; docs/method.md §2.12).
+(issue 28 §2; docs/method.md §2.13).
 
 Two kinds of check have one: **gold items**, pairs with an objective winner ("choose the
 picture with the marker"), and **consistency pairs**, a match asked again with its sides

@@ -26,9 +26,11 @@ class LinkApi:
     """What one kind of collection's open-link API reads and writes."""
 
     kind: LinkKind[Any, Any]
-    #: The collections' path segment under ``/api`` (``studies``) and their OpenAPI tag.
+    #: The collections' path segment under ``/api`` (``studies``), their OpenAPI tag, and
+    #: the routes' names (``set_<name>``, ``get_<name>``: the OpenAPI operation ids).
     collections: str
     tag: str
+    name: str
     #: The request body (:class:`OpenLinkIn`, or a subclass with the kind's own options) and
     #: the response: the body's fields with ``<noun>_id``, ``slug``, ``url`` and the counts.
     body: type[OpenLinkIn]
@@ -61,7 +63,7 @@ def open_link_api_router(api: LinkApi) -> APIRouter:
     )
     get_doc = f"The {noun}'s open link, options and counts; 404 until they are set."
 
-    @router.put(path, response_model=api.out, name=f"set_{noun}_crowd", description=set_doc)
+    @router.put(path, response_model=api.out, name=f"set_{api.name}", description=set_doc)
     def set_crowd(
         collection_id: CollectionId,
         # A value, not a type, to mypy; FastAPI reads it as the kind's body class.
@@ -77,7 +79,7 @@ def open_link_api_router(api: LinkApi) -> APIRouter:
             )
         return out(request, session, api.configure(session, collection_id, options))
 
-    @router.get(path, response_model=api.out, name=f"get_{noun}_crowd", description=get_doc)
+    @router.get(path, response_model=api.out, name=f"get_{api.name}", description=get_doc)
     def get_crowd(
         collection_id: CollectionId, request: Request, session: SessionDep, _: ResearcherDep
     ) -> BaseModel:

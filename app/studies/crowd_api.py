@@ -37,6 +37,7 @@ link_router = open_link_api_router(
         kind=crowd.LINK,
         collections="studies",
         tag="crowd",
+        name="crowd",
         body=CrowdIn,
         out=CrowdOut,
         options=crowd.CrowdOptions,

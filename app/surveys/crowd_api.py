@@ -13,6 +13,7 @@ router = open_link_api_router(
         kind=crowd.LINK,
         collections="surveys",
         tag="surveys",
+        name="survey_crowd",
         body=OpenLinkIn,
         out=SurveyCrowdOut,
         counts=lambda session, row: {

@@ -96,9 +96,10 @@ class TrainConfig:
     advice_scale: float = 1.0
     """multiplies F(s) before shaping"""
     advice_offset: float = 0.0
-    """added to F(s) before ``advice_scale``: with F >= -offset (the leaves' -r_b bounds the
-    tree's F from below), advice cannot be escaped by ending the episode early, which an env
-    that terminates on falling (Hopper) otherwise pays for when F < 0 where the agent starts"""
+    """added to F(s) before ``advice_scale``: with F >= -offset (``nearest`` F is >= -r_b when
+    the best similarity is >= 0 and the depth factor is ``none``), advice cannot be escaped by
+    ending the episode early, which an env that terminates on falling (Hopper) otherwise pays
+    for when F < 0 where the agent starts"""
     advice_mode: str = "nearest"
     """one of :data:`ADVICE_MODES`: how F is made from the advice tree, or ``reward`` (F = R)"""
     advice_depth_factor: str = "none"

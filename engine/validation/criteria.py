@@ -163,6 +163,8 @@ def truth_agreement(table: Table) -> tuple[Criterion, dict[str, float]]:
         if arm != BASELINE
     }
     within = {arm: _rho(d, u) for arm, (d, u) in pairs.items()}
+    if not pairs:
+        return _bounded("rho(delta, delta U)", float("nan"), None, None, False), within
     pooled = _rho(*(np.concatenate(side) for side in zip(*pairs.values(), strict=True)))
     return _bounded("rho(delta, delta U)", pooled, None, None, pooled >= 0.7), within
 
@@ -208,10 +210,12 @@ def placebo(outcomes: Sequence[str]) -> Criterion:
 
 def hard_cases(outcomes: Mapping[str, str], table: Table) -> Criterion:
     """Whenever the exact test on ΔU says a hard-case arm (``p1-1``, ``bipars-em``) follows
-    the advice, the verdict says ``used``. Vacuous (reported, passed) when none follows."""
-    follows = [
-        a for a in HARD_CASES if a in table and known_direction(delta_truth(table, a)) == "follows"
-    ]
+    the advice, the verdict says ``used``. Vacuous (reported, passed) when none follows; not
+    computed when either arm is not trained."""
+    missing = [a for a in HARD_CASES if a not in table]
+    if missing:
+        return Criterion("hard cases", None, note=f"arms not trained: {', '.join(missing)}")
+    follows = [a for a in HARD_CASES if known_direction(delta_truth(table, a)) == "follows"]
     missed = [a for a in follows if outcomes.get(a) != "used"]
     note = f"known to follow: {', '.join(follows) or 'none (vacuous)'}"
     return Criterion("hard cases", float(len(follows) - len(missed)), passed=not missed, note=note)

@@ -18,11 +18,12 @@ from :data:`TRUTH_RESET_SEED0` on, apart from the behaviour judge's resets (0 on
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, fields
 from enum import StrEnum
 from typing import Any
 
 from engine.errors import InputError
+from engine.teachers import POSTURE_SCORES
 
 PILOT_SEED0 = 1000
 BRACKET_SEED0 = 20_000
@@ -105,10 +106,23 @@ class Plan:
                 raise InputError(f"{name} must be at least 1, got {getattr(self, name)}")
         if self.candidates < 4:
             raise InputError(f"candidates must be at least 4, got {self.candidates}")
-        unknown = sorted(set(self.arms) - {arm.name for arm in ARMS})
-        if unknown or BASELINE not in self.arms:
+        if self.teacher not in POSTURE_SCORES:
             raise InputError(
-                f"arms must include {BASELINE} and name only {', '.join(a.name for a in ARMS)}"
+                f"the teacher must have a posture score, the ground truth: "
+                f"{' or '.join(POSTURE_SCORES)}, got {self.teacher!r}"
+            )
+        if self.seeds + self.n_envs > PILOT_SEED0:  # env k of seed s resets with seed s + k
+            raise InputError(f"seeds + n_envs must be at most {PILOT_SEED0} (the pilots' seeds)")
+        self._check_arms()
+        # one order whatever order they were given in, so that a resume finds the same plan
+        object.__setattr__(self, "arms", tuple(a.name for a in ARMS if a.name in self.arms))
+
+    def _check_arms(self) -> None:
+        unknown = sorted(set(self.arms) - {arm.name for arm in ARMS})
+        if unknown or BASELINE not in self.arms or len(set(self.arms)) < 2:
+            raise InputError(
+                f"arms must include {BASELINE} and another arm, and name only "
+                f"{', '.join(a.name for a in ARMS)}"
                 + (f": unknown {', '.join(unknown)}" if unknown else "")
             )
 
@@ -125,4 +139,7 @@ class Plan:
 
     @classmethod
     def from_json(cls, obj: dict[str, Any]) -> Plan:
-        return cls(**(obj | {"arms": tuple(obj["arms"])}))
+        """The plan of a ``validate.json`` (keys of other versions dropped, defaults filled)."""
+        known = {f.name for f in fields(cls)} & set(obj)
+        found = {k: obj[k] for k in known}
+        return cls(**found | ({"arms": tuple(obj["arms"])} if "arms" in obj else {}))

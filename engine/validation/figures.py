@@ -23,7 +23,7 @@ from engine.validation.design import BASELINE
 
 def _table(found: dict[str, Any]) -> dict[str, ArmData]:
     return {
-        arm: ArmData(np.array(ca, dtype=float), np.array(found["truth"][arm]))
+        arm: ArmData(np.array(ca, dtype=float), np.array(found["truth"][arm], dtype=float))
         for arm, ca in found["ca"].items()
     }
 

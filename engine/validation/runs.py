@@ -11,6 +11,7 @@ finished run's judge scores on every bracket and its ground truth U, measured on
 from __future__ import annotations
 
 import json
+import shutil
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from multiprocessing import get_context
@@ -34,7 +35,8 @@ PLAN_FILE = "validate.json"
 #: Checkpoints per run: an interrupted validation loses at most a tenth of a run.
 CHECKPOINTS = 10
 Task = tuple[str, int]  # (arm name, seed)
-#: F + 1 >= 0 (a tree's leaves are worth -r_b = -1): no arm can escape its advice by falling.
+#: F + 1 >= 0 wherever the state is nearest a leaf or the best similarity is >= 0 (leaves are
+#: worth -r_b = -1 with the default depth factor): no arm can escape its advice by falling.
 #: Without it ``p1-10`` learned to end Hopper's episodes in 6 steps (F < 0 where it starts);
 #: the shuffled arms, offset alike, control for the alive bonus it adds.
 ADVICE_OFFSET = 1.0
@@ -68,8 +70,11 @@ def arm_tasks(plan: Plan) -> list[Task]:
 
 
 def finished(out: Path, plan: Plan, task: Task) -> bool:
+    """Whether the run has its last checkpoint (at the last whole rollout, which may pass
+    ``plan.timesteps``: 501,760 for 500k steps of 2,048)."""
     folder = run_dir(out, *task)
-    return folder.is_dir() and plan.timesteps in list_checkpoints(folder)
+    steps = list_checkpoints(folder) if folder.is_dir() else {}
+    return bool(steps) and max(steps) >= plan.timesteps
 
 
 def train_config(plan: Plan, arm: Arm, seed: int) -> TrainConfig:
@@ -93,6 +98,8 @@ def train_task(out: Path, plan: Plan, task: Task) -> Task:
         advice = None if arm.advice is AdviceKind.NONE else load_tree(advice_path(out, arm))
         folder = run_dir(out, *task)
         resume = folder.is_dir() and bool(list_checkpoints(folder))
+        if folder.is_dir() and not resume:  # stopped before its first checkpoint: start over
+            shutil.rmtree(folder)
         train(train_config(plan, arm, task[1]), advice, folder, resume=resume)
     return task
 
@@ -111,8 +118,13 @@ def train_tasks(
     # Runs are independent and single-threaded: processes give a near-linear speed-up;
     # spawn, because torch and MuJoCo are not fork-safe.
     with ProcessPoolExecutor(max_workers=jobs, mp_context=get_context("spawn")) as pool:
-        for future in [pool.submit(train_task, out, plan, t) for t in todo]:
-            done(future.result())
+        futures = [pool.submit(train_task, out, plan, t) for t in todo]
+        try:
+            for future in futures:
+                done(future.result())
+        except BaseException:  # report a failed run now, not after every queued run
+            pool.shutdown(cancel_futures=True)
+            raise
 
 
 def make_brackets(out: Path, plan: Plan) -> list[TreeDocument]:

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import json
+import math
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -41,17 +42,31 @@ def validate(
     train_tasks(out, plan, arm_tasks(plan), jobs, done)
     tasks = [*pilot_tasks(plan), *arm_tasks(plan)]
     measures = measure_all(out, plan, tasks, brackets, jobs)
-    summary = {
-        "schema": "acv.validation/1",
-        "command": command,
-        "commit": git_commit(),
-        "plan": plan.to_json(),
-        "judges": {j: judge_summary(measures, plan, j, brackets) for j in JUDGES},
-    }
-    (out / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
+    summary: dict[str, Any] = _json_safe(
+        {
+            "schema": "acv.validation/1",
+            "command": command,
+            "commit": git_commit(),
+            "plan": plan.to_json(),
+            "judges": {j: judge_summary(measures, plan, j, brackets) for j in JUDGES},
+        }
+    )
+    (out / "summary.json").write_text(json.dumps(summary, indent=1, allow_nan=False) + "\n")
     figures = draw(summary, out)
     (out / "report.md").write_text(report(summary, figures))
     return summary
+
+
+def _json_safe(value: Any) -> Any:
+    """``value`` with NaN and infinities as null (None; ``np.array(..., dtype=float)`` reads
+    them back as NaN): ``summary.json`` stays standard JSON."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k: _json_safe(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_json_safe(v) for v in value]
+    return value  # str, int, bool, None
 
 
 def steps_done(out: Path, task: Task) -> int:

@@ -16,6 +16,8 @@ from tests.support.cli import acv
     [
         (["--seeds", "0"], "seeds must be at least 1"),
         (["--arms", "p1-10"], "must include n1"),
+        (["--arms", "n1"], "must include n1 and another arm"),
+        (["--teacher", "random"], "posture score"),
         (["--arms", "n1,zz"], "unknown zz"),
         (["--env", "Nope-v0"], "Nope-v0"),
         (["--jobs", "0"], "--jobs must be at least 1"),
@@ -31,9 +33,9 @@ def test_a_folder_with_another_plan_is_refused(tmp_path: Path) -> None:
     out = tmp_path / "v"
     out.mkdir()
     (out / "validate.json").write_text(
-        json.dumps({"env_id": "Hopper-v5", "teacher": "orthogonal", "timesteps": 7, "arms": ["n1"]})
+        json.dumps({"env_id": "Hopper-v5", "teacher": "orthogonal", "timesteps": 7})
     )
-    result = acv("validate", "--out", out, "--arms", "n1", "--timesteps", "8")
+    result = acv("validate", "--out", out, "--timesteps", "8")
     assert result.exit_code == 2 and "other settings (timesteps)" in result.stderr
 
 

@@ -17,12 +17,16 @@ SURFACE = Path(__file__).with_name("openapi_surface.json")
 
 
 def surface(openapi: dict[str, Any]) -> dict[str, list[str]]:
-    """Each operation with its parameters, and each schema with its fields, as sorted lists."""
+    """Each operation with its parameters, each operation id (what generated clients name
+    their methods by), and each schema with its fields, as sorted lists."""
+    operations = [
+        (path, method, op) for path, ops in openapi["paths"].items() for method, op in ops.items()
+    ]
     found = {
         f"{method.upper()} {path}": sorted(p["name"] for p in op.get("parameters", []))
-        for path, ops in openapi["paths"].items()
-        for method, op in ops.items()
+        for path, method, op in operations
     }
+    found |= {f"operationId {op['operationId']}": [] for _, _, op in operations}
     for name, schema in openapi["components"]["schemas"].items():
         found[f"schema {name}"] = sorted(schema.get("properties", {}))
     return found

@@ -21,7 +21,7 @@ from engine.validation.criteria import ArmData
 from engine.validation.design import ARMS, PILOT, Plan
 from engine.validation.figures import draw
 from engine.validation.power import power
-from engine.validation.runs import inverted, prepare
+from engine.validation.runs import finished, inverted, prepare, run_dir
 from engine.validation.validate import report
 from engine.verdict import advice_scores
 
@@ -178,12 +178,38 @@ def test_inverted_advice_reverses_every_match(advice: TreeDocument) -> None:
         ({"seeds": 0}, "seeds must be at least 1"),
         ({"candidates": 2}, "candidates must be at least 4"),
         ({"arms": ("p1-10",)}, "must include n1"),
+        ({"arms": ("n1",)}, "must include n1 and another arm"),
         ({"arms": ("n1", "p9")}, "unknown p9"),
+        ({"teacher": "good"}, "posture score"),
+        ({"seeds": 998}, "seeds \\+ n_envs must be at most 1000"),
     ],
 )
 def test_a_bad_plan_is_refused(change: dict, message: str) -> None:
     with pytest.raises(InputError, match=message):
         Plan(**({"env_id": "Hopper-v5", "teacher": "orthogonal", "timesteps": 10} | change))
+
+
+def test_arms_are_kept_in_one_order_whatever_order_they_are_given_in() -> None:
+    assert _plan(("p1-10", "n1")).arms == ("n1", "p1-10") == _plan(("n1", "p1-10", "n1")).arms
+
+
+def test_a_run_is_finished_at_its_last_whole_rollout(tmp_path: Path) -> None:
+    """500k steps of 2,048 end at 501,760; a run with no checkpoint is not finished."""
+    plan = _plan()
+    folder = run_dir(tmp_path, "n1", 0)
+    assert not finished(tmp_path, plan, ("n1", 0))
+    (folder / "checkpoints").mkdir(parents=True)
+    (folder / "checkpoints" / "step_512.pt").touch()
+    assert not finished(tmp_path, plan, ("n1", 0))
+    (folder / "checkpoints" / "step_1024.pt").touch()  # past the plan's 1000 steps
+    assert finished(tmp_path, plan, ("n1", 0))
+
+
+@pytest.mark.parametrize("text", ["not json", '{"env_id": "Hopper-v5"}', '{"timesteps": "x"}'])
+def test_a_folder_with_a_broken_plan_file_is_refused(tmp_path: Path, text: str) -> None:
+    (tmp_path / "validate.json").write_text(text)
+    with pytest.raises(InputError, match="does not hold a validation's settings"):
+        prepare(tmp_path, _plan())
 
 
 def test_a_folder_holds_one_plan(tmp_path: Path) -> None:
