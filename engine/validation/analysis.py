@@ -41,17 +41,24 @@ def _inputs(
 
 
 def arm_table(
-    measures: Measures, plan: Plan, judge: str, brackets: list[TreeDocument]
+    measures: Measures,
+    plan: Plan,
+    judge: str,
+    brackets: list[TreeDocument],
+    *,
+    every_match: bool = False,
 ) -> dict[str, ArmData]:
-    """Each arm's CA per seed and bracket (NaN where the bracket has no contested match)."""
+    """Each arm's CA per seed and bracket (NaN where the bracket has no contested match);
+    with ``every_match``, the share of all the bracket's matches kept instead (the plain
+    match agreement, which no baseline corrects)."""
     table = {}
     for arm in plan.chosen:
         ca = np.full((plan.seeds, len(brackets)), np.nan)
         for b, bracket in enumerate(brackets):
             inputs = _inputs(measures, plan, judge, bracket, b, arm.name)
-            contested = classify(inputs).contested
-            if contested:
-                ca[:, b] = kept(inputs.advised, contested).mean(axis=1)
+            counted = inputs.matches if every_match else classify(inputs).contested
+            if counted:
+                ca[:, b] = kept(inputs.advised, counted).mean(axis=1)
         truth = np.array([measures[(arm.name, s)]["truth"] for s in range(plan.seeds)])
         table[arm.name] = ArmData(ca, truth)
     return table
@@ -109,8 +116,13 @@ def judge_summary(
         criteria.placebo(placebo_outcomes(measures, plan, judge, brackets[0], rng)),
         criteria.hard_cases(outcomes, table),
     ]
+    agreement_auc = _needs(
+        arm_table(measures, plan, judge, brackets, every_match=True), criteria.separation, rng
+    )
     return {
         "criteria": [asdict(c) for c in found],
+        # reported, never decisive: issue 27 asks whether the uncorrected lead holds here
+        "match_agreement_auc": asdict(agreement_auc),
         "rho_within_arms": within,
         "verdicts": verdicts,
         "ca": {arm: data.ca.tolist() for arm, data in table.items()},

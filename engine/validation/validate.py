@@ -103,6 +103,11 @@ def report(summary: dict[str, Any], figures: Sequence[Path] = ()) -> str:
                 f"| {judge} | {c['name']} | {_num(c['value'])} | {_interval(c)} | "
                 f"{_passed(c['passed'])} | {c['note']} |"
             )
+    lines += ["", "Reported, never decisive: the AUC of plain match agreement (every match, no"]
+    lines += ["baseline correction), `p1-10` against `n1` + `n2`, per judge:", ""]
+    for judge, found in summary["judges"].items():
+        c = found["match_agreement_auc"]
+        lines.append(f"- {judge}: {_num(c['value'])} {_interval(c)} {c['note']}".rstrip())
     lines += ["", *(f"![{p.stem}](figures/{p.name})" for p in figures)]
     return "\n".join(lines) + "\n"
 

@@ -93,6 +93,7 @@ def test_the_summary_reports_every_criterion_and_what_it_could_not_compute(
     assert "n3" in by_name["delta(n3)"]["note"]
     assert summary["verdicts"]["p1-10"]["outcome"] == "used"
     assert summary["known"]["p1-10"] == "follows"
+    assert summary["match_agreement_auc"]["value"] == 1.0
     whole = {"command": "acv validate", "commit": "abc", "plan": plan.to_json()}
     whole["judges"] = {"return": summary}
     (figure,) = draw(whole, tmp_path)
