@@ -1,6 +1,7 @@
 """Label quality and agreement of a study's participants (issue 14): position bias, speed,
-the consistency check, agreement on shared pairs, Krippendorff's alpha, and agreement with
-the simulated teachers. Flags only: nothing is rejected automatically."""
+the consistency check and the reliability it gives, agreement on shared pairs, Krippendorff's
+alpha, and agreement with the simulated teachers. Flags only: nothing is rejected
+automatically."""
 
 from __future__ import annotations
 
@@ -18,6 +19,7 @@ from app.studies.crowd import DEFAULT_SPEED_THRESHOLD_MS, LINK
 from app.studies.service import engine_candidates_of, get_study
 from engine import agreement
 from engine.envs import env_model
+from engine.reliability import Checks, competence
 from engine.teachers import make_teacher
 
 #: Position bias is flagged below this p-value of the binomial test.
@@ -57,6 +59,19 @@ class ParticipantQuality:
         if self.consistency_agrees is False:
             flags.append("inconsistent")
         return flags
+
+    @property
+    def checks(self) -> Checks:
+        """The known-answer checks this participant answered: the consistency pair."""
+        if self.consistency_agrees is None:
+            return Checks()
+        return Checks(consistent=int(self.consistency_agrees), consistency_asked=1)
+
+    @property
+    def reliability(self) -> float:
+        """MACE competence from :attr:`checks` (:func:`engine.reliability.competence`): 0.25
+        before any check, never from agreement with others (docs/method.md §2.13)."""
+        return competence(self.checks)
 
 
 @dataclass(frozen=True)

@@ -70,6 +70,8 @@ def get_quality(study_id: DbId, session: SessionDep, _: ResearcherDep) -> Qualit
                 median_response_ms=p.median_response_ms,
                 fast=p.fast,
                 consistency_agrees=p.consistency_agrees,
+                reliability=p.reliability,
+                reliability_checks=p.checks.asked,
                 flags=p.flags,
             )
             for p in q.participants

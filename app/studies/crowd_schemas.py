@@ -44,6 +44,11 @@ class ParticipantQualityOut(BaseModel):
     median_response_ms: float | None
     fast: bool
     consistency_agrees: bool | None
+    reliability: float = Field(
+        description="MACE competence from the known-answer checks answered (0.25 before any; "
+        "never from agreement with others): docs/method.md §2.13."
+    )
+    reliability_checks: int = Field(description="How many known-answer checks it rests on.")
     flags: list[str]
 
 

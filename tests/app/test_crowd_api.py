@@ -223,6 +223,7 @@ def test_sides_are_seeded_stored_and_reported(client, make_study, settings) -> N
     }
     assert mine["median_response_ms"] == 500 and mine["fast"] is True
     assert mine["flags"] == ["position_bias", "fast"]
+    assert mine["reliability"] == pytest.approx(0.25) and mine["reliability_checks"] == 0
     rows = [
         json.loads(line)
         for line in client.get(
@@ -337,6 +338,8 @@ def test_consistency_check_repeats_a_pair_swapped(client, make_study) -> None:
     quality = client.get(f"/api/studies/{study['id']}/quality", headers=ADMIN).json()
     mine = next(p for p in quality["participants"] if p["participant_id"] == player.id)
     assert mine["consistency_agrees"] is False and "inconsistent" in mine["flags"]
+    # MACE competence after one contradicted check: E[max(0, 2X - 1)], X ~ Beta(1, 2).
+    assert mine["reliability"] == pytest.approx(1 / 12) and mine["reliability_checks"] == 1
     assert first is not None
 
 

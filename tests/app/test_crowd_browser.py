@@ -167,6 +167,7 @@ def test_study_page_shows_agreement_and_quality_flags(
         ["position bias", "fast"]
     )
     expect(page.locator("#agreement-summary")).to_contain_text("Krippendorff")
+    expect(page.locator("#quality-table .reliability")).to_have_text(["0.25 (0 checks)"] * 4)
     assert_accessible(page, "study page with agreement and flags")
     page.screenshot(path=screens / "study-full.png", full_page=True)
     top = page.locator("#quality").bounding_box()["y"] + page.evaluate("window.scrollY")
