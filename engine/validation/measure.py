@@ -17,10 +17,10 @@ from typing import Any
 import numpy as np
 import torch
 
-from engine.envs import make_env
+from engine.envs import env_model
 from engine.errors import InputError
-from engine.gym_types import box, mujoco_base
 from engine.rl.agent_judge import candidate_terms
+from engine.rl.behaviour import RolloutOptions, visited_states
 from engine.rl.checkpoint import find_checkpoint
 from engine.rl.trained import deterministic_policy, load_agent
 from engine.teachers import POSTURE_SCORES
@@ -31,32 +31,27 @@ from engine.verdict_runs import judge_scores
 
 #: The judges validated: the two the verdict offers, and the shaped critic as a reference.
 JUDGES = ("return", "behaviour", "shaped-value")
-MAX_EPISODE_STEPS = 1000
+MAX_EPISODE_STEPS = 1000  # the MuJoCo envs' own time limit
 
 
 def teacher_truth(run: Path, env_id: str, teacher: str, episodes: int) -> float:
-    """U: the teacher's mean score over ``episodes`` deterministic episodes of the run's last
-    checkpoint.
+    """U: the teacher's mean score over every state of ``episodes`` deterministic episodes
+    of the run's last checkpoint (the behaviour judge's rollouts, from other reset seeds).
 
     Raises:
         InputError: the teacher has no latent posture score (``good``, ``random``).
     """
     if teacher not in POSTURE_SCORES:
         raise InputError(f"validation needs a posture teacher: {', '.join(POSTURE_SCORES)}")
-    score = POSTURE_SCORES[teacher]
-    act = deterministic_policy(load_agent(find_checkpoint(run)))
-    env = make_env(env_id)
-    space, values = box(env.action_space), []
-    for episode in range(episodes):
-        obs, _ = env.reset(seed=TRUTH_RESET_SEED0 + episode)
-        for _ in range(MAX_EPISODE_STEPS):
-            obs, _, terminated, truncated, _ = env.step(np.clip(act(obs), space.low, space.high))
-            base = mujoco_base(env)
-            values.append(float(score(base.data.qpos[None], base.model)[0]))
-            if terminated or truncated:
-                break
-    env.close()
-    return float(np.mean(values))
+    policy = deterministic_policy(load_agent(find_checkpoint(run)))
+    options = RolloutOptions(
+        episodes=episodes,
+        max_steps=episodes * MAX_EPISODE_STEPS,
+        seed=TRUTH_RESET_SEED0,
+        burn_in=0,
+    )
+    qpos = visited_states(policy, env_id, options)
+    return float(np.mean(POSTURE_SCORES[teacher](qpos, env_model(env_id))))
 
 
 def measure(out: Path, plan: Plan, task: Task, brackets: list[TreeDocument]) -> dict[str, Any]:
@@ -66,14 +61,13 @@ def measure(out: Path, plan: Plan, task: Task, brackets: list[TreeDocument]) -> 
         return read_json(path)
     torch.set_num_threads(1)  # one core per run: measure_all measures several at once
     run = run_dir(out, *task)
+    agent = load_agent(find_checkpoint(run))
     found = {
         "truth": teacher_truth(run, plan.env_id, plan.teacher, plan.truth_episodes),
         "scores": {
             judge: [judge_scores([run], b, judge)[0].tolist() for b in brackets] for judge in JUDGES
         },
-        "reward": [
-            candidate_terms(load_agent(find_checkpoint(run)), b).reward.tolist() for b in brackets
-        ],
+        "reward": [candidate_terms(agent, b).reward.tolist() for b in brackets],
     }
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(found) + "\n")

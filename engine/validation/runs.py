@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import json
 import shutil
-from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from multiprocessing import get_context
 from pathlib import Path
@@ -104,16 +103,12 @@ def train_task(out: Path, plan: Plan, task: Task) -> Task:
     return task
 
 
-def train_tasks(
-    out: Path, plan: Plan, tasks: list[Task], jobs: int, done: Callable[[Task], None]
-) -> None:
-    """Train ``tasks``, ``jobs`` at a time; ``done`` is called as each one finishes."""
+def train_tasks(out: Path, plan: Plan, tasks: list[Task], jobs: int) -> None:
+    """Train the unfinished ``tasks``, ``jobs`` at a time."""
     todo = [t for t in tasks if not finished(out, plan, t)]
-    for task in set(tasks) - set(todo):
-        done(task)
     if jobs <= 1:
         for task in todo:
-            done(train_task(out, plan, task))
+            train_task(out, plan, task)
         return
     # Runs are independent and single-threaded: processes give a near-linear speed-up;
     # spawn, because torch and MuJoCo are not fork-safe.
@@ -121,7 +116,7 @@ def train_tasks(
         futures = [pool.submit(train_task, out, plan, t) for t in todo]
         try:
             for future in futures:
-                done(future.result())
+                future.result()
         except BaseException:  # report a failed run now, not after every queued run
             pool.shutdown(cancel_futures=True)
             raise

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -32,14 +32,13 @@ def validate(
     *,
     jobs: int = 1,
     command: str = "",
-    done: Callable[[Task], None] = lambda task: None,
 ) -> dict[str, Any]:
     """Train what is not trained yet, measure, analyse; returns the summary it wrote, which
     names the ``command`` and the commit that wrote it."""
     prepare(out, plan)
-    train_tasks(out, plan, pilot_tasks(plan), jobs, done)
+    train_tasks(out, plan, pilot_tasks(plan), jobs)
     brackets = make_brackets(out, plan)
-    train_tasks(out, plan, arm_tasks(plan), jobs, done)
+    train_tasks(out, plan, arm_tasks(plan), jobs)
     tasks = [*pilot_tasks(plan), *arm_tasks(plan)]
     measures = measure_all(out, plan, tasks, brackets, jobs)
     summary: dict[str, Any] = _json_safe(
@@ -69,12 +68,18 @@ def _json_safe(value: Any) -> Any:
     return value  # str, int, bool, None
 
 
+#: More than one metrics row (about 700 bytes each).
+TAIL_BYTES = 4096
+
+
 def steps_done(out: Path, task: Task) -> int:
     """Env steps a run has logged so far (0 before its first update): for progress bars."""
     path = run_dir(out, *task) / METRICS_FILE
     if not path.is_file():
         return 0
-    lines = path.read_bytes().rstrip().splitlines()
+    with path.open("rb") as f:  # the last row only: polled every 2 s for every run
+        f.seek(max(0, path.stat().st_size - TAIL_BYTES))
+        lines = f.read().rstrip().splitlines()
     try:
         return int(json.loads(lines[-1])["timesteps"]) if lines else 0
     except (ValueError, KeyError):  # a line being written: the next poll reads it
