@@ -169,6 +169,14 @@ def test_study_page_shows_agreement_and_quality_flags(
     expect(page.locator("#agreement-summary")).to_contain_text("Krippendorff")
     expect(page.locator("#quality-table .reliability")).to_have_text(["0.25 (0 checks)"] * 4)
     assert_accessible(page, "study page with agreement and flags")
+    page.set_viewport_size({"width": 390, "height": 844})  # a phone: the tables scroll inside
+    page.goto(f"{base}/studies/{study_id}#quality")
+    expect(page.locator("#quality-table .reliability")).to_have_count(4)
+    assert page.evaluate("document.documentElement.scrollWidth") <= 390
+    assert_accessible(page, "study page with agreement and flags, on a phone")
+    page.set_viewport_size({"width": 1280, "height": 1000})
+    page.goto(f"{base}/studies/{study_id}#quality")
+    expect(page.locator("#heat-map tbody tr")).to_have_count(4)
     page.screenshot(path=screens / "study-full.png", full_page=True)
     top = page.locator("#quality").bounding_box()["y"] + page.evaluate("window.scrollY")
     bottom = page.locator("#trees").bounding_box()["y"] + page.evaluate("window.scrollY")
