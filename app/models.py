@@ -133,6 +133,10 @@ class Study(Base):
     instructions: Mapped[str] = mapped_column(Text)
     #: Extra pairs each participant is asked after the bracket (:class:`DisagreementPair`).
     disagreement_pairs: Mapped[int] = mapped_column(Integer, default=0)
+    #: A participant may answer "can't tell"; the bracket then advances by a seeded coin.
+    allow_ties: Mapped[bool] = mapped_column(Boolean, default=False)
+    #: Practice pairs shown before the bracket (0, or 2 to 5); never stored as labels.
+    practice_pairs: Mapped[int] = mapped_column(Integer, default=0)
     status: Mapped[StudyStatus] = mapped_column(
         enum_type(StudyStatus), default=StudyStatus.PREPARING
     )
@@ -227,6 +231,10 @@ class Participant(MemberColumns, Base):
 
     study_id: Mapped[int] = mapped_column(ForeignKey("studies.id", ondelete="CASCADE"), index=True)
     last_active_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), default=None)
+    #: Left out of pooling and exports (by the researcher, or by the gold gate when it
+    #: excludes); their labels are kept.
+    excluded: Mapped[bool] = mapped_column(Boolean, default=False)
+    exclusion_reason: Mapped[str | None] = mapped_column(String(200), default=None)
 
 
 class Match(Base):
@@ -265,6 +273,8 @@ class Label(Base):
     response_ms: Mapped[int | None] = mapped_column(BigInteger, default=None)
     #: Whether the picture on the left won (NULL for labels stored before sides were kept).
     chose_left: Mapped[bool | None] = mapped_column(Boolean, default=None)
+    #: The participant could not tell; ``winner`` is the seeded coin's (docs/method.md §2.14).
+    tie: Mapped[bool] = mapped_column(Boolean, default=False)
 
 
 class OpenLink:
@@ -307,6 +317,11 @@ class CrowdSettings(OpenLink, Base):
     )
     consistency_check: Mapped[bool] = mapped_column(Boolean, default=False)
     speed_threshold_ms: Mapped[int] = mapped_column(Integer, default=800)
+    #: The qualification gate: a participant whose gold accuracy's upper confidence bound is
+    #: below it is flagged (``None``: no gate).
+    gold_gate: Mapped[float | None] = mapped_column(Float, default=None)
+    #: Whether the gate also excludes the participants it flags.
+    gate_excludes: Mapped[bool] = mapped_column(Boolean, default=False)
 
 
 class ConsistencyCheck(Base):
@@ -343,6 +358,41 @@ class DisagreementPair(Base):
     winner: Mapped[int | None] = mapped_column(Integer, default=None)
     response_ms: Mapped[int | None] = mapped_column(BigInteger, default=None)
     shown_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+    answered_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), default=None)
+
+
+class GoldItem(Base):
+    """A pair with an objective answer, shown among the bracket's matches (never part of
+    it). ``kind`` is ``pair`` (written and answered by the researcher) or ``instructed``
+    (``answer`` is shown with a marker: "choose the picture with the marker")."""
+
+    __tablename__ = "gold_items"
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    study_id: Mapped[int] = mapped_column(ForeignKey("studies.id", ondelete="CASCADE"), index=True)
+    kind: Mapped[str] = mapped_column(String(16))
+    a: Mapped[int] = mapped_column(Integer)
+    b: Mapped[int] = mapped_column(Integer)
+    answer: Mapped[int] = mapped_column(Integer)
+    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+
+
+class GoldAnswer(Base):
+    """A participant's copy of a gold item: shown once ``position`` bracket matches are
+    decided, with ``a`` on the left when ``a_left``; ``winner`` is their answer."""
+
+    __tablename__ = "gold_answers"
+
+    participant_id: Mapped[int] = mapped_column(
+        ForeignKey("participants.id", ondelete="CASCADE"), primary_key=True
+    )
+    gold_item_id: Mapped[int] = mapped_column(
+        ForeignKey("gold_items.id", ondelete="CASCADE"), primary_key=True
+    )
+    position: Mapped[int] = mapped_column(Integer)
+    a_left: Mapped[bool] = mapped_column(Boolean)
+    winner: Mapped[int | None] = mapped_column(Integer, default=None)
+    response_ms: Mapped[int | None] = mapped_column(BigInteger, default=None)
     answered_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), default=None)
 
 
