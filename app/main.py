@@ -2,8 +2,8 @@
 
 ``create_app(settings)`` builds an app on an existing database (``acv serve`` applies the
 migrations first). ``acv serve --workers N`` runs N of them, built by
-:func:`app.cli.serve.worker_app` without the background work (the run worker and resuming
-study preparation), which its supervisor process does once.
+:func:`app.cli.serve.worker_app` without the background work (the run worker, resuming
+study preparation and delivering webhooks), which its supervisor process does once.
 """
 
 from __future__ import annotations
@@ -28,6 +28,7 @@ from app.middleware import BodySizeLimit, SecurityHeaders
 from app.routes import api_router, pages_router
 from app.runtime import Runtime
 from app.settings import Settings
+from app.webhooks.delivery import start_delivery
 
 STATIC_DIR = Path(__file__).resolve().parents[1] / "static"
 #: Where the OpenAPI document is served (``/docs`` reads it).
@@ -68,20 +69,24 @@ def create_app(
 def _lifespan(
     runtime: Runtime, *, background: bool
 ) -> Callable[[FastAPI], AbstractAsyncContextManager[None]]:
-    """Start-up and shut-down: thread limit, half-prepared studies, the run worker."""
+    """Start-up and shut-down: thread limit, half-prepared studies, the run worker, webhook
+    delivery."""
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         # Few worker threads: requests are short and SQLite takes one writer at a time, so
         # more threads only fight over the GIL (a lock convoy that multiplies tail latency).
         anyio.to_thread.current_default_thread_limiter().total_tokens = runtime.settings.threads
-        run_worker = None
+        run_worker = webhooks = None
         if background:
             runtime.resume()  # studies a previous process left half-prepared
             run_worker = start_app_worker(app)  # training runs, unless ACV_RUN_WORKER=0
+            webhooks = start_delivery(runtime.sessions, runtime.settings)  # the outbox
         try:
             yield
         finally:
+            if webhooks is not None:
+                await anyio.to_thread.run_sync(webhooks.stop)
             if run_worker is not None:
                 # Running runs checkpoint and become `interrupted`; the loop stays responsive.
                 await anyio.to_thread.run_sync(run_worker.stop)

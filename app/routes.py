@@ -12,7 +12,7 @@ from fastapi import APIRouter
 from app.http import auth_pages, errors
 from app.labelling import api as participants_api
 from app.labelling import crowd_pages as study_link_pages
-from app.labelling import matches_api, pair_pages
+from app.labelling import dataset_api, matches_api, pair_pages, practice_api, practice_pages
 from app.labelling import pages as participant_pages
 from app.runs import (
     advisors_api,
@@ -26,17 +26,24 @@ from app.runs import pages as runs_pages
 from app.studies import api as studies_api
 from app.studies import crowd_api as study_crowd_api
 from app.studies import crowd_pages as study_crowd_pages
+from app.studies import dashboard_api as study_dashboard_api
 from app.studies import downloads
+from app.studies import gold_api as study_gold_api
+from app.studies import gold_pages as study_gold_pages
 from app.studies import pages as studies_pages
 from app.surveys import api as surveys_api
 from app.surveys import crowd_api as survey_crowd_api
 from app.surveys import crowd_pages as survey_link_pages
 from app.surveys import pages as surveys_pages
+from app.webhooks import api as webhooks_api
+from app.webhooks import pages as webhooks_pages
 
 api_router = APIRouter(prefix="/api", responses=errors.RESPONSES)
 for _router in (
     studies_api.router,
     participants_api.router,
+    dataset_api.router,
+    practice_api.router,
     matches_api.router,
     runs_api.router,
     checkpoint_api.router,
@@ -45,7 +52,10 @@ for _router in (
     surveys_api.router,
     study_crowd_api.link_router,
     study_crowd_api.router,
+    study_gold_api.router,
+    study_dashboard_api.router,
     survey_crowd_api.router,
+    webhooks_api.router,
 ):
     api_router.include_router(_router)
 
@@ -53,6 +63,7 @@ pages_router = APIRouter()
 for _pages in (
     auth_pages,
     participant_pages,
+    practice_pages,
     pair_pages,
     downloads,
     studies_pages,
@@ -62,6 +73,8 @@ for _pages in (
     surveys_pages,
     study_link_pages,
     study_crowd_pages,
+    study_gold_pages,
     survey_link_pages,
+    webhooks_pages,
 ):
     pages_router.include_router(_pages.router)

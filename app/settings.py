@@ -7,6 +7,10 @@
 - ``ACV_ADMIN_TOKEN``: the researcher's bearer token, at least 32 characters; unset means one
   is generated on first start and kept in the data dir (see
   :func:`app.core.auth.ensure_admin_token`).
+- ``ACV_DATASET_SALT``: the secret that participants' pseudonyms in a shared dataset are
+  keyed with (at least 32 characters); unset means one is generated on first export and
+  kept in the data dir (:func:`app.core.auth.dataset_salt`). The same salt gives the same
+  pseudonyms on every re-export; without it they cannot be traced back to anyone.
 - ``ACV_SESSION_HOURS`` (default 12): how long a researcher login (the cookie) lasts; the
   server refuses older cookies whatever the browser keeps.
 - ``ACV_PUBLIC_URL``: the base of links printed outside a request (by the CLI; default
@@ -19,12 +23,19 @@
   addresses or networks (``10.0.0.0/8``), whose ``X-Forwarded-For`` and
   ``X-Forwarded-Proto`` the app believes. Empty: no one's; the client address is the TCP
   peer's, so a client cannot choose the address its joins and failed logins are counted by.
+- ``ACV_WEBHOOK_TARGETS`` (default ``public``): where webhooks may point. ``public``: https
+  URLs of public addresses only; ``loopback`` (tests): only 127.0.0.1 and ::1, over http
+  too, so that no test ever sends traffic elsewhere (see :mod:`app.webhooks.targets`).
+- ``ACV_WEBHOOK_BACKOFF_S`` (default 5) and ``ACV_WEBHOOK_BACKOFF_CAP_S`` (default 3600): a
+  failed delivery is retried after ``backoff * 2**(attempts - 1)`` seconds, at most the cap,
+  with jitter; after ``ACV_WEBHOOK_MAX_ATTEMPTS`` (default 40: about 31 hours) it gives up.
 """
 
 from __future__ import annotations
 
 import ipaddress
 from pathlib import Path
+from typing import Literal
 
 from pydantic import AliasChoices, Field, SecretStr, field_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
@@ -42,11 +53,16 @@ class Settings(BaseSettings):
         default=None, validation_alias=AliasChoices("DATABASE_URL", "ACV_DATABASE_URL")
     )
     admin_token: SecretStr | None = None
+    dataset_salt: SecretStr | None = None
     public_url: str | None = None
     threads: int = Field(default=8, ge=1, le=256)
     min_free_mb: int = Field(default=64, ge=0)
     session_hours: float = Field(default=12.0, gt=0, le=24 * 90)
     forwarded_allow_ips: str = ""
+    webhook_targets: Literal["public", "loopback"] = "public"
+    webhook_backoff_s: float = Field(default=5.0, gt=0, le=3600)
+    webhook_backoff_cap_s: float = Field(default=3600.0, gt=0, le=86_400)
+    webhook_max_attempts: int = Field(default=40, ge=1, le=1000)
 
     @field_validator("forwarded_allow_ips")
     @classmethod

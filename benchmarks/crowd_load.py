@@ -6,14 +6,28 @@ throwaway cluster), prepares a study and invites ``--participants`` people, then
 1. ceiling: closed loops hammer ``/healthz`` (a trivial JSON endpoint, one ``SELECT 1``,
    served by the same stack) for a few seconds; its requests/s is the practical ceiling;
 2. crowd: every participant plays their whole bracket with an asyncio client (aiohttp,
-   keep-alive), thinking ``[0.5, 1.5] x --think-ms`` per match and starting within the first
-   ``--think-ms``. A label's answer carries the next match when the server sends one
-   (``next``); otherwise (an older server) the client asks ``next-match``.
+   keep-alive), sending what the labelling page (``static/js/label.js``) sends once it has
+   loaded: one label per decision, whose answer carries the next match (``next``; an older
+   server without it is asked ``next-match``).
+
+   - closed loop (``--mode closed``, the default): each person thinks
+     ``[0.5, 1.5] x --think-ms`` after each answer, starting within the first
+     ``--start-spread-ms`` (default ``--think-ms``; 0: everyone starts in the same instant).
+     Latency runs from the moment a request is sent, so a slow server slows its own load
+     and hides queueing delay.
+   - open loop (``--mode open``): decisions arrive at a constant rate, participants /
+     ``--think-ms`` per second: person ``i`` sends decision ``k`` at
+     ``t0 + (i / participants + k) x --think-ms`` (or as soon as the previous answer is in,
+     if later), and latency runs from that *scheduled* time, so it includes the queueing a
+     closed loop hides.
 
 Then every acknowledged (2xx) label must be stored with its winner, once. The last line is
 JSON: participants, think_ms, workers, database, labels_sent, labels_stored, lost,
 duplicates, errors_5xx, labels_per_s, p50_ms and p99_ms (of every labelling request: labels
 and next-match), ceiling_rps and ratio_vs_ceiling (labelling requests/s over the ceiling).
+
+With ``--dashboards N``, N researchers' dashboards poll ``GET /api/studies/{id}/dashboard``
+every 2 s (with ``If-None-Match``, as ``static/js/dashboard.js`` does) all along.
 
 With ``--training``, a ``ppo`` run trains on the same server throughout (its executor stores a
 metrics row every 128 steps in the same database): the labelling latency with run state
@@ -21,7 +35,8 @@ written to the database, to compare with a run of the same command without it.
 
 Usage:
     python benchmarks/crowd_load.py [--database sqlite|postgresql] [--participants 300]
-        [--think-ms 2000] [--workers 1] [--candidates 16] [--timeout-s 300] [--training]
+        [--think-ms 2000] [--mode closed|open] [--start-spread-ms MS] [--workers 1]
+        [--candidates 16] [--timeout-s 300] [--dashboards 0] [--training]
 """
 
 from __future__ import annotations
@@ -151,6 +166,7 @@ class Tally:
     unexpected: list[str] = field(default_factory=list)
     acked: dict[int, int] = field(default_factory=dict)
     ms: dict[str, list[float]] = field(default_factory=lambda: {"label": [], "next": []})
+    dashboard_polls: int = 0
 
 
 async def _call(
@@ -161,11 +177,13 @@ async def _call(
     url: str,
     headers: dict[str, str],
     body: dict | None = None,
+    scheduled: float | None = None,
 ) -> tuple[int, dict | None]:
     """One timed request: (status, JSON body or ``None``); status 0 when the connection
-    failed."""
+    failed. Its latency runs from ``scheduled`` (a ``perf_counter`` time) when given, else
+    from now."""
     tally.requests += 1
-    t0 = time.perf_counter()
+    t0 = time.perf_counter() if scheduled is None else scheduled
     try:
         async with client.request(method, url, headers=headers, json=body) as response:
             data = await response.json() if response.status in (200, 201) else None
@@ -189,11 +207,34 @@ async def _next(
     return data
 
 
+@dataclass(frozen=True)
+class Pace:
+    """When a participant decides. ``mode``: ``closed`` (think after each answer) or
+    ``open`` (a fixed schedule: ``offset_s`` then every ``think_ms``); ``start_s``: when a
+    closed-loop participant starts."""
+
+    mode: str
+    think_ms: float
+    start_s: float = 0.0
+    offset_s: float = 0.0
+
+
+async def _wait_turn(pace: Pace, rng: np.random.Generator, t0: float, k: int) -> float | None:
+    """Wait until decision ``k`` is due; its scheduled time (open loop) or ``None``."""
+    if pace.mode == "open":
+        due = t0 + pace.offset_s + k * pace.think_ms / 1000
+        await asyncio.sleep(max(0.0, due - time.perf_counter()))
+        return due
+    if pace.think_ms > 0:
+        await asyncio.sleep(pace.think_ms * rng.uniform(0.5, 1.5) / 1000)
+    return None
+
+
 async def participant(
     client: aiohttp.ClientSession,
     token: str,
     seed: int,
-    think_ms: float,
+    pace: Pace,
     n_matches: int,
     tally: Tally,
     deadline: float,
@@ -201,14 +242,14 @@ async def participant(
     """Play the whole bracket (at most ``2 x n_matches`` decisions, or until ``deadline``)."""
     rng = np.random.default_rng(seed)
     headers = {"Authorization": f"Bearer {token}"}
-    await asyncio.sleep(think_ms * rng.uniform(0, 1) / 1000)  # people do not start in step
+    t0 = time.perf_counter()
+    await asyncio.sleep(pace.start_s)
     match = await _next(client, tally, headers)
-    for _ in range(2 * n_matches):
+    for k in range(2 * n_matches):
         if match is None or time.monotonic() > deadline:
             return
         winner = match["a" if rng.random() < 0.5 else "b"]["candidate_id"]
-        if think_ms > 0:
-            await asyncio.sleep(think_ms * rng.uniform(0.5, 1.5) / 1000)
+        scheduled = await _wait_turn(pace, rng, t0, k + 1)
         tally.sent += 1
         status, data = await _call(
             client,
@@ -218,6 +259,7 @@ async def participant(
             f"/api/matches/{match['match_id']}/label",
             headers,
             {"winner": winner},
+            scheduled,
         )
         if status in (200, 201):
             tally.acked[match["match_id"]] = winner
@@ -249,23 +291,60 @@ async def _ceiling(base: str, seconds: float, loops: int) -> float:
         return count / (time.perf_counter() - t0)
 
 
+def paces(args: argparse.Namespace) -> list[Pace]:
+    """Each participant's pace, from the command line (seeded: the same every run)."""
+    rng = np.random.default_rng(0)
+    spread = args.think_ms if args.start_spread_ms is None else args.start_spread_ms
+    n = args.participants
+    return [
+        Pace(
+            args.mode,
+            args.think_ms,
+            spread * rng.uniform(0, 1) / 1000,
+            k / n * args.think_ms / 1000,
+        )
+        for k in range(n)
+    ]
+
+
+async def dashboard(base: str, study_id: int, stop: asyncio.Event, tally: Tally) -> None:
+    """A researcher's dashboard: poll every 2 s with ``If-None-Match``, as the page does."""
+    etag = None
+    async with aiohttp.ClientSession(base, headers=ADMIN) as client:
+        while not stop.is_set():
+            headers: dict[str, str] = {"If-None-Match": etag} if etag else {}
+            async with client.get(f"/api/studies/{study_id}/dashboard", headers=headers) as r:
+                await r.read()
+                etag = r.headers.get("ETag", etag)
+                tally.dashboard_polls += 1
+                tally.errors_5xx += r.status >= 500
+            with contextlib.suppress(TimeoutError):
+                await asyncio.wait_for(stop.wait(), 2.0)
+
+
 async def crowd(
-    base: str, tokens: list[str], think_ms: float, n_matches: int, timeout_s: float
+    base: str, study_id: int, tokens: list[str], args: argparse.Namespace
 ) -> tuple[Tally, float]:
-    """Everyone plays at once; returns the tally and the seconds it took."""
-    tally = Tally()
+    """Everyone plays at once (and ``--dashboards`` poll); the tally and the seconds it took."""
+    tally, stop = Tally(), asyncio.Event()
     connector = aiohttp.TCPConnector(limit=len(tokens), keepalive_timeout=3.0)
     timeout = aiohttp.ClientTimeout(total=60)
+    polls = [
+        asyncio.create_task(dashboard(base, study_id, stop, tally)) for _ in range(args.dashboards)
+    ]
     async with aiohttp.ClientSession(base, connector=connector, timeout=timeout) as client:
         t0 = time.perf_counter()
-        deadline = time.monotonic() + timeout_s
+        deadline = time.monotonic() + args.timeout_s
         await asyncio.gather(
             *(
-                participant(client, tok, k, think_ms, n_matches, tally, deadline)
-                for k, tok in enumerate(tokens)
+                participant(client, tok, k, pace, args.candidates - 1, tally, deadline)
+                for k, (tok, pace) in enumerate(zip(tokens, paces(args), strict=True))
             )
         )
-        return tally, time.perf_counter() - t0
+        seconds = time.perf_counter() - t0
+    stop.set()
+    await asyncio.gather(*polls)
+    return tally, seconds
 
 
 def stored_labels(base: str, study_id: int) -> list[tuple[int, int]]:
@@ -295,6 +374,11 @@ def summary(
     return {
         "participants": args.participants,
         "think_ms": args.think_ms,
+        "mode": args.mode,
+        "start_spread_ms": args.think_ms if args.start_spread_ms is None else args.start_spread_ms,
+        "dashboards": args.dashboards,
+        "dashboard_polls": tally.dashboard_polls,
+        "training": args.training,
         "workers": args.workers,
         "database": args.database,
         "labels_sent": tally.sent,
@@ -305,6 +389,7 @@ def summary(
         "labels_per_s": round(len(tally.acked) / seconds, 1),
         "p50_ms": pct(50),
         "p99_ms": pct(99),
+        "max_ms": round(max(every), 1) if every else None,
         "ceiling_rps": round(ceiling_rps, 1),
         "ratio_vs_ceiling": round(rps / ceiling_rps, 3),
     }
@@ -315,6 +400,14 @@ def main() -> None:
     parser.add_argument("--database", choices=("sqlite", "postgresql"), default="sqlite")
     parser.add_argument("--participants", type=int, default=300)
     parser.add_argument("--think-ms", type=float, default=2000.0)
+    parser.add_argument("--mode", choices=("closed", "open"), default="closed")
+    parser.add_argument(
+        "--start-spread-ms",
+        type=float,
+        default=None,
+        help="closed loop: people start within this time (default --think-ms; 0: all at once)",
+    )
+    parser.add_argument("--dashboards", type=int, default=0)
     parser.add_argument("--workers", type=int, default=1)
     parser.add_argument("--candidates", type=int, default=16)
     parser.add_argument("--timeout-s", type=float, default=300.0)
@@ -328,9 +421,7 @@ def main() -> None:
         study_id, tokens = prepare(base, args.candidates, args.participants)
         run_id = start_training(base, study_id) if args.training else None
         ceiling_rps = asyncio.run(_ceiling(base, CEILING_S, min(CEILING_LOOPS, args.participants)))
-        tally, seconds = asyncio.run(
-            crowd(base, tokens, args.think_ms, args.candidates - 1, args.timeout_s)
-        )
+        tally, seconds = asyncio.run(crowd(base, study_id, tokens, args))
         stored = stored_labels(base, study_id)
         if run_id is not None:
             print(f"training run: {stop_training(base, run_id)} metrics rows written")

@@ -20,6 +20,11 @@ Ties are handled one way everywhere, by :func:`engine.tournament.score_winner` (
 :class:`engine.tournament.ScoreJudge` uses too): equal scores express no preference, so a
 match tied in R is neither contested nor one that the R-only judge agrees with, and a match
 the agent's scores tie is one it does not keep.
+
+A match the *human* could not tell (``TreeDocument.ties``, docs/method.md §2.14) carries no
+advice: it is never contested, never rejected, and counts as neither agreement nor
+disagreement (it is left out of every numerator and denominator). A match the agent's own
+document marks as tied is, like a tie in its scores, no preference.
 """
 
 from __future__ import annotations
@@ -32,6 +37,7 @@ import numpy as np
 import zss
 from scipy.stats import binomtest, kendalltau
 
+from engine.bracket import Match
 from engine.errors import InputError
 from engine.preference_tree import PreferenceTree
 from engine.tournament import score_winner
@@ -116,11 +122,10 @@ def compare(
             agreement; the stored ``env_reward`` when None.
     """
     check_same_bracket(human, agent)
-    if not human.matches:  # binomtest needs n >= 1
-        raise InputError("the trees have no matches to compare (fewer than 2 candidates)")
+    matches = _advice_matches(human)
     reward = stored_reward(human) if reward is None else reward
     rejected, agree, contested, contested_kept = [], 0, 0, 0
-    for m, human_winner in human.matches:
+    for m, human_winner in matches:
         pick = agent_pick(agent, m.round, m.a, m.b)
         is_contested = contested_match(reward, m.a, m.b, human_winner)
         contested += is_contested
@@ -129,7 +134,7 @@ def compare(
             contested_kept += is_contested
         else:
             rejected.append(Rejection(m.round, m.a, m.b, human_winner, pick, is_contested))
-    n = len(human.matches)
+    n = len(matches)
     return Conformance(
         n,
         agree,
@@ -142,6 +147,19 @@ def compare(
         _contested(contested_kept, contested),
         reference_agreement(human, reward),
     )
+
+
+def _advice_matches(human: TreeDocument) -> list[tuple[Match, int]]:
+    """The human's matches that carry a preference (ties left out); at least one.
+
+    Raises:
+        InputError: no such match (binomtest and every share need ``n >= 1``).
+    """
+    if not human.matches:
+        raise InputError("the trees have no matches to compare (fewer than 2 candidates)")
+    if not (matches := human.untied_matches):
+        raise InputError("every match of the human's tree is a tie: there is no advice to compare")
+    return matches
 
 
 def stored_reward(doc: TreeDocument) -> dict[int, float]:
@@ -166,16 +184,20 @@ def wilson(k: int, n: int) -> tuple[float, float]:
 
 
 def reference_agreement(human: TreeDocument, reward: Mapping[int, float] | None = None) -> float:
-    """The match agreement of an R-only judge with ``human``: the share of the human's matches
-    won by the higher-R candidate (a tie in R counts as not agreeing).
+    """The match agreement of an R-only judge with ``human``: the share of the human's untied
+    matches won by the higher-R candidate (a tie in R counts as not agreeing).
 
     Args:
         human: the advice tree.
         reward: candidate id -> R; the stored ``env_reward`` when None.
+
+    Raises:
+        InputError: the human's tree has no untied match.
     """
+    matches = _advice_matches(human)
     reward = stored_reward(human) if reward is None else reward
-    agree = sum(score_winner(reward, m.a, m.b) == w for m, w in human.matches)
-    return agree / len(human.matches)
+    agree = sum(score_winner(reward, m.a, m.b) == w for m, w in matches)
+    return agree / len(matches)
 
 
 def check_same_bracket(human: TreeDocument, agent: TreeDocument) -> None:
@@ -202,7 +224,7 @@ def agent_pick(agent: TreeDocument, rnd: int, a: int, b: int) -> int | None:
         return score_winner(agent.scores, a, b)
     for m, winner in agent.matches:
         if m.round == rnd and {m.a, m.b} == {a, b}:
-            return winner
+            return None if agent.tied(m) else winner  # a tie is no preference
     ha, hb = agent.tree.nodes[a].height, agent.tree.nodes[b].height
     return None if ha == hb else (a if ha > hb else b)
 

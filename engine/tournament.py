@@ -8,11 +8,11 @@ the player's node up unchanged.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Collection, Mapping
 from dataclasses import dataclass
 from typing import Protocol
 
-from engine.bracket import Bracket, Results
+from engine.bracket import Bracket, Match, Results
 from engine.candidates import Candidate
 from engine.errors import InputError
 
@@ -109,3 +109,43 @@ def dendrogram(bracket: Bracket, results: Results) -> DendroNode:
 
 def _match_node(winner: int, left: DendroNode, right: DendroNode) -> DendroNode:
     return DendroNode(winner, 1 + max(left.height, right.height), (left, right))
+
+
+def match_heights(bracket: Bracket) -> dict[tuple[int, int], int]:
+    """``(round, slot) -> height`` of every match's dendrogram node.
+
+    A node's height is ``1 + max(children's heights)`` and a bye passes height 0 up, so the
+    heights depend on the bracket's shape alone, not on who won (a round-2 match between two
+    bye players has height 1, not 2).
+    """
+    heights = [0 if b is None else 1 for _, b in bracket.first_round]
+    out = {(1, k): 1 for k, (_, b) in enumerate(bracket.first_round) if b is not None}
+    for rnd in range(2, bracket.n_rounds + 1):
+        heights = [1 + max(heights[2 * k], heights[2 * k + 1]) for k in range(len(heights) // 2)]
+        out.update({(rnd, k): h for k, h in enumerate(heights)})
+    return out
+
+
+def tie_heights(
+    bracket: Bracket, results: Results, ties: Collection[tuple[int, int]]
+) -> dict[int, int]:
+    """The coin's loser of each tied match -> the height of that match's dendrogram node.
+
+    A tied match is one the judge could not tell; ``results`` holds the seeded coin's winner
+    there. Its loser is raised to the height its winner had right after the match
+    (docs/method.md §2.14). A player loses once, so each loser appears at most once.
+
+    Raises:
+        InputError: a tie on a ``(round, slot)`` that is not a decided match of the bracket.
+    """
+    matches = {
+        (m.round, m.slot): m for m in bracket.matches(results) if (m.round, m.slot) in results
+    }
+    if unknown := sorted(set(ties) - matches.keys()):
+        raise InputError(f"tie on (round, slot) {unknown[0]}, which is not a decided match")
+    heights = match_heights(bracket)
+    return {_loser(matches[key], results[key]): heights[key] for key in ties}
+
+
+def _loser(match: Match, winner: int) -> int:
+    return match.b if winner == match.a else match.a

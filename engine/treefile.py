@@ -3,12 +3,17 @@
 The same JSON is the CLI's file format and the REST API's body (README "Tree file format").
 The matches are the source of truth: loading rebuilds the tree from them and rejects a file
 whose stored tree disagrees, so a hand-edited or truncated file cannot pass as valid.
+
+A match the judge could not tell carries ``"tie": true`` (its ``winner`` is the seeded coin's);
+the key is absent on every other match, so documents without ties are unchanged
+(docs/method.md §2.14).
 """
 
 from __future__ import annotations
 
 import json
 import math
+from collections.abc import Collection
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -19,7 +24,7 @@ from engine.bracket import Bracket, FirstRound, Match
 from engine.candidates import Candidate
 from engine.errors import InputError, check_seed
 from engine.preference_tree import PreferenceTree, from_dendrogram
-from engine.tournament import dendrogram
+from engine.tournament import dendrogram, tie_heights
 
 SCHEMA = "acv.tree/1"
 
@@ -40,6 +45,8 @@ class TreeDocument:
         results: ``(round, slot) -> winner`` for every match.
         tree: the Preference Tree built from ``results``.
         scores: the judge's score per candidate, when it judged by a score.
+        ties: ``(round, slot)`` of the matches the judge could not tell; ``results`` holds
+            the seeded coin's winner there (docs/method.md §2.14).
     """
 
     env_id: str
@@ -53,6 +60,7 @@ class TreeDocument:
     results: dict[tuple[int, int], int]
     tree: PreferenceTree
     scores: dict[int, float] | None = None
+    ties: frozenset[tuple[int, int]] = frozenset()
 
     @property
     def bracket(self) -> Bracket:
@@ -62,6 +70,16 @@ class TreeDocument:
     def matches(self) -> list[tuple[Match, int]]:
         """Every match with its winner, in (round, slot) order."""
         return [(m, self.results[(m.round, m.slot)]) for m in self.bracket.matches(self.results)]
+
+    @property
+    def untied_matches(self) -> list[tuple[Match, int]]:
+        """The matches the judge decided, leaving out its ties: the only ones with a
+        preference, so the only ones agreement and contested matches count."""
+        return [(m, w) for m, w in self.matches if not self.tied(m)]
+
+    def tied(self, match: Match) -> bool:
+        """Whether the judge could not tell ``match`` (its winner is the seeded coin's)."""
+        return (match.round, match.slot) in self.ties
 
     @property
     def by_id(self) -> dict[int, Candidate]:
@@ -80,11 +98,30 @@ def make_document(
     r_b: float = 1.0,
     r_e: float = 1.0,
     scores: dict[int, float] | None = None,
+    ties: Collection[tuple[int, int]] = frozenset(),
 ) -> TreeDocument:
-    """Build the Preference Tree of a complete bracket and wrap everything in a document."""
-    tree = from_dendrogram(dendrogram(Bracket(first_round), results), r_b=r_b, r_e=r_e)
+    """Build the Preference Tree of a complete bracket and wrap everything in a document.
+
+    Raises:
+        InputError: the bracket is incomplete, or a tie names no match of it.
+    """
+    bracket = Bracket(first_round)
+    root = dendrogram(bracket, results)  # first: a tie is checked against complete results
+    raised = tie_heights(bracket, results, ties)
+    tree = from_dendrogram(root, r_b=r_b, r_e=r_e, raised=raised)
     return TreeDocument(
-        env_id, seed, p, judge, r_b, r_e, candidates, first_round, results, tree, scores
+        env_id,
+        seed,
+        p,
+        judge,
+        r_b,
+        r_e,
+        candidates,
+        first_round,
+        results,
+        tree,
+        scores,
+        frozenset(ties),
     )
 
 
@@ -99,7 +136,7 @@ def tree_to_json(doc: TreeDocument) -> dict[str, Any]:
         "tree_reward": {"r_b": doc.r_b, "r_e": doc.r_e},
         "candidates": [_candidate_json(c, doc.scores) for c in doc.candidates],
         "first_round": [[a, b] for a, b in doc.first_round],
-        "matches": [{"round": m.round, "a": m.a, "b": m.b, "winner": w} for m, w in doc.matches],
+        "matches": [_match_json(doc, m, w) for m, w in doc.matches],
         "tree": {
             "root": doc.tree.root,
             "nodes": [
@@ -115,6 +152,13 @@ def tree_to_json(doc: TreeDocument) -> dict[str, Any]:
             ],
         },
     }
+
+
+def _match_json(doc: TreeDocument, m: Match, winner: int) -> dict[str, Any]:
+    out: dict[str, Any] = {"round": m.round, "a": m.a, "b": m.b, "winner": winner}
+    if doc.tied(m):  # only when tied: documents without ties keep their bytes
+        out["tie"] = True
+    return out
 
 
 def _candidate_json(c: Candidate, scores: dict[int, float] | None) -> dict[str, Any]:
@@ -170,7 +214,7 @@ def _parse(obj: dict[str, Any]) -> TreeDocument:
     bracket = Bracket(first_round)
     if sorted(bracket.players) != list(range(len(cands))):
         raise InputError("first round must hold every candidate exactly once")
-    results = _results(bracket, obj["matches"])
+    results, ties = _results(bracket, obj["matches"])
     tr = obj["tree_reward"]
     return make_document(
         env_id=str(obj["env_id"]),
@@ -183,6 +227,7 @@ def _parse(obj: dict[str, Any]) -> TreeDocument:
         r_b=_finite(tr["r_b"], "tree_reward.r_b"),
         r_e=_finite(tr["r_e"], "tree_reward.r_e"),
         scores=scores,
+        ties=ties,
     )
 
 
@@ -232,12 +277,14 @@ def _floats(values: Any) -> np.ndarray:
     return arr
 
 
-def _results(bracket: Bracket, matches: list[dict[str, Any]]) -> dict[tuple[int, int], int]:
-    """Replay the listed matches through the bracket, checking each one's players."""
+def _results(
+    bracket: Bracket, matches: list[dict[str, Any]]
+) -> tuple[dict[tuple[int, int], int], frozenset[tuple[int, int]]]:
+    """Replay the listed matches through the bracket, checking each one's players; the
+    results, and the ``(round, slot)`` of the tied ones."""
     results: dict[tuple[int, int], int] = {}
-    pending = {
-        (int(m["round"]), frozenset((int(m["a"]), int(m["b"])))): int(m["winner"]) for m in matches
-    }
+    ties: set[tuple[int, int]] = set()
+    pending = {(int(m["round"]), frozenset((int(m["a"]), int(m["b"])))): m for m in matches}
     if len(pending) != len(matches):
         raise InputError("a match is listed twice")
     while open_ := bracket.open_matches(results):
@@ -245,12 +292,23 @@ def _results(bracket: Bracket, matches: list[dict[str, Any]]) -> dict[tuple[int,
             key = (m.round, frozenset((m.a, m.b)))
             if key not in pending:
                 raise InputError(f"missing round {m.round} match {m.a} vs {m.b}")
-            winner = pending.pop(key)
+            listed = pending.pop(key)
+            winner = int(listed["winner"])
             bracket.check_result(m, winner)
             results[(m.round, m.slot)] = winner
+            if _tie(listed, m):
+                ties.add((m.round, m.slot))
     if pending:
         raise InputError(f"{len(pending)} listed match(es) are not in the bracket")
-    return results
+    return results, frozenset(ties)
+
+
+def _tie(listed: dict[str, Any], m: Match) -> bool:
+    """The match's ``tie`` flag: absent is False; anything but a JSON bool is an error."""
+    tie = listed.get("tie", False)
+    if type(tie) is not bool:  # not 1, "true" or null: a flag is a JSON bool
+        raise InputError(f"round {m.round} match {m.a} vs {m.b}: 'tie' must be true or false")
+    return tie
 
 
 def _check_tree(doc: TreeDocument, stored: Any) -> None:

@@ -180,15 +180,18 @@ class Verdict:
 
 def advice_scores(doc: TreeDocument) -> np.ndarray:
     """The advice's score per candidate: its recorded judge scores where the tree has them,
-    else the candidates' heights (rounds won), which every winner leads its loser by >= 1."""
+    else the candidates' heights (rounds won), which every winner leads its loser by >= 1
+    except at a tie, where the loser is raised (docs/method.md §2.14) and the winner may
+    lead by 0."""
     if doc.scores is not None:
         return np.array([doc.scores[c.id] for c in doc.candidates], dtype=np.float64)
     return np.array([doc.tree.nodes[c.id].height for c in doc.candidates], dtype=np.float64)
 
 
 def bracket_pairs(doc: TreeDocument) -> tuple[Pair, ...]:
-    """The tree's matches as ``(a, b, winner)``."""
-    return tuple((m.a, m.b, w) for m, w in doc.matches)
+    """The tree's matches as ``(a, b, winner)``, leaving out those its judge could not tell:
+    a tie is never contested and neither kept nor rejected (docs/method.md §2.14)."""
+    return tuple((m.a, m.b, w) for m, w in doc.untied_matches)
 
 
 def classify(inputs: VerdictInputs, options: VerdictOptions = VerdictOptions()) -> MatchClasses:

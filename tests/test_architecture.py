@@ -15,8 +15,10 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 #: Feature packages in the order a researcher's work goes through them: a feature's services
 #: build on the ones before it, never on a later one (so the graph has no cycle). ``app.jobs``
-#: is the runs feature's executor (its queue and executors), on the runs level.
-FEATURES = ("recruiting", "studies", "labelling", "runs", "surveys")
+#: is the runs feature's executor (its queue and executors), on the runs level. ``webhooks``
+#: comes first: every feature writes its events to the webhooks' outbox, in its own
+#: transactions, and the webhooks know no feature.
+FEATURES = ("webhooks", "recruiting", "studies", "labelling", "runs", "surveys")
 LEVEL = {**{f: i for i, f in enumerate(FEATURES)}, "jobs": FEATURES.index("runs")}
 WEB_LIBRARIES = ("fastapi", "starlette", "sqlalchemy", "jinja2", "uvicorn", "alembic", "app")
 #: Route modules: a feature's REST API and pages; only app.routes and other routes use them.
@@ -154,3 +156,18 @@ def test_routes_and_features_are_told_apart() -> None:
     assert "app.http.deps" in set(imports(ROOT / "app" / "studies" / "api.py"))
     assert feature_of("app.runs.service") == "runs" and feature_of("app.jobs.queue") == "jobs"
     assert feature_of("app.jobs.settings") is None and feature_of("app.core.auth") is None
+    assert feature_of("app.webhooks.outbox") == "webhooks" and is_route("app.webhooks.pages")
+
+
+def test_the_webhooks_know_no_feature(tmp_path: Path) -> None:
+    """The outbox is below every feature (each writes its events there): a webhooks service
+    that imports a feature is refused, and a feature writing to the outbox is not."""
+    (tmp_path / "app" / "webhooks").mkdir(parents=True)
+    (tmp_path / "app" / "recruiting").mkdir(parents=True)
+    (tmp_path / "app" / "webhooks" / "x.py").write_text("from app.recruiting import links\n")
+    (tmp_path / "app" / "recruiting" / "y.py").write_text("from app.webhooks import outbox\n")
+    found = violations("app", chain_rule, tmp_path)
+    assert found == [
+        "app.webhooks.x imports app.recruiting",
+        "app.webhooks.x imports app.recruiting.links",
+    ]

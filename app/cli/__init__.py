@@ -14,6 +14,8 @@ def _register_commands() -> None:
     """Import the command modules, which register their commands (and import mujoco)."""
     from app.cli import (  # noqa: F401
         experiment,
+        export,
+        quality,
         render,
         reproduce,
         serve,
@@ -23,6 +25,7 @@ def _register_commands() -> None:
         train,
         validate,
         verdict,
+        webhook,
         worker,
     )
 

@@ -3,10 +3,10 @@
 With ``--workers N`` (N > 1) uvicorn's supervisor starts N server processes (spawned, each
 building its app with :func:`worker_app`) that share the listening socket. The work that
 must happen once happens in the supervisor, before and beside them: the migrations, the
-admin token, resuming half-prepared studies, and the training-run worker (a thread). The
-server processes share the database (SQLite in WAL mode, writers queued on a file lock; see
-:mod:`app.db`) and the failed-login counts (:mod:`app.http.ratelimit`); researcher and
-participant cookies are signed or looked up, never kept in a process.
+admin token, resuming half-prepared studies, the training-run worker and webhook delivery
+(threads). The server processes share the database (SQLite in WAL mode, writers queued on a
+file lock; see :mod:`app.db`) and the failed-login counts (:mod:`app.http.ratelimit`);
+researcher and participant cookies are signed or looked up, never kept in a process.
 """
 
 from __future__ import annotations
@@ -37,6 +37,7 @@ from app.preflight import check_data_dir
 from app.runtime import Runtime
 from app.settings import Settings
 from app.studies.participants import invite_url
+from app.webhooks.delivery import start_delivery
 from engine.errors import InputError
 
 
@@ -171,9 +172,11 @@ def _serve_workers(runtime: Runtime, workers: int, options: dict[str, Any]) -> N
         if jobs.run_worker
         else None
     )
+    webhooks = start_delivery(runtime.sessions, runtime.settings)
     try:
         uvicorn.run("app.cli.serve:worker_app", factory=True, workers=workers, **options)
     finally:
+        webhooks.stop()
         if run_worker is not None:
             run_worker.stop()  # running runs checkpoint and become `interrupted`
         runtime.close()

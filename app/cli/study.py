@@ -19,6 +19,7 @@ from app.studies import service as studies
 from app.studies.participants import invite_url
 from engine.disagreement import MAX_PAIRS
 from engine.envs import DEFAULT_ENV_ID
+from engine.practice import MAX_PRACTICE_PAIRS, MIN_PRACTICE_PAIRS
 from engine.treefile import dump_tree
 
 study_cli = typer.Typer(help="Create and list studies.", no_args_is_help=True)
@@ -46,13 +47,35 @@ def create(
     instructions_file: Annotated[
         Path | None, typer.Option(help="Read the instructions from this file instead.")
     ] = None,
+    allow_ties: Annotated[
+        bool,
+        typer.Option(
+            help='Participants may answer "can\'t tell" (the bracket advances by a seeded coin).'
+        ),
+    ] = False,
+    practice_pairs: Annotated[
+        int,
+        typer.Option(
+            help=f"Practice pairs before the bracket: 0 (none) or {MIN_PRACTICE_PAIRS} to "
+            f"{MAX_PRACTICE_PAIRS}, on states that are not candidates; never stored."
+        ),
+    ] = 0,
 ) -> None:
     """Create a study, then sample and render its candidates (waits until ready)."""
     text = instructions_file.read_text(encoding="utf-8") if instructions_file else instructions
     with cli_runtime() as runtime:
         with runtime.sessions() as session:
             spec = studies.StudySpec(
-                name, env, candidates, p, seed, sampling, text, disagreement_pairs
+                name=name,
+                env_id=env,
+                n_candidates=candidates,
+                p=p,
+                seed=seed,
+                sampling=sampling,
+                instructions=text,
+                disagreement_pairs=disagreement_pairs,
+                allow_ties=allow_ties,
+                practice_pairs=practice_pairs,
             )
             study = studies.create_study(session, spec=spec)
         runtime.prepare(study.id)

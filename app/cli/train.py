@@ -30,6 +30,14 @@ def train(
             "trees over one bracket (F is the mean)."
         ),
     ] = None,
+    pool_weight: Annotated[
+        list[float] | None,
+        Opt(
+            help="With several --advice trees: one weight per tree, in the same order (F and "
+            "the pooled verdict are then the weighted mean, e.g. each person's reliability); "
+            "default: the plain mean."
+        ),
+    ] = None,
     algo: Annotated[str | None, Opt(help=f"{', '.join(ALGOS)} (default ppo).")] = None,
     timesteps: Annotated[int | None, Opt(help="Env steps in total (default 1000000).")] = None,
     seed: Annotated[int | None, Opt(help="Seed (default 0).")] = None,
@@ -69,6 +77,7 @@ def train(
         "advice_scale": advice_scale,
         "advice_mode": advice_mode,
         "advice_depth_factor": advice_depth_factor,
+        "pool_weights": tuple(pool_weight) if pool_weight else None,
     }
     _train(out, {k: v for k, v in given.items() if v is not None}, advice or [], resume=resume)
 

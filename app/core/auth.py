@@ -17,10 +17,13 @@ import secrets
 import time
 from pathlib import Path
 
+from pydantic import SecretStr
+
 from app.settings import Settings
 from engine.errors import InputError
 
 ADMIN_TOKEN_FILE = "admin_token"
+DATASET_SALT_FILE = "dataset_salt"
 RESEARCHER_COOKIE = "acv_researcher"
 PARTICIPANT_COOKIE = "acv_participant"
 RESPONDENT_COOKIE = "acv_respondent"
@@ -48,24 +51,42 @@ def ensure_admin_token(settings: Settings) -> str:
         InputError: the token is empty or shorter than :data:`MIN_ADMIN_TOKEN_CHARS` (it
             could be guessed, and the cookies and CSRF tokens are keyed by it).
     """
-    if settings.admin_token is not None:
-        token = settings.admin_token.get_secret_value().strip()
-        where = "ACV_ADMIN_TOKEN"
+    return _kept_secret(
+        settings.admin_token, "ACV_ADMIN_TOKEN", settings.data_dir / ADMIN_TOKEN_FILE, "admin token"
+    )
+
+
+def dataset_salt(settings: Settings) -> bytes:
+    """The secret that keys participants' pseudonyms in a shared dataset
+    (:mod:`app.labelling.dataset`): ``ACV_DATASET_SALT``, else a random one kept in the data
+    dir, made on first call as the admin token is. It is not the admin token, so that
+    changing the token keeps every pseudonym.
+
+    Raises:
+        InputError: the salt is empty or shorter than :data:`MIN_ADMIN_TOKEN_CHARS`.
+    """
+    where = settings.data_dir / DATASET_SALT_FILE
+    return _kept_secret(settings.dataset_salt, "ACV_DATASET_SALT", where, "dataset salt").encode()
+
+
+def _kept_secret(setting: SecretStr | None, variable: str, path: Path, what: str) -> str:
+    """``setting`` (from ``variable``), else the secret kept at ``path``, made on first call."""
+    if setting is not None:
+        secret, where = setting.get_secret_value().strip(), variable
     else:
-        path = settings.data_dir / ADMIN_TOKEN_FILE
         path.parent.mkdir(parents=True, exist_ok=True)
         if not path.exists():
             _publish(path, new_token())
-        token, where = path.read_text(encoding="utf-8").strip(), str(path)
-    if not token:
-        raise InputError(f"the admin token in {where} is empty")
-    if len(token) < MIN_ADMIN_TOKEN_CHARS:
+        secret, where = path.read_text(encoding="utf-8").strip(), str(path)
+    if not secret:
+        raise InputError(f"the {what} in {where} is empty")
+    if len(secret) < MIN_ADMIN_TOKEN_CHARS:
         raise InputError(
-            f"the admin token in {where} has {len(token)} characters; use at least "
+            f"the {what} in {where} has {len(secret)} characters; use at least "
             f"{MIN_ADMIN_TOKEN_CHARS}, e.g. python3 -c 'import secrets; "
             f"print(secrets.token_urlsafe(32))'"
         )
-    return token
+    return secret
 
 
 def _publish(path: Path, token: str) -> None:

@@ -7,10 +7,12 @@ from fastapi import Request
 from app.recruiting.members import STUDY
 
 
-def image_url(study_id: int, candidate_id: int, size: str = "full") -> str:
+def image_url(study_id: int, candidate_id: int, size: str = "full", marker: bool = False) -> str:
     """Where a candidate's image is served (see ``candidate_image``; ``size``: ``full`` or
-    ``thumb``)."""
+    ``thumb``; ``marker``: with the instructed-response marker drawn on it)."""
     base = f"/api/studies/{study_id}/candidates/{candidate_id}/image"
+    if marker:
+        return f"{base}?marker=true" if size == "full" else f"{base}?size={size}&marker=true"
     return base if size == "full" else f"{base}?size={size}"
 
 

@@ -168,7 +168,7 @@ def _train(
     from engine.treefile import tree_from_json
 
     advice: Any = tree_from_json(row.advice) if row.advice is not None else None
-    if row.advice_pool:  # pooled: F is the mean of the trees' F (advice.json: the verdict)
+    if row.advice_pool:  # pooled: F is the (config.pool_weights) mean of the trees' F
         advice = [tree_from_json(m["tree"]) for m in row.advice_pool]
     train(
         TrainConfig.from_json(row.config),

@@ -12,11 +12,12 @@ from app.core.errors import ForbiddenError
 from app.http.deps import DbId, ResearcherDep, RuntimeDep, SessionDep, ViewerDep
 from app.http.member_auth import InviteTokenDep, ParticipantDep
 from app.http.urls import image_url
-from app.labelling import disagreement, trees
+from app.labelling import disagreement, quality, trees
 from app.labelling import service as labelling
 from app.labelling.schemas import (
     BracketCellOut,
     BracketOut,
+    GoldLabelOut,
     LabelIn,
     MeOut,
     NextMatchOut,
@@ -25,10 +26,10 @@ from app.labelling.schemas import (
 )
 from app.recruiting import members
 from app.runtime import Runtime
-from app.studies import participants
+from app.studies import gold, participants
 from app.studies import service as studies
 from app.studies.api import participant_out
-from app.studies.schemas import ParticipantOut, ProgressOut
+from app.studies.schemas import ExclusionIn, ParticipantOut, ProgressOut
 from engine.disagreement import MAX_PAIRS
 from engine.treefile import tree_to_json
 
@@ -78,24 +79,28 @@ def _next_match(runtime: Runtime, token: str | None) -> dict[str, Any] | None:
 
 def next_match_body(study_id: int, upcoming: labelling.NextMatch) -> dict[str, Any]:
     """The JSON of :class:`NextMatchOut`, built directly (the hot path skips pydantic)."""
-    m = upcoming.match
+    m, gold = upcoming.match, upcoming.gold
+    shown = m if gold is None else gold
+    marked = None if gold is None else gold.marked
     return {
         "match_id": m.id,
         "round": m.round,
         "n_rounds": upcoming.n_rounds,
         "match_number": upcoming.number,
         "matches_in_round": upcoming.in_round,
-        "a": _side(study_id, m.a),
-        "b": _side(study_id, m.b),
-        "left": m.left,
+        "a": _side(study_id, shown.a, shown.a == marked),
+        "b": _side(study_id, shown.b, shown.b == marked),
+        "left": shown.left,
         "progress": {"done": upcoming.progress.done, "total": upcoming.progress.total},
+        "gold": None if gold is None else {"item_id": gold.item_id, "prompt": gold.prompt},
+        "allow_ties": upcoming.allow_ties and gold is None,
     }
 
 
-def _side(study_id: int, candidate_id: int) -> dict[str, Any]:
+def _side(study_id: int, candidate_id: int, marked: bool = False) -> dict[str, Any]:
     return {
         "candidate_id": candidate_id,
-        "image_url": image_url(study_id, candidate_id),
+        "image_url": image_url(study_id, candidate_id, marker=marked),
         "thumb_url": image_url(study_id, candidate_id, "thumb"),
     }
 
@@ -162,6 +167,57 @@ def pair_out(study_id: int, pair: disagreement.PairView) -> PairOut:
         left_image_url=image_url(study_id, pair.left),
         right_image_url=image_url(study_id, pair.right),
     )
+
+
+@router.post(
+    "/me/gold/{item_id}/label",
+    status_code=201,
+    responses={
+        200: {
+            "description": "The same answer was already stored (idempotent).",
+            "model": GoldLabelOut,
+        },
+        404: {"description": "No such gold item for this participant."},
+        409: {"description": "The item is already answered the other way."},
+        422: {"description": "The winner is not one of the pair."},
+    },
+)
+def label_gold(
+    item_id: DbId, body: LabelIn, person: ParticipantDep, session: SessionDep, response: Response
+) -> GoldLabelOut:
+    """Store the participant's answer to a gold item shown before a match (issue 28 §1);
+    the answer carries the match to decide now."""
+    row, created = gold.answer(
+        session,
+        participant_id=person.id,
+        item_id=item_id,
+        winner=body.winner,
+        response_ms=body.response_ms,
+    )
+    if created:
+        quality.apply_gate(session, study_id=person.study_id)
+    else:
+        response.status_code = 200
+    upcoming = labelling.next_match(session, participant=person)
+    body_next = None if upcoming is None else next_match_body(person.study_id, upcoming)
+    return GoldLabelOut(
+        item_id=item_id,
+        winner=body.winner,
+        created=created,
+        next=None if body_next is None else NextMatchOut.model_validate(body_next),
+    )
+
+
+@router.put("/{participant_id}/exclusion")
+def set_exclusion(
+    participant_id: DbId, body: ExclusionIn, request: Request, session: SessionDep, _: ResearcherDep
+) -> ParticipantOut:
+    """Exclude a participant from pooling and exports, or include them again (issue 28 §1);
+    their labels are never deleted."""
+    person = participants.set_exclusion(
+        session, participant_id=participant_id, excluded=body.excluded, reason=body.reason
+    )
+    return participant_out(request, person, participants.progress(session, participant=person))
 
 
 @router.get("/{participant_id}")

@@ -45,15 +45,19 @@ def _wanted(session: Session, participant: Participant) -> bool:
     return bool(enabled) and participant.finished_at is not None
 
 
-def _create(session: Session, participant: Participant) -> ConsistencyCheck:
-    """Pick one of the participant's first-round matches (seeded by the study seed and the
-    participant) and store it with its sides swapped."""
+def _create(session: Session, participant: Participant) -> ConsistencyCheck | None:
+    """Pick one of the participant's first-round matches that they did not tie (seeded by
+    the study seed and the participant) and store it with its sides swapped; ``None`` when
+    they tied every one ("can't tell" has no answer to repeat)."""
     seed = session.execute(select(Study.seed).where(Study.id == participant.study_id)).scalar_one()
     firsts = session.scalars(
         select(Match)
-        .where(Match.participant_id == participant.id, Match.round == 1)
+        .join(Label, Label.match_id == Match.id)
+        .where(Match.participant_id == participant.id, Match.round == 1, Label.tie.is_(False))
         .order_by(Match.slot)
     ).all()
+    if not firsts:
+        return None
     rng = np.random.default_rng([int(seed), participant.id])
     match = firsts[int(rng.integers(len(firsts)))]
     check = ConsistencyCheck(
@@ -72,7 +76,7 @@ def pending_pair(session: Session, *, participant: Participant) -> CheckPair | N
     if not _wanted(session, participant):
         return None
     check = session.get(ConsistencyCheck, participant.id) or _create(session, participant)
-    if check.winner is not None:
+    if check is None or check.winner is not None:
         return None
     match = session.get_one(Match, check.match_id)
     left, right = (match.a, match.b) if check.a_left else (match.b, match.a)

@@ -11,6 +11,7 @@ from app.http.deps import SessionDep
 from app.http.guards import PageParticipant
 from app.http.rendering import RedirectTo, redirect, render
 from app.labelling import check as crowd_check
+from app.labelling import dataset
 from app.labelling.pages import THANKS, where_next
 from app.recruiting import pages as open_links
 from app.studies import crowd, participants
@@ -24,6 +25,7 @@ router = open_links.open_link_router(
         next_path=lambda session, person: where_next(
             participants.progress(session, participant=person)
         ),
+        share_label=dataset.SHARE_LABEL,
     )
 )
 

@@ -11,7 +11,8 @@ Hundreds of people label at once (issue 16), so each request does as little as i
   participant's lock, read the match, its label, the label count and the sibling slot's
   winner in one ``SELECT``, insert the label, open the next-round match or mark the bracket
   finished, and (on request) read the next open match, so that one round trip both stores
-  a decision and brings the next one.
+  a decision and brings the next one. The label that finishes the bracket also writes the
+  study's webhook events (:mod:`app.labelling.events`; one indexed query when it has none).
 
 Writes for one participant are serialised by updating their row first (a row lock on
 PostgreSQL; on SQLite the database's single-writer lock, see :func:`app.db.writing`), and
@@ -20,7 +21,10 @@ the UNIQUE ``labels.match_id`` constraint settles any race that gets through.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
+from datetime import datetime
+from typing import Any
 
 from sqlalchemy import BindParameter, Connection, bindparam, func, insert, select, update
 from sqlalchemy.exc import IntegrityError
@@ -28,11 +32,13 @@ from sqlalchemy.orm import Session, aliased
 
 from app.core.errors import AuthError, ConflictError, NotFoundError
 from app.db import writing
+from app.labelling import events
 from app.labelling.shape import BracketShape, shape_of
 from app.models import Label, Match, Participant, as_utc, utcnow
 from app.recruiting.members import STUDY
+from app.studies.gold import GoldPair, due_gold
 from app.studies.participants import ParticipantKey, Progress
-from app.studies.sides import a_on_left
+from app.studies.sides import a_on_left, a_wins_tie
 from engine.errors import InputError
 
 #: Longest response time stored (one day); a larger client value is bad input.
@@ -59,18 +65,22 @@ class OpenMatch:
 @dataclass(frozen=True)
 class NextMatch:
     """The participant's next match: "Round ``round`` of ``n_rounds``, match ``number`` of
-    ``in_round``"."""
+    ``in_round``"; ``gold``: a gold item to answer before it; ``allow_ties``: whether
+    "can't tell" is an answer."""
 
     match: OpenMatch
     n_rounds: int
     number: int
     in_round: int
     progress: Progress
+    gold: GoldPair | None = None
+    allow_ties: bool = False
 
 
 @dataclass(frozen=True)
 class LabelResult:
     """A stored label; ``created`` is ``False`` when the same label was already there.
+    ``tie``: the participant could not tell and ``winner`` is the seeded coin's.
     ``next`` is the match to decide now (``None`` when finished or not asked for)."""
 
     match_id: int
@@ -78,6 +88,7 @@ class LabelResult:
     created: bool
     progress: Progress
     next: NextMatch | None = None
+    tie: bool = False
 
 
 _PID: BindParameter[int] = bindparam("pid")
@@ -116,6 +127,7 @@ _MATCH_ROW = (
         Match.a_left,
         Match.created_at,
         Label.winner,
+        Label.tie,
         Participant.last_active_at,
         _DONE,
         _SIBLING_WINNER,
@@ -127,7 +139,7 @@ _MATCH_ROW = (
 _INSERT_LABEL, _INSERT_MATCH = insert(Label), insert(Match)
 _TOUCH = update(Participant).where(Participant.id == _PID).values(last_active_at=bindparam("now"))
 _FINISH = _TOUCH.values(finished_at=bindparam("now"))
-_LABEL_WINNER = select(Label.winner).where(Label.match_id == _MID)
+_LABEL_WINNER = select(Label.winner, Label.tie).where(Label.match_id == _MID)
 _DONE_ONLY = select(_DONE)
 
 
@@ -138,28 +150,46 @@ def _connection(db: Session | Connection) -> Connection:
 def next_match(
     db: Session | Connection, *, participant: ParticipantKey, done: int | None = None
 ) -> NextMatch | None:
-    """The earliest open match in (round, slot) order, or ``None`` when the bracket is done.
+    """The earliest open match in (round, slot) order, with the gold item due before it if
+    any, or ``None`` when the bracket is done.
 
     Args:
         done: the participant's label count when the caller knows it (saves a subquery).
     """
-    shape = shape_of(db, participant.study_id)
-    row = (
-        _connection(db)
-        .execute(_OPEN if done is not None else _OPEN_AND_DONE, {"pid": participant.id})
-        .one_or_none()
-    )
+    shape, conn = shape_of(db, participant.study_id), _connection(db)
+    row = conn.execute(
+        _OPEN if done is not None else _OPEN_AND_DONE, {"pid": participant.id}
+    ).one_or_none()
     if row is None:
         return None
     match = OpenMatch(*row[:6])
+    decided = row[6] if done is None else done
+    gold = due_gold(conn, participant_id=participant.id, done=decided)
     number, in_round = shape.position(match.round, match.slot)
     return NextMatch(
         match,
         shape.n_rounds,
         number,
         in_round,
-        Progress(row[6] if done is None else done, shape.n - 1),
+        Progress(decided, shape.n - 1),
+        gold,
+        shape.allow_ties,
     )
+
+
+@dataclass(frozen=True)
+class Decision:
+    """A participant's answer to a match: ``winner``, or ``tie`` ("can't tell"; the winner
+    is then the seeded coin's, :func:`app.studies.sides.a_wins_tie`)."""
+
+    match_id: int
+    winner: int | None
+    tie: bool
+    response_ms: int | None
+
+    def same_as(self, winner: int, tie: bool) -> bool:
+        """Whether a stored label (``winner``, ``tie``) is this decision."""
+        return tie if self.tie else not tie and winner == self.winner
 
 
 def submit_label(
@@ -167,13 +197,17 @@ def submit_label(
     *,
     participant: ParticipantKey,
     match_id: int,
-    winner: int,
+    winner: int | None,
+    tie: bool = False,
     response_ms: int | None = None,
     with_next: bool = False,
 ) -> LabelResult:
     """Store ``participant``'s decision of a match; sending the same one again is a no-op.
 
     Args:
+        winner: the preferred candidate; ``None`` with ``tie``.
+        tie: the participant cannot tell (studies that allow it); the bracket advances by
+            a seeded coin, recorded with the label.
         response_ms: time the participant took, measured by the client; when ``None`` it
             is estimated as the time since the match opened or since their previous write.
         with_next: also read the next open match, in the same transaction.
@@ -181,25 +215,34 @@ def submit_label(
     Raises:
         AuthError: the participant no longer exists.
         NotFoundError: no such match among this participant's.
-        InputError: ``winner`` did not play the match, or ``response_ms`` is out of range.
+        InputError: ``winner`` did not play the match, ``response_ms`` is out of range,
+            neither or both of ``winner`` and ``tie``, or a tie the study does not allow.
         ConflictError: the match is already decided the other way.
     """
     if response_ms is not None and not 0 <= response_ms <= MAX_RESPONSE_MS:
         raise InputError(f"response_ms must be in 0..{MAX_RESPONSE_MS}, got {response_ms}")
+    if (winner is None) != tie:
+        raise InputError("give either a winner or tie: true, not both")
     shape = shape_of(db, participant.study_id)
+    if tie and not shape.allow_ties:
+        raise InputError('this study does not allow "can\'t tell": choose a picture')
+    decision = Decision(match_id, winner, tie, response_ms)
     try:
         with writing(db):  # type: ignore[type-var]  # a Session or a Connection, both fine
-            return _submit(
-                _connection(db), participant, shape, match_id, winner, response_ms, with_next
-            )
+            return _submit(_connection(db), participant, shape, decision, with_next)
     except IntegrityError:  # a concurrent request stored this match's label first
         conn = _connection(db)
-        existing = conn.execute(_LABEL_WINNER, {"mid": match_id}).scalar()
+        existing = conn.execute(_LABEL_WINNER, {"mid": match_id}).one_or_none()
         if existing is None:
             raise ConflictError("the bracket changed concurrently; try again") from None
         done = conn.execute(_DONE_ONLY, {"pid": participant.id}).scalar_one()
         return _same_or_conflict(
-            conn, participant, match_id, existing, winner, done, shape, with_next
+            conn,
+            participant,
+            decision,
+            (existing[0], existing[1]),
+            Progress(done, shape.n - 1),
+            with_next,
         )
 
 
@@ -207,46 +250,73 @@ def _submit(
     conn: Connection,
     participant: ParticipantKey,
     shape: BracketShape,
-    match_id: int,
-    winner: int,
-    response_ms: int | None,
+    decision: Decision,
     with_next: bool,
 ) -> LabelResult:
-    now, pid = utcnow(), participant.id
+    now, pid, match_id = utcnow(), participant.id, decision.match_id
     if conn.execute(_LOCK, {"pid": pid}).rowcount == 0:
         raise AuthError(STUDY.unknown)
     row = conn.execute(_MATCH_ROW, {"pid": pid, "mid": match_id}).one_or_none()
     if row is None:
         raise NotFoundError(f"match {match_id} not found among this participant's matches")
-    rnd, slot, a, b, a_left, created_at, existing, last_active, done, sibling = row
-    if winner not in (a, b):
-        raise InputError(f"winner {winner} did not play match {match_id} ({a} vs {b})")
+    rnd, slot, a, b, _, _, existing, was_tie, _, done, sibling = row
+    if decision.winner is not None and decision.winner not in (a, b):
+        raise InputError(f"winner {decision.winner} did not play match {match_id} ({a} vs {b})")
     if existing is not None:
         return _same_or_conflict(
-            conn, participant, match_id, existing, winner, done, shape, with_next
+            conn, participant, decision, (existing, was_tie), Progress(done, shape.n - 1), with_next
         )
-    if response_ms is None:
-        opened = max(as_utc(t) for t in (created_at, last_active) if t is not None)
-        response_ms = max(0, round((now - opened).total_seconds() * 1000))
-    conn.execute(
-        _INSERT_LABEL,
-        {
-            "match_id": match_id,
-            "participant_id": pid,
-            "winner": winner,
-            "response_ms": response_ms,
-            "chose_left": winner == (a if a_left else b),
-        },
-    )
+    winner = _insert_label(conn, pid, shape, decision, row, now)
     progress = Progress(done + 1, shape.n - 1)
     if rnd == 1 and slot ^ 1 in shape.byes:
         sibling = shape.byes[slot ^ 1]
     if not progress.finished and sibling is not None:
         _open_next_round(conn, shape, pid, rnd, slot, winner, sibling)
     conn.execute(_FINISH if progress.finished else _TOUCH, {"pid": pid, "now": now})
+    if progress.finished:  # webhook events, in this transaction (one query when none)
+        events.finished(conn, participant=participant)
     return LabelResult(
-        match_id, winner, True, progress, _next(conn, participant, progress, with_next)
+        match_id,
+        winner,
+        True,
+        progress,
+        _next(conn, participant, progress, with_next),
+        decision.tie,
     )
+
+
+def _insert_label(
+    conn: Connection,
+    pid: int,
+    shape: BracketShape,
+    decision: Decision,
+    match: Sequence[Any],
+    now: datetime,
+) -> int:
+    """Store the label of an undecided match (a :data:`_MATCH_ROW`); returns who advances:
+    the choice, or the seeded coin's after a tie."""
+    rnd, slot, a, b, a_left, created_at, _, _, last_active = match[:9]
+    winner = decision.winner
+    if winner is None:  # a tie: the seeded coin decides who advances
+        coin = a_wins_tie(seed=shape.seed, participant_id=pid, rnd=rnd, slot=slot)
+        winner = a if coin else b
+    response_ms = decision.response_ms
+    if response_ms is None:
+        opened = max(as_utc(t) for t in (created_at, last_active) if t is not None)
+        response_ms = max(0, round((now - opened).total_seconds() * 1000))
+    conn.execute(
+        _INSERT_LABEL,
+        {
+            "match_id": decision.match_id,
+            "participant_id": pid,
+            "winner": winner,
+            "response_ms": response_ms,
+            # a tie chose no side: it says nothing of position bias
+            "chose_left": None if decision.tie else winner == (a if a_left else b),
+            "tie": decision.tie,
+        },
+    )
+    return winner
 
 
 def _open_next_round(
@@ -278,16 +348,20 @@ def _next(
 def _same_or_conflict(
     conn: Connection,
     participant: ParticipantKey,
-    match_id: int,
-    existing: int,
-    winner: int,
-    done: int,
-    shape: BracketShape,
+    decision: Decision,
+    stored: tuple[int, bool],
+    progress: Progress,
     with_next: bool,
 ) -> LabelResult:
-    if existing != winner:
-        raise ConflictError(f"match {match_id} is already decided: {existing} won")
-    progress = Progress(done, shape.n - 1)
+    winner, tie = stored
+    if not decision.same_as(winner, tie):
+        said = "can't tell" if tie else f"{winner} won"
+        raise ConflictError(f"match {decision.match_id} is already decided: {said}")
     return LabelResult(
-        match_id, existing, False, progress, _next(conn, participant, progress, with_next)
+        decision.match_id,
+        winner,
+        False,
+        progress,
+        _next(conn, participant, progress, with_next),
+        tie,
     )

@@ -4,10 +4,13 @@ Each row names the study, the participant and their external ids, its ``kind`` (
 or ``disagreement`` for a pair asked after the bracket, which has no match id or round:
 :mod:`app.labelling.disagreement`), the match and its round,
 the candidates shown on the left and on the right, the winner and the side chosen, the
-response time, when the pair was shown and when it was labelled. ``shown_at`` is
+response time, when the pair was shown and when it was labelled, and ``tie`` (the
+participant could not tell; the winner is then the seeded coin's). ``shown_at`` is
 ``labelled_at`` minus the response time (the page measures that from both pictures being
-on screen), so it is empty when no response time was stored. Quality flags
-(:mod:`app.labelling.quality`) ride along per participant.
+on screen), so it is empty when no response time was stored. Per participant, their quality
+flags, reliability and gold answers (:mod:`app.labelling.quality`) ride along, and whether
+the researcher excluded them: excluded participants' labels are left out unless asked for
+(``include_excluded``), and never deleted.
 """
 
 from __future__ import annotations
@@ -17,7 +20,7 @@ import json
 from datetime import datetime, timedelta
 from typing import Any
 
-from sqlalchemy import select
+from sqlalchemy import ColumnElement, select
 from sqlalchemy.orm import Session
 
 from app.core import csv_export
@@ -41,17 +44,39 @@ COLUMNS = (
     "shown_at",
     "labelled_at",
     "flags",
+    "tie",
+    "reliability",
+    "gold_right",
+    "gold_asked",
+    "excluded",
 )
+People = dict[int, dict[str, Any]]
+"""Participant id -> the columns that describe them, not the label: ``flags``,
+``reliability``, ``gold_right`` and ``gold_asked`` (gold items answered right, and
+answered), ``excluded``."""
 
 
 def _side(chose_left: bool | None) -> str | None:
     return None if chose_left is None else ("left" if chose_left else "right")
 
 
-def records(session: Session, *, study_id: int) -> list[dict[str, Any]]:
-    """Every label of the study, in label order, as :data:`COLUMNS` dicts."""
+def records(
+    session: Session, *, study_id: int, include_excluded: bool = False
+) -> list[dict[str, Any]]:
+    """Every label of the study, in label order, as :data:`COLUMNS` dicts; excluded
+    participants' labels only with ``include_excluded``."""
     get_study(session, study_id=study_id)
-    flags = {q.participant.id: q.flags for q in quality(session, study_id=study_id).participants}
+    people: People = {
+        q.participant.id: {
+            "flags": q.flags,
+            "reliability": q.reliability,
+            "gold_right": q.gold.right,
+            "gold_asked": q.gold.asked,
+            "excluded": q.participant.excluded,
+        }
+        for q in quality(session, study_id=study_id).participants
+    }
+    kept = _kept(study_id, include_excluded)
     rows = session.execute(
         select(
             Label.participant_id,
@@ -66,22 +91,29 @@ def records(session: Session, *, study_id: int) -> list[dict[str, Any]]:
             Label.chose_left,
             Label.response_ms,
             Label.created_at,
+            Label.tie,
         )
         .join(Match, Match.id == Label.match_id)
         .join(Participant, Participant.id == Label.participant_id)
-        .where(Participant.study_id == study_id)
+        .where(*kept)
         .order_by(Label.id)
     )
     out = [
-        _record(study_id, flags, "bracket", pid, ext, ext_ids, mid, rnd, a, b, a_left, w, ms, at)
-        | {"side": _side(chose_left)}  # None for labels stored before sides were recorded
-        for pid, ext, ext_ids, mid, rnd, a, b, a_left, w, chose_left, ms, at in rows
+        _record(study_id, people, "bracket", pid, ext, ext_ids, mid, rnd, a, b, a_left, w, ms, at)
+        | {"side": _side(chose_left), "tie": bool(tie)}  # side None: stored before sides were
+        for pid, ext, ext_ids, mid, rnd, a, b, a_left, w, chose_left, ms, at, tie in rows
     ]
-    return out + _pair_records(session, study_id, flags)
+    return out + _pair_records(session, study_id, people, kept)
+
+
+def _kept(study_id: int, include_excluded: bool) -> list[ColumnElement[bool]]:
+    """The conditions on ``Participant`` of the labels exported."""
+    mine = Participant.study_id == study_id
+    return [mine] if include_excluded else [mine, Participant.excluded.is_(False)]
 
 
 def _pair_records(
-    session: Session, study_id: int, flags: dict[int, list[str]]
+    session: Session, study_id: int, people: People, kept: list[ColumnElement[bool]]
 ) -> list[dict[str, Any]]:
     """The answered disagreement pairs, by participant and position."""
     rows = session.execute(
@@ -97,18 +129,20 @@ def _pair_records(
             DisagreementPair.answered_at,
         )
         .join(Participant, Participant.id == DisagreementPair.participant_id)
-        .where(Participant.study_id == study_id, DisagreementPair.winner.is_not(None))
+        .where(*kept, DisagreementPair.winner.is_not(None))
         .order_by(DisagreementPair.participant_id, DisagreementPair.position)
     )
     return [
-        _record(study_id, flags, "disagreement", pid, ext, ids, None, None, a, b, a_left, w, ms, at)
+        _record(
+            study_id, people, "disagreement", pid, ext, ids, None, None, a, b, a_left, w, ms, at
+        )
         for pid, ext, ids, a, b, a_left, w, ms, at in rows
     ]
 
 
 def _record(
     study_id: int,
-    flags: dict[int, list[str]],
+    people: People,
     kind: str,
     pid: int,
     ext: str | None,
@@ -141,7 +175,8 @@ def _record(
         "response_ms": ms,
         "shown_at": None if shown is None else shown.isoformat(),
         "labelled_at": labelled.isoformat(),
-        "flags": flags.get(pid, []),
+        "tie": False,  # a disagreement pair is always decided (a bracket label's is its own)
+        **people[pid],
     }
 
 
@@ -187,6 +222,9 @@ def to_parquet(rows: list[dict[str, Any]]) -> bytes:
             ("shown_at", pa.string()),
             ("labelled_at", pa.string()),
             ("flags", pa.list_(pa.string())),
+            ("tie", pa.bool_()),
+            ("reliability", pa.float64()),
+            ("excluded", pa.bool_()),
         ]
     )
     flat = [{**r, "external_ids": json.dumps(r["external_ids"], sort_keys=True)} for r in rows]

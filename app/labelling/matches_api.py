@@ -12,7 +12,7 @@ from app.http.deps import DbId, RuntimeDep, SessionDep
 from app.http.member_auth import InviteTokenDep, ParticipantDep
 from app.labelling import service as labelling
 from app.labelling.api import next_match_body, progress_out
-from app.labelling.schemas import LabelIn, LabelOut, UndoOut
+from app.labelling.schemas import LabelOut, MatchLabelIn, UndoOut
 from app.recruiting import members
 from app.runtime import Runtime
 from app.studies import participants
@@ -28,22 +28,26 @@ router = APIRouter(prefix="/matches", tags=["matches"])
         200: {"description": "The same label was already stored (idempotent).", "model": LabelOut},
         404: {"description": "No such match among this participant's."},
         409: {"description": "The match is already decided the other way."},
-        422: {"description": "The winner did not play this match."},
+        422: {
+            "description": "The winner did not play this match, or a tie where the study "
+            'does not allow "can\'t tell".'
+        },
     },
 )
 async def label_match(
-    match_id: DbId, body: LabelIn, token: InviteTokenDep, runtime: RuntimeDep
+    match_id: DbId, body: MatchLabelIn, token: InviteTokenDep, runtime: RuntimeDep
 ) -> Response:
-    """Store the participant's preferred candidate of a match. The answer carries the next
-    match to decide (``next``, ``null`` once the bracket is finished), so a participant
-    needs one round trip per decision."""
+    """Store the participant's preferred candidate of a match, or ``{"tie": true}`` ("can't
+    tell", where the study allows it). The answer carries the next match to decide
+    (``next``, ``null`` once the bracket is finished), so a participant needs one round trip
+    per decision."""
     # Hot path: one worker-thread hop with a session of its own, as in ``next-match``.
     result, study_id = await run_in_threadpool(_label, runtime, token, match_id, body)
     return JSONResponse(label_body(result, study_id), status_code=201 if result.created else 200)
 
 
 def _label(
-    runtime: Runtime, token: str | None, match_id: int, body: LabelIn
+    runtime: Runtime, token: str | None, match_id: int, body: MatchLabelIn
 ) -> tuple[labelling.LabelResult, int]:
     with runtime.engine.connect() as conn:
         person = members.participant_ref(conn, token=token)
@@ -52,6 +56,7 @@ def _label(
             participant=person,
             match_id=match_id,
             winner=body.winner,
+            tie=body.tie,
             response_ms=body.response_ms,
             with_next=True,
         )
@@ -63,6 +68,7 @@ def label_body(result: labelling.LabelResult, study_id: int) -> dict[str, Any]:
     return {
         "match_id": result.match_id,
         "winner": result.winner,
+        "tie": result.tie,
         "created": result.created,
         "progress": {"done": result.progress.done, "total": result.progress.total},
         "finished": result.progress.finished,

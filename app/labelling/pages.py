@@ -15,11 +15,12 @@ from sqlalchemy.orm import Session
 
 from app.core.errors import AuthError, NotFoundError
 from app.http import cookies
-from app.http.deps import SessionDep
+from app.http.csrf import CsrfChecked, FormFields
+from app.http.deps import SessionDep, SettingsDep
 from app.http.guards import PageParticipant
 from app.http.rendering import PageRoute, RedirectTo, is_https, redirect, render, thumb_template
 from app.labelling import check as crowd_check
-from app.labelling import disagreement
+from app.labelling import dataset, disagreement, practice
 from app.models import Participant
 from app.recruiting import members
 from app.recruiting import service as recruiting
@@ -29,9 +30,11 @@ from app.studies import service as studies
 router = APIRouter(route_class=PageRoute, include_in_schema=False)
 
 INSTRUCTIONS = "/participate"
+PRACTICE = "/participate/practice"
 LABEL = "/participate/label"
 THANKS = "/participate/thanks"
 PAIRS = "/participate/pairs"
+SHARE = "/participate/share"
 
 
 def where_next(progress: participants.Progress) -> str:
@@ -67,9 +70,26 @@ def _context(session: Session, person: Participant) -> dict[str, Any]:
 
 
 @router.get(INSTRUCTIONS)
-def instructions(request: Request, session: SessionDep, person: PageParticipant) -> HTMLResponse:
-    """The study's instructions and a start (or continue) button."""
-    return render(request, "instructions.html", _context(session, person))
+def instructions(
+    request: Request, session: SessionDep, person: PageParticipant, settings: SettingsDep
+) -> HTMLResponse:
+    """The study's instructions and a start (or continue) button: to the practice pairs
+    when the participant has any (:mod:`app.labelling.practice`), else to the bracket."""
+    pairs = practice.practice(session, participant=person, images_dir=settings.images_dir).pairs
+    context = _context(session, person) | {
+        "practice_pairs": len(pairs),
+        "start_url": PRACTICE if pairs else LABEL,
+        "share_label": dataset.SHARE_LABEL,
+    }
+    return render(request, "instructions.html", context)
+
+
+@router.post(SHARE, dependencies=[CsrfChecked])
+def share_choice(session: SessionDep, person: PageParticipant, fields: FormFields) -> Response:
+    """Store the instructions page's sharing choice (ticked or not), then show the page."""
+    share = fields.get("share") == "on"
+    participants.set_share_consent(session, participant_id=person.id, share=share)
+    return redirect(INSTRUCTIONS + "#share-form")
 
 
 @router.get(LABEL)

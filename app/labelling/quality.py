@@ -1,25 +1,35 @@
-"""Label quality and agreement of a study's participants (issue 14): position bias, speed,
-the consistency check and the reliability it gives, agreement on shared pairs, Krippendorff's
-alpha, and agreement with the simulated teachers. Flags only: nothing is rejected
-automatically."""
+"""Label quality and agreement of a study's participants (issues 14 and 28): position bias,
+speed, the consistency check, gold accuracy with its interval and the qualification gate,
+the reliability these give, "can't tell" answers, agreement on shared pairs,
+Krippendorff's alpha, and agreement with the simulated teachers. Flags only: nothing is
+rejected automatically, unless the researcher has the gate exclude (:func:`apply_gate`).
+
+A tie ("can't tell") is neither agreement nor disagreement: it is left out of every
+agreement and of position bias, and counted per participant."""
 
 from __future__ import annotations
 
 import statistics
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
+from app.db import writing
 from app.labelling.check import agreement_by_participant
-from app.models import Label, Match, Participant
+from app.models import CrowdSettings, Label, Match, Participant
+from app.recruiting import events
 from app.recruiting import service as recruiting
-from app.studies.crowd import DEFAULT_SPEED_THRESHOLD_MS, LINK
+from app.studies import gold
+from app.studies.crowd import DEFAULT_SPEED_THRESHOLD_MS, LINK, CrowdOptions, configure
+from app.studies.gold import GoldScore
 from app.studies.service import engine_candidates_of, get_study
+from app.webhooks.outbox import Owner, webhook_ids
 from engine import agreement
 from engine.envs import env_model
-from engine.reliability import Checks, competence
+from engine.reliability import Checks, competence, gold_interval
 from engine.teachers import make_teacher
 
 #: Position bias is flagged below this p-value of the binomial test.
@@ -38,34 +48,106 @@ class LabelRow:
     winner: int
     chose_left: bool | None
     response_ms: int | None
+    tie: bool = False
+
+
+def is_fast(median_ms: float | None, threshold_ms: int) -> bool:
+    """The speed flag: a median response time under the study's threshold."""
+    return median_ms is not None and median_ms < threshold_ms
+
+
+@lru_cache(maxsize=4096)
+def position_biased(left: int, sided: int) -> bool:
+    """The position-bias flag: the binomial test of ``left`` of ``sided`` choices against one
+    half rejects at :data:`BIAS_ALPHA` (cached: participants share few distinct counts)."""
+    p_value = agreement.side_bias(left=left, labels=sided).p_value
+    return p_value is not None and p_value < BIAS_ALPHA
+
+
+@lru_cache(maxsize=4096)
+def below_gate(gold: GoldScore, gate: float | None) -> bool:
+    """The gate's flag: even the upper bound of gold accuracy's 95% Clopper-Pearson interval
+    is below the gate, so clearly careless, not merely unlucky on a few items."""
+    interval = gold_interval(Checks(gold_right=gold.right, gold_asked=gold.asked))
+    return gate is not None and interval is not None and interval[1] < gate
+
+
+def flags_of(
+    *,
+    left: int,
+    sided: int,
+    fast: bool,
+    consistent: bool | None = None,
+    gold: GoldScore = GoldScore(0, 0),
+    gate: float | None = None,
+) -> list[str]:
+    """A participant's quality flags, the one rule for the quality table, the live
+    dashboard and webhook events: ``position_bias``, ``fast``, ``inconsistent`` (the
+    consistency check differs) and ``below_gate``, when they apply."""
+    on = {
+        "position_bias": position_biased(left, sided),
+        "fast": fast,
+        "inconsistent": consistent is False,
+        "below_gate": below_gate(gold, gate),
+    }
+    return [flag for flag, applies in on.items() if applies]
 
 
 @dataclass(frozen=True)
 class ParticipantQuality:
+    """One participant's quality; ``gold_gate`` is the study's gate (None: no gate)."""
+
     participant: Participant
     bias: agreement.SideBias
     median_response_ms: float | None
     fast: bool
     consistency_agrees: bool | None
+    gold: GoldScore = GoldScore(0, 0)
+    ties: int = 0
+    gold_gate: float | None = None
 
     @property
     def flags(self) -> list[str]:
-        """``position_bias``, ``fast`` and ``inconsistent``, when they apply."""
-        flags = []
-        if self.bias.p_value is not None and self.bias.p_value < BIAS_ALPHA:
-            flags.append("position_bias")
-        if self.fast:
-            flags.append("fast")
-        if self.consistency_agrees is False:
-            flags.append("inconsistent")
-        return flags
+        """``position_bias``, ``fast``, ``inconsistent`` and ``below_gate`` (:func:`flags_of`)."""
+        return flags_of(
+            left=self.bias.left,
+            sided=self.bias.labels,
+            fast=self.fast,
+            consistent=self.consistency_agrees,
+            gold=self.gold,
+            gate=self.gold_gate,
+        )
 
     @property
     def checks(self) -> Checks:
-        """The known-answer checks this participant answered: the consistency pair."""
-        if self.consistency_agrees is None:
-            return Checks()
-        return Checks(consistent=int(self.consistency_agrees), consistency_asked=1)
+        """The known-answer checks this participant answered: gold items and the
+        consistency pair."""
+        consistent = self.consistency_agrees
+        return Checks(
+            gold_right=self.gold.right,
+            gold_asked=self.gold.asked,
+            consistent=int(bool(consistent)),
+            consistency_asked=int(consistent is not None),
+        )
+
+    @property
+    def gold_interval(self) -> tuple[float, float] | None:
+        """Clopper-Pearson 95% interval of gold accuracy (None before any gold item)."""
+        return gold_interval(self.checks)
+
+    @property
+    def below_gate(self) -> bool:
+        """Whether the study's gate flags this participant (:func:`below_gate`)."""
+        return below_gate(self.gold, self.gold_gate)
+
+    @property
+    def gate_reason(self) -> str:
+        """Why the gate flags this participant, in words."""
+        low, high = self.gold_interval or (0.0, 1.0)
+        return (
+            f"gold gate: {self.gold.right} of {self.gold.asked} gold items right "
+            f"(95% interval {low:.2f} to {high:.2f}, below {self.gold_gate:g})"
+        )
 
     @property
     def reliability(self) -> float:
@@ -79,6 +161,7 @@ class StudyQuality:
     speed_threshold_ms: int
     bias: agreement.SideBias
     participants: list[ParticipantQuality]
+    gold_gate: float | None = None
 
 
 def label_rows(session: Session, *, study_id: int) -> list[LabelRow]:
@@ -91,6 +174,7 @@ def label_rows(session: Session, *, study_id: int) -> list[LabelRow]:
             Label.winner,
             Label.chose_left,
             Label.response_ms,
+            Label.tie,
         )
         .join(Match, Match.id == Label.match_id)
         .join(Participant, Participant.id == Label.participant_id)
@@ -100,8 +184,18 @@ def label_rows(session: Session, *, study_id: int) -> list[LabelRow]:
     return [LabelRow(*r) for r in rows]
 
 
+@dataclass(frozen=True)
+class _Known:
+    """What a study knows of its participants beyond their labels."""
+
+    threshold_ms: int
+    gate: float | None
+    consistent: dict[int, bool]
+    gold: dict[int, GoldScore]
+
+
 def _participant_quality(
-    person: Participant, rows: list[LabelRow], threshold_ms: int, consistent: bool | None
+    person: Participant, rows: list[LabelRow], known: _Known
 ) -> ParticipantQuality:
     sided = [r.chose_left for r in rows if r.chose_left is not None]
     times = [r.response_ms for r in rows if r.response_ms is not None]
@@ -110,29 +204,81 @@ def _participant_quality(
         person,
         agreement.side_bias(left=sum(sided), labels=len(sided)),
         median,
-        median is not None and median < threshold_ms,
-        consistent,
+        is_fast(median, known.threshold_ms),
+        known.consistent.get(person.id),
+        known.gold.get(person.id, GoldScore(0, 0)),
+        sum(r.tie for r in rows),
+        known.gate,
+    )
+
+
+def _known(session: Session, study_id: int) -> _Known:
+    settings = recruiting.settings(session, LINK, study_id)
+    return _Known(
+        settings.speed_threshold_ms if settings else DEFAULT_SPEED_THRESHOLD_MS,
+        settings.gold_gate if settings else None,
+        agreement_by_participant(session, study_id=study_id),
+        gold.scores(session, study_id=study_id),
     )
 
 
 def quality(session: Session, *, study_id: int) -> StudyQuality:
-    """Position bias, median response time and consistency, per participant and study."""
+    """Position bias, median response time, consistency, gold accuracy and ties, per
+    participant and study."""
     get_study(session, study_id=study_id)
-    settings = recruiting.settings(session, LINK, study_id)
-    threshold = settings.speed_threshold_ms if settings else DEFAULT_SPEED_THRESHOLD_MS
+    known = _known(session, study_id)
     rows = label_rows(session, study_id=study_id)
-    checks = agreement_by_participant(session, study_id=study_id)
     people = session.scalars(
         select(Participant).where(Participant.study_id == study_id).order_by(Participant.id)
     ).all()
     per = [
-        _participant_quality(
-            p, [r for r in rows if r.participant_id == p.id], threshold, checks.get(p.id)
-        )
+        _participant_quality(p, [r for r in rows if r.participant_id == p.id], known)
         for p in people
     ]
     sided = [r.chose_left for r in rows if r.chose_left is not None]
-    return StudyQuality(threshold, agreement.side_bias(left=sum(sided), labels=len(sided)), per)
+    return StudyQuality(
+        known.threshold_ms, agreement.side_bias(left=sum(sided), labels=len(sided)), per, known.gate
+    )
+
+
+def configure_crowd(session: Session, *, study_id: int, options: CrowdOptions) -> CrowdSettings:
+    """Set a study's open link and quality options (:func:`app.studies.crowd.configure`),
+    then apply a gate that excludes to the participants it flags already."""
+    settings = configure(session, study_id=study_id, options=options)
+    apply_gate(session, study_id=study_id)
+    return settings
+
+
+def apply_gate(session: Session, *, study_id: int) -> list[int]:
+    """Exclude the participants the gold gate flags, when the researcher has the gate
+    exclude; returns who was newly excluded. Labels are kept. A participant the researcher
+    decided on (excluded, or included again: ``exclusion_reason`` set) is left as decided.
+    Whom the gate flags gets a ``participant.flagged`` webhook event, in this transaction.
+    """
+    settings = recruiting.settings(session, LINK, study_id)
+    if settings is None or settings.gold_gate is None:
+        return []
+    if not settings.gate_excludes and not webhook_ids(session, Owner("study", study_id)):
+        return []  # nobody to exclude, nobody to tell
+    flagged = [q for q in quality(session, study_id=study_id).participants if q.below_gate]
+    newly = [q for q in flagged if settings.gate_excludes and _gated(q)]
+    with writing(session):
+        for q in newly:
+            q.participant.excluded, q.participant.exclusion_reason = True, q.gate_reason
+        for q in flagged:  # participant.flagged, once per participant (issue 29 §3)
+            _gate_event(session, study_id, q)
+    return [q.participant.id for q in newly]
+
+
+def _gate_event(session: Session, study_id: int, q: ParticipantQuality) -> None:
+    data = {"flags": ["below_gate"], "reason": q.gate_reason, "excluded": q.participant.excluded}
+    events.flagged(
+        session, LINK, member_id=q.participant.id, owner_id=study_id, by="gold_gate", data=data
+    )
+
+
+def _gated(q: ParticipantQuality) -> bool:
+    return q.below_gate and q.participant.exclusion_reason is None
 
 
 @dataclass(frozen=True)
@@ -154,9 +300,11 @@ class StudyAgreement:
 
 
 def choices(rows: list[LabelRow]) -> dict[int, dict[agreement.Pair, int]]:
-    """Each participant's decided pairs (unordered) and winners."""
+    """Each participant's decided pairs (unordered) and winners, ties left out."""
     out: dict[int, dict[agreement.Pair, int]] = {}
     for r in rows:
+        if r.tie:  # "can't tell" is neither agreement nor disagreement
+            continue
         out.setdefault(r.participant_id, {})[agreement.pair_key(r.a, r.b)] = r.winner
     return out
 

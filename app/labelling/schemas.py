@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Annotated
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, StrictBool
 
 from app.core.json_types import JsonInt
 from app.labelling.service import MAX_RESPONSE_MS, BracketCell
@@ -30,8 +30,20 @@ class MatchSide(BaseModel):
     thumb_url: str
 
 
+class GoldDueOut(BaseModel):
+    """A gold item to answer before the match (issue 28 §1): not part of the bracket."""
+
+    item_id: int = Field(description="Answer it at /api/participants/me/gold/{item_id}/label.")
+    prompt: str | None = Field(
+        description='What an instructed item asks ("choose the picture with the marker"); '
+        "null for a pair, asked like any match."
+    )
+
+
 class NextMatchOut(BaseModel):
-    """Round ``round`` of ``n_rounds``, match ``match_number`` of ``matches_in_round``."""
+    """Round ``round`` of ``n_rounds``, match ``match_number`` of ``matches_in_round``.
+    While ``gold`` is set, ``a``, ``b`` and ``left`` are the gold item's pair, shown before
+    the match ``match_id``."""
 
     match_id: int
     round: int
@@ -45,6 +57,8 @@ class NextMatchOut(BaseModel):
         "sides are randomised per participant and match)."
     )
     progress: ProgressOut
+    gold: GoldDueOut | None = None
+    allow_ties: bool = Field(False, description='Whether "can\'t tell" is an answer here.')
 
 
 class LabelIn(BaseModel):
@@ -56,9 +70,20 @@ class LabelIn(BaseModel):
     )
 
 
+class MatchLabelIn(LabelIn):
+    """A decision of a bracket match: the preferred candidate, or ``tie`` ("can't tell",
+    in studies that allow it: a seeded coin then advances one of the two)."""
+
+    winner: JsonInt | None = Field(  # type: ignore[assignment]  # optional with a tie
+        None, ge=0, le=2**31 - 1, description="The preferred candidate's id; omit with tie."
+    )
+    tie: StrictBool = Field(False, description="The participant cannot tell.")
+
+
 class LabelOut(BaseModel):
     match_id: int
-    winner: int
+    winner: int = Field(description="Who advances: the choice, or the coin's after a tie.")
+    tie: bool = False
     created: bool
     progress: ProgressOut
     finished: bool
@@ -79,6 +104,15 @@ class PairOut(BaseModel):
     winner: int | None = Field(description="The answer; null while open.")
 
 
+class GoldLabelOut(BaseModel):
+    """A stored answer to a gold item, with the match to decide now."""
+
+    item_id: int
+    winner: int
+    created: bool
+    next: NextMatchOut | None
+
+
 class UndoOut(BaseModel):
     """The match that is open again."""
 
@@ -94,3 +128,16 @@ class BracketCellOut(BracketCell):
 
 class BracketOut(BaseModel):
     rounds: list[list[BracketCellOut]]
+
+
+class ShareConsentIn(BaseModel):
+    """Whether the participant agrees that their labels may be shared in a public dataset,
+    under a pseudonym (issue 29 §4)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    share: StrictBool = Field(description="true: agree; false: do not (the default).")
+
+
+class ShareConsentOut(BaseModel):
+    share: bool = Field(description="The participant's choice as now stored.")

@@ -17,13 +17,15 @@ from app.models import BracketSlot, Study
 @dataclass(frozen=True)
 class BracketShape:
     """A ready study's bracket: ``n`` candidates and the first round's byes; ``seed`` is the
-    study's (it seeds which side each match shows on the left)."""
+    study's (it seeds which side each match shows on the left, and the coin of a tie);
+    ``allow_ties``: whether a participant may answer "can't tell"."""
 
     n: int
     first_round: tuple[tuple[int, int | None], ...]  # (a, b) by slot; b is None for a bye
     byes: dict[int, int]  # first-round slot -> its lone player
     real_before: tuple[int, ...]  # first-round slot -> real matches in earlier slots
     seed: int = 0
+    allow_ties: bool = False
 
     @property
     def n_rounds(self) -> int:
@@ -48,7 +50,9 @@ def shape_of(db: Session | Connection, study_id: int) -> BracketShape:
     engine = engine_of(db)
     if (shape := _shapes.get(engine, {}).get(study_id)) is not None:
         return shape
-    n, seed = db.execute(select(Study.n_candidates, Study.seed).where(Study.id == study_id)).one()
+    n, seed, allow_ties = db.execute(
+        select(Study.n_candidates, Study.seed, Study.allow_ties).where(Study.id == study_id)
+    ).one()
     slots = tuple(
         (a, b)
         for a, b in db.execute(
@@ -62,7 +66,12 @@ def shape_of(db: Session | Connection, study_id: int) -> BracketShape:
         real_before.append(count)
         count += b is not None
     shape = BracketShape(
-        n, slots, {s: a for s, (a, b) in enumerate(slots) if b is None}, tuple(real_before), seed
+        n,
+        slots,
+        {s: a for s, (a, b) in enumerate(slots) if b is None},
+        tuple(real_before),
+        seed,
+        allow_ties,
     )
     with _shapes_lock:
         return _shapes.setdefault(engine, {}).setdefault(study_id, shape)

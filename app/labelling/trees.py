@@ -24,6 +24,7 @@ LABEL_COLUMNS = (
     "winner",
     "labelled_at",
     "response_ms",
+    "tie",
 )
 
 
@@ -55,7 +56,19 @@ def participant_tree(session: Session, *, participant_id: int) -> TreeDocument:
         candidates=engine_candidates_of(session, study_id=study.id),
         first_round=first_round(session, study_id=study.id),
         results=results,
+        ties=ties_of(session, participant_id=participant_id),
     )
+
+
+def ties_of(session: Session, *, participant_id: int) -> frozenset[tuple[int, int]]:
+    """``(round, slot)`` of the participant's matches labelled "can't tell" (``Label.tie``);
+    their ``winner`` is the seeded coin's (docs/method.md §2.14)."""
+    rows = session.execute(
+        select(Match.round, Match.slot)
+        .join(Label, Label.match_id == Match.id)
+        .where(Match.participant_id == participant_id, Label.tie.is_(True))
+    )
+    return frozenset((r, s) for r, s in rows)
 
 
 def study_trees(session: Session, *, study_id: int) -> list[tuple[int, TreeDocument]]:
@@ -83,6 +96,7 @@ def labels_csv(session: Session, *, study_id: int) -> str:
             Label.winner,
             Label.created_at,
             Label.response_ms,
+            Label.tie,
         )
         .join(Match, Match.id == Label.match_id)
         .join(Participant, Participant.id == Match.participant_id)
@@ -92,7 +106,7 @@ def labels_csv(session: Session, *, study_id: int) -> str:
     return csv_export.csv_text(
         LABEL_COLUMNS,
         (
-            (study_id, pid, mid, rnd, slot, a, b, winner, as_utc(at).isoformat(), ms)
-            for pid, mid, rnd, slot, a, b, winner, at, ms in rows
+            (study_id, pid, mid, rnd, slot, a, b, winner, as_utc(at).isoformat(), ms, bool(tie))
+            for pid, mid, rnd, slot, a, b, winner, at, ms, tie in rows
         ),
     )

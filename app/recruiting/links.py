@@ -271,6 +271,6 @@ def take_seat(
 
 
 def count_decline(session: Session, model: type[Link], owner: ColumnElement[bool]) -> None:
-    """Count a declined consent; nothing else about the visitor is stored."""
-    with writing(session):
-        session.execute(update(model).where(owner).values(declines=model.declines + 1))
+    """Count a declined consent, inside the caller's write transaction; nothing else about
+    the visitor is stored."""
+    session.execute(update(model).where(owner).values(declines=model.declines + 1))

@@ -79,12 +79,20 @@ def consent(
     link: CrowdSettings | SurveyCrowdSettings,
     action: str,
     ids: dict[str, str],
+    share_label: str | None = None,
 ) -> Response:
-    """The consent page: the researcher's text, agree or decline (posted to ``action``)."""
+    """The consent page: the researcher's text, agree or decline (posted to ``action``),
+    and the optional, unticked choice to share (``share_label``, where the kind asks it)."""
     return render(
         request,
         "crowd_consent.html",
-        {"header_name": name, "link": link, "action": action, "ids": ids},
+        {
+            "header_name": name,
+            "link": link,
+            "action": action,
+            "ids": ids,
+            "share_label": share_label,
+        },
     )
 
 
@@ -128,6 +136,9 @@ class LinkPages(Generic[Link, Member]):
     name_of: Callable[[Session, int], str]
     #: Where a member goes once they joined or resumed: their next page.
     next_path: Callable[[Session, Member], str]
+    #: The consent page's optional checkbox to share one's answers in a public dataset
+    #: (its label), or ``None`` where the kind's answers are never shared.
+    share_label: str | None = None
 
     def name(self, session: Session, link: Link) -> str:
         return self.name_of(session, self.kind.owner_id(link))
@@ -156,7 +167,7 @@ def open_link_router(pages: LinkPages[Any, Any]) -> APIRouter:
                 return pages.full(request, session, link)
             if link.consent_text:
                 name, action = pages.name(session, link), kind.open_path(link.slug)
-                return consent(request, name, link, action, ids)
+                return consent(request, name, link, action, ids, pages.share_label)
         return _enter(pages, request, session, link, ids, person)
 
     @router.post(path, dependencies=[CsrfChecked])
@@ -169,9 +180,9 @@ def open_link_router(pages: LinkPages[Any, Any]) -> APIRouter:
             recruiting.decline(session, kind, link=link)
             return message(request, pages.name(session, link), "You declined", DECLINED)
         ids = recruiting.external_ids(link, fields)
-        return _enter(
-            pages, request, session, link, ids, _returning(kind, request, session, link, ids)
-        )
+        share = pages.share_label is not None and fields.get("share") == "on"
+        person = _returning(kind, request, session, link, ids)
+        return _enter(pages, request, session, link, ids, person, share=share)
 
     return router
 
@@ -195,13 +206,17 @@ def _enter(
     link: Link,
     ids: dict[str, str],
     person: Member | None,
+    share: bool = False,
 ) -> Response:
-    """Resume ``person`` (a returning visitor), or make a member of a new one (rate-limited);
-    "full" past the maximum. Their cookie is set on the way to their next page."""
+    """Resume ``person`` (a returning visitor), or make a member of a new one (rate-limited;
+    ``share``: they agreed to share their answers); "full" past the maximum. Their cookie is
+    set on the way to their next page."""
     kind = pages.kind
     if person is None:
         try:
-            person = admit(request, lambda: recruiting.join(session, kind, link=link, ids=ids))
+            person = admit(
+                request, lambda: recruiting.join(session, kind, link=link, ids=ids, share=share)
+            )
         except kind.full_error:
             return pages.full(request, session, link)
     response = redirect(pages.next_path(session, person))

@@ -23,6 +23,7 @@ from app.core.auth import new_token
 from app.core.errors import NotFoundError
 from app.db import writing
 from app.models import CrowdSettings, SurveyCrowdSettings
+from app.recruiting import events
 from app.recruiting import links as open_links
 from app.recruiting.links import LinkFullError, LinkOptions
 from app.recruiting.members import CollectionKind, Member
@@ -151,10 +152,17 @@ def returning(
 
 
 def join(
-    session: Session, kind: LinkKind[Link, Member], *, link: Link, ids: dict[str, str]
+    session: Session,
+    kind: LinkKind[Link, Member],
+    *,
+    link: Link,
+    ids: dict[str, str],
+    share: bool = False,
 ) -> Member:
     """A new member for this visitor, or the one their first external id names (two first
     visits of one id at once: the ``UNIQUE (collection, external_id)`` index settles it).
+    ``share``: they agreed to have their labels shared in a public dataset (off unless they
+    ticked it on the consent page).
 
     Raises:
         LinkClosedError: the researcher closed the link.
@@ -169,6 +177,7 @@ def join(
         external_id=ids.get(link.external_params[0]),
         external_ids=ids or None,
         via_link=True,
+        share_consent=share,
     )
     try:
         with writing(session):
@@ -184,8 +193,12 @@ def join(
 
 
 def decline(session: Session, kind: LinkKind[Link, Member], *, link: Link) -> None:
-    """Count a declined consent; nothing else about the visitor is stored."""
-    open_links.count_decline(session, kind.link, kind.owner_is(kind.owner_id(link)))
+    """Count a declined consent, and write its webhook event in the same transaction;
+    nothing else about the visitor is stored."""
+    owner_id = kind.owner_id(link)
+    with writing(session):
+        open_links.count_decline(session, kind.link, kind.owner_is(owner_id))
+        events.declined(session, kind, owner_id=owner_id)
 
 
 def completion(session: Session, kind: LinkKind[Link, Member], *, member: Member) -> Link | None:

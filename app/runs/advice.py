@@ -30,24 +30,47 @@ def resolve(
     *,
     study_id: int,
     tree_options: dict[str, Any] | None = None,
-) -> tuple[pools.Pool | None, TreeDocument | None]:
+) -> tuple[pools.Pooled | None, TreeDocument | None]:
     """The run's pool (pooled advice only) and its advice tree (the pooled verdict for a
     pool; None without advice).
 
     Raises:
         InputError: a bad pool or teacher.
-        NotFoundError, ConflictError: a participant not in the study, or not finished.
+        NotFoundError, ConflictError: a participant not in the study, not finished or
+            excluded, or a reliability-weighted pool whose reliabilities are all 0.
     """
     if isinstance(source, PooledAdvice):
-        ids = pools.pool_ids(
+        pooled = pools.pool_of(
             session,
             study_id=study_id,
-            participant_ids=source.participant_ids,
-            all_participants=source.participant_ids is None,
+            ids=_pool_ids(session, source, study_id=study_id),
+            tree_options=tree_options,
+            weighted=source.weighting == "reliability",
         )
-        assert ids is not None  # a pool was asked for
-        return pools.pool_of(session, study_id=study_id, ids=ids, tree_options=tree_options)
+        return pooled, pooled.verdict
     return None, advice_tree(session, study_id=study_id, source=source)
+
+
+def pool_weights(
+    session: Session, source: AdviceSource, *, study_id: int
+) -> tuple[float, ...] | None:
+    """The weights a run on ``source`` would train with: each pooled participant's
+    reliability now, in the pool's order; None for the plain mean or no pool."""
+    if not isinstance(source, PooledAdvice) or source.weighting != "reliability":
+        return None
+    ids = _pool_ids(session, source, study_id=study_id)
+    return tuple(w.weight for w in pools.reliability_weights(session, study_id=study_id, ids=ids))
+
+
+def _pool_ids(session: Session, source: PooledAdvice, *, study_id: int) -> list[int]:
+    ids = pools.pool_ids(
+        session,
+        study_id=study_id,
+        participant_ids=source.participant_ids,
+        all_participants=source.participant_ids is None,
+    )
+    assert ids is not None  # a pool was asked for
+    return ids
 
 
 def advice_tree(

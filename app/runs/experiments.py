@@ -27,7 +27,6 @@ from app.models import Experiment, ExperimentRole, ExperimentRun, Run, RunStatus
 from app.runs import artefacts
 from app.runs import service as runs
 from app.runs.spec import RunSpec
-from app.studies.service import get_ready_study
 from engine.errors import InputError
 from engine.judges import JUDGE_COLUMNS, judge_name
 from engine.treefile import TreeDocument, tree_from_json
@@ -122,8 +121,7 @@ def _check_spec(spec: ExperimentSpec) -> None:
 def _baseline_run(session: Session, spec: ExperimentSpec, seed: int) -> Run:
     """The no-advice ``ppo`` run matching ``spec`` at ``seed``: an existing one, else new."""
     request = spec.run.baseline(seed)
-    study = get_ready_study(session, study_id=request.study_id)
-    config = runs.train_config(request, env_id=study.env_id).to_json()
+    config = runs.run_config(session, spec=request).to_json()  # a weighted pool's weights too
     reusable = session.scalars(
         select(Run)
         .where(

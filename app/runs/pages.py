@@ -21,7 +21,7 @@ from app.http.csrf import CsrfChecked, FormFields
 from app.http.deps import MAX_DB_ID, DbId, SessionDep
 from app.http.guards import ResearcherPage
 from app.http.rendering import PageRoute, redirect, render
-from app.models import StudyStatus
+from app.models import Participant, StudyStatus
 from app.runs import experiments, run_state
 from app.runs import service as runs
 from app.runs.experiments import DEFAULT_SEEDS
@@ -44,6 +44,7 @@ FORM_DEFAULTS = {
     "num_steps": "",
     "checkpoint_every": "",
     "advice_mode": "",
+    "pool_weighting": "mean",
     "experiment": "on",
     "seeds": str(DEFAULT_SEEDS),
 }
@@ -73,29 +74,36 @@ def run_list(
     )
 
 
-def _finished(session: Session, study_id: int) -> list[tuple[int, str]]:
-    """(id, label) of the study's finished participants."""
+def _finished(session: Session, study_id: int) -> list[Participant]:
+    """The study's finished participants."""
     return [
-        (p.id, f"participant #{p.id}" + (f" ({p.name})" if p.name else ""))
-        for p in (
-            s.participant
-            for s in participants.list_participants(session, study_id=study_id)
-            if s.progress.finished
-        )
+        s.participant
+        for s in participants.list_participants(session, study_id=study_id)
+        if s.progress.finished
     ]
 
 
-def _advice_choices(finished: list[tuple[int, str]]) -> list[tuple[str, str]]:
+def _label(person: Participant) -> str:
+    """``participant #3 (Ann)``."""
+    return f"participant #{person.id}" + (f" ({person.name})" if person.name else "")
+
+
+def _advice_choices(finished: list[Participant]) -> list[tuple[str, str]]:
+    poolable = [p for p in finished if not p.excluded]
+    left_out = " (excluded ones left out)" if len(poolable) < len(finished) else ""
     pooled = (
         [
-            (POOL_ALL, f"all {len(finished)} finished participants, pooled"),
+            (POOL_ALL, f"all {len(poolable)} finished participants, pooled{left_out}"),
             (POOL_CHOSEN, "the participants ticked below, pooled"),
         ]
-        if len(finished) > 1
+        if len(poolable) > 1
         else []
     )
     return (
-        [(f"participant:{pid}", label) for pid, label in finished]
+        [
+            (f"participant:{p.id}", _label(p) + (", excluded" if p.excluded else ""))
+            for p in finished
+        ]
         + pooled
         + [(f"teacher:{t}", f"simulated teacher: {t}") for t in TEACHERS]
         + [("none", "none (ppo only)")]
@@ -113,6 +121,7 @@ def _form_page(
 ) -> HTMLResponse:
     study = studies.get_ready_study(session, study_id=study_id)
     finished = _finished(session, study_id)
+    poolable = [(p.id, _label(p)) for p in finished if not p.excluded]  # excluded: never pooled
     return render(
         request,
         "run_new.html",
@@ -123,7 +132,7 @@ def _form_page(
             "algos": ALGOS,
             "advice_modes": ADVICE_MODES,
             "advice_choices": _advice_choices(finished),
-            "poolable": finished if len(finished) > 1 else [],
+            "poolable": poolable if len(poolable) > 1 else [],
             "chosen": chosen or [],
         },
         status_code=status_code,
@@ -161,6 +170,8 @@ def _body(study_id: int, values: dict[str, str], chosen: list[str]) -> dict[str,
     """The ``POST /api/runs`` body a submitted form stands for."""
     kind, _, who = values["advice"].partition(":")
     body: dict[str, Any] = {"study_id": study_id, "algo": values["algo"]}
+    if values["advice"] in (POOL_ALL, POOL_CHOSEN):  # the weighting select weights pools only
+        body["pool_weighting"] = values["pool_weighting"] or "mean"
     if values["advice"] == POOL_ALL:
         body["all_participants"] = True
     elif values["advice"] == POOL_CHOSEN:

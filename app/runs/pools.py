@@ -1,30 +1,70 @@
 """Pooled advice: a run trains on the trees of several finished participants of its study.
 
 The pool is chosen by participant ids (two or more, distinct) or as *all* the study's finished
-participants; it is frozen when the run is created as ``runs.advice_pool``
+participants; participants the researcher excluded (``participants.excluded``) are never
+pooled. It is frozen when the run is created as ``runs.advice_pool``
 (``{"participant_id", "tree"}`` by increasing id), and the run's ``advice`` is the pooled
 verdict (:func:`engine.pooling.pooled_tree`), which every comparison reads as the run's
 Human Preference Tree.
+
+The pool's trees are averaged by the plain mean, or weighted by each participant's
+reliability (:func:`reliability_weights`, issue 28 §2): the weights are the run's
+``config.pool_weights`` (what F trains with), and each pooled participant weighted below the
+pool's highest weight has a ``why`` in their ``advice_pool`` entry.
 """
 
 from __future__ import annotations
 
 from collections import Counter
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Any
 
 from sqlalchemy.orm import Session
 
 from app.core.errors import ConflictError, NotFoundError
+from app.labelling.quality import ParticipantQuality, quality
 from app.labelling.trees import participant_tree
-from app.models import Run
+from app.models import Participant, Run
+from app.runs.spec import PoolWeighting
 from app.studies.participants import get_participant, list_participants
 from engine.errors import InputError
 from engine.pooling import check_pool, pooled_tree
 from engine.treefile import TreeDocument, tree_to_json
 
 Pool = list[dict[str, Any]]
-"""``runs.advice_pool``: ``[{"participant_id": int, "tree": acv.tree/1}, ...]``."""
+"""``runs.advice_pool``: ``[{"participant_id": int, "tree": acv.tree/1, "why"?: str}, ...]``
+(``why``: reliability weighting only, for a participant it weighted down)."""
+
+
+@dataclass(frozen=True)
+class PoolWeight:
+    """A pooled participant's weight, and why the pool weighted them down (None: it did not).
+
+    Attributes:
+        participant_id: the participant.
+        weight: their reliability (:attr:`ParticipantQuality.reliability`), in [0, 1].
+        why: for a weight below the pool's highest, what their known-answer checks showed.
+    """
+
+    participant_id: int
+    weight: float
+    why: str | None = None
+
+
+@dataclass(frozen=True)
+class Pooled:
+    """A pool frozen for a run.
+
+    Attributes:
+        members: ``runs.advice_pool``.
+        weights: one per member, in their order (None: the plain mean).
+        verdict: the pooled verdict, weighted like F.
+    """
+
+    members: Pool
+    weights: tuple[float, ...] | None
+    verdict: TreeDocument
 
 
 def pool_ids(
@@ -61,11 +101,12 @@ def _finished_ids(session: Session, *, study_id: int) -> list[int]:
     done = [
         s.participant.id
         for s in list_participants(session, study_id=study_id)
-        if s.progress.finished
+        if s.progress.finished and not s.participant.excluded
     ]
     if len(done) < 2:
         raise ConflictError(
-            f"study {study_id} has {len(done)} finished participant(s); pooling needs two or more"
+            f"study {study_id} has {len(done)} finished participant(s) not excluded from "
+            "pooling; pooling needs two or more"
         )
     return sorted(done)
 
@@ -76,24 +117,86 @@ def pool_of(
     study_id: int,
     ids: Sequence[int],
     tree_options: dict[str, Any] | None = None,
-) -> tuple[Pool, TreeDocument]:
-    """The frozen pool of ``ids`` and its pooled verdict tree.
+    weighted: bool = False,
+) -> Pooled:
+    """The frozen pool of ``ids``, weighted by reliability when ``weighted``, and its pooled
+    verdict tree (with F's ``tree_options``).
 
     Raises:
         NotFoundError: an id that is no participant of ``study_id``.
-        ConflictError: a participant who has not finished.
+        ConflictError: a participant who has not finished or is excluded, or (``weighted``)
+            every reliability 0.
         InputError: trees over different brackets (never within one study).
     """
     trees = []
     for pid in ids:
-        if get_participant(session, participant_id=pid).study_id != study_id:
-            raise NotFoundError(f"participant {pid} is not in study {study_id}")
+        _check_poolable(get_participant(session, participant_id=pid), study_id)
         trees.append(participant_tree(session, participant_id=pid))
     check_pool(trees)
-    pool = [
-        {"participant_id": pid, "tree": tree_to_json(t)} for pid, t in zip(ids, trees, strict=True)
+    found = reliability_weights(session, study_id=study_id, ids=ids) if weighted else None
+    whys = {w.participant_id: w.why for w in found or () if w.why is not None}
+    pool: Pool = [
+        {"participant_id": pid, "tree": tree_to_json(t)}
+        | ({"why": whys[pid]} if pid in whys else {})
+        for pid, t in zip(ids, trees, strict=True)
     ]
-    return pool, pooled_tree(trees, **(tree_options or {}))
+    weights = None if found is None else tuple(w.weight for w in found)
+    return Pooled(pool, weights, pooled_tree(trees, **(tree_options or {}), weights=weights))
+
+
+def _check_poolable(person: Participant, study_id: int) -> None:
+    if person.study_id != study_id:
+        raise NotFoundError(f"participant {person.id} is not in study {study_id}")
+    if person.excluded:
+        reason = f" ({person.exclusion_reason})" if person.exclusion_reason else ""
+        raise ConflictError(
+            f"participant {person.id} is excluded from pooling{reason}; leave them out"
+        )
+
+
+def reliability_weights(session: Session, *, study_id: int, ids: Sequence[int]) -> list[PoolWeight]:
+    """Each of ``ids`` weighted by their reliability (:func:`app.labelling.quality.quality`),
+    with why for each one below the pool's highest weight: a weighted mean only compares
+    weights, so the most reliable count fully and the others are weighted down.
+
+    Raises:
+        NotFoundError: an id that is no participant of ``study_id``.
+        ConflictError: every reliability is 0 (nothing to weight by).
+    """
+    by_id = {q.participant.id: q for q in quality(session, study_id=study_id).participants}
+    stranger = next((pid for pid in ids if pid not in by_id), None)
+    if stranger is not None:
+        raise NotFoundError(f"participant {stranger} is not in study {study_id}")
+    weights = [by_id[pid].reliability for pid in ids]
+    if max(weights, default=0.0) <= 0:
+        raise ConflictError(
+            'every pooled participant has reliability 0; use the plain mean (pool_weighting "mean")'
+        )
+    top = max(weights)
+    return [
+        PoolWeight(pid, w, None if w >= top else why_weighted_down(by_id[pid]))
+        for pid, w in zip(ids, weights, strict=True)
+    ]
+
+
+def why_weighted_down(person: ParticipantQuality) -> str:
+    """What a participant's known-answer checks showed, for people: ``reliability 0.08 from 1
+    known-answer check: failed the consistency check``."""
+    checks, head = person.checks, f"reliability {person.reliability:.2f}"
+    if checks.asked == 0:
+        return f"{head}: no known-answer check answered yet, so the prior's cautious weight"
+    failed = []
+    if wrong := checks.consistency_asked - checks.consistent:
+        failed.append(
+            "failed the consistency check"
+            if checks.consistency_asked == 1
+            else f"failed {wrong} of {checks.consistency_asked} consistency checks"
+        )
+    if wrong := checks.gold_asked - checks.gold_right:
+        failed.append(f"answered {wrong} of {checks.gold_asked} gold items wrong")
+    detail = "; ".join(failed) or "passed them all, but fewer checks give a more cautious weight"
+    plural = "" if checks.asked == 1 else "s"
+    return f"{head} from {checks.asked} known-answer check{plural}: {detail}"
 
 
 def members(run: Run) -> list[int] | None:
@@ -101,6 +204,34 @@ def members(run: Run) -> list[int] | None:
     return [int(m["participant_id"]) for m in run.advice_pool] if run.advice_pool else None
 
 
-def pool_label(ids: Sequence[int]) -> str:
-    """``3 participants pooled (#1, #2, #4)``."""
-    return f"{len(ids)} participants pooled ({', '.join(f'#{i}' for i in ids)})"
+def same_pool(one: Run, other: Run) -> bool:
+    """Whether two runs pool the same participants with the same weights (the same advice);
+    True for two runs on no pool."""
+    same_weights = one.config.get("pool_weights") == other.config.get("pool_weights")
+    return members(one) == members(other) and same_weights
+
+
+def weighting_of(run: Run) -> PoolWeighting | None:
+    """How a pooled run averages its trees; None for any other run."""
+    if not run.advice_pool:
+        return None
+    return "mean" if run.config.get("pool_weights") is None else "reliability"
+
+
+def weights_of(run: Run) -> list[PoolWeight] | None:
+    """The weights of a run on a reliability-weighted pool, with why for those weighted down;
+    None for the plain mean or any other run."""
+    weights = run.config.get("pool_weights")
+    if not run.advice_pool or weights is None:
+        return None
+    return [
+        PoolWeight(int(m["participant_id"]), float(w), m.get("why"))
+        for m, w in zip(run.advice_pool, weights, strict=True)
+    ]
+
+
+def pool_label(ids: Sequence[int], *, weighted: bool = False) -> str:
+    """``3 participants pooled (#1, #2, #4)``; ``... pooled by reliability (...)`` when
+    weighted."""
+    how = " by reliability" if weighted else ""
+    return f"{len(ids)} participants pooled{how} ({', '.join(f'#{i}' for i in ids)})"

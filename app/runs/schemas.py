@@ -9,9 +9,9 @@ from pydantic import BaseModel, ConfigDict, Field, StrictBool
 from app.core.json_types import JsonFloat, JsonInt, UtcDatetime
 from app.core.rows import from_row
 from app.models import Run, RunStatus
-from app.runs.pools import members
+from app.runs.pools import members, weighting_of, weights_of
 from app.runs.service import MAX_TIMESTEPS, advice_label
-from app.runs.spec import RunSpec
+from app.runs.spec import PoolWeighting, RunSpec
 from app.studies.schemas import ProgressOut
 from engine.rl.config import AdviceMode, Algo, TrainConfig
 from engine.teachers import Teacher
@@ -29,8 +29,9 @@ PoolIds = Annotated[list[DbInt], Field(max_length=MAX_POOL, json_schema_extra={"
 class RunCreate(BaseModel):
     """A new training run. Advice: ``participant_id`` (a finished participant of the study),
     ``participant_ids`` (two or more of them, pooled: F is the mean of their trees' F),
-    ``all_participants`` (every finished participant, pooled), ``teacher`` (a simulated
-    teacher over the study's bracket) or none (``ppo`` only)."""
+    ``all_participants`` (every finished participant not excluded, pooled), ``teacher`` (a
+    simulated teacher over the study's bracket) or none (``ppo`` only). A pool's mean is
+    plain or weighted by each participant's reliability (``pool_weighting``)."""
 
     model_config = ConfigDict(extra="forbid")
 
@@ -41,7 +42,14 @@ class RunCreate(BaseModel):
         description="Pooled advice: two or more distinct finished participants of the study.",
     )
     all_participants: StrictBool = Field(
-        False, description="Pooled advice: every finished participant of the study."
+        False,
+        description="Pooled advice: every finished participant of the study not excluded.",
+    )
+    pool_weighting: PoolWeighting = Field(
+        "mean",
+        description="Pooled advice: ``mean`` (every tree counts the same) or ``reliability`` "
+        "(each tree weighted by its participant's reliability, from their known-answer "
+        "checks; the run records each weight, and why it weighted a participant down).",
     )
     teacher: Teacher | None = None
     algo: Algo = Algo.BIPARS_EM
@@ -82,6 +90,16 @@ class RunCreated(BaseModel):
     status: RunStatus
 
 
+class PoolWeightOut(BaseModel):
+    """A pooled participant's weight in a reliability-weighted pool."""
+
+    participant_id: int
+    weight: float = Field(description="Their reliability when the run was created, in [0, 1].")
+    why: str | None = Field(
+        description="Why the pool weighted them down (below its highest weight); else null."
+    )
+
+
 class RunOut(BaseModel):
     """A run: what it trains, where it stands, its latest metrics row, its error."""
 
@@ -90,6 +108,13 @@ class RunOut(BaseModel):
     participant_id: int | None
     participant_ids: list[int] | None = Field(
         description="The pooled participants of a run on pooled advice (else null)."
+    )
+    pool_weighting: PoolWeighting | None = Field(
+        description="How a run on pooled advice averages its trees (else null)."
+    )
+    pool_weights: list[PoolWeightOut] | None = Field(
+        description="Each pooled participant's weight and why, for ``reliability`` "
+        "weighting (else null)."
     )
     teacher: str | None
     advice: str
@@ -111,10 +136,13 @@ class RunOut(BaseModel):
     @classmethod
     def of(cls, run: Run) -> RunOut:
         config = TrainConfig.from_json(run.config)
+        weights = weights_of(run)
         return from_row(
             cls,
             run,
             participant_ids=members(run),
+            pool_weighting=weighting_of(run),
+            pool_weights=None if weights is None else [PoolWeightOut(**vars(w)) for w in weights],
             advice=advice_label(run),
             progress=ProgressOut(done=run.progress, total=config.num_updates * config.batch_size),
         )

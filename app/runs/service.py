@@ -1,7 +1,8 @@
 """Training runs: creation (with their advice), look-ups, cancel and resume.
 
 A run belongs to a study. Its advice is frozen when it is created: a finished participant's
-Human Preference Tree, several finished participants' trees pooled (:mod:`app.runs.pools`),
+Human Preference Tree, several finished participants' trees pooled (:mod:`app.runs.pools`: by
+the plain mean, or weighted by reliability),
 a simulated teacher's tree over the same bracket (the study's candidates and first round), or
 none (``ppo`` only). A ``ppo`` run may still name advice: it
 trains without it, and its Agent Preference Tree is compared with that tree (the baseline of
@@ -10,6 +11,7 @@ a ``bipars-em`` run on the same advice). Workers (:mod:`app.jobs`) execute queue
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any
 
 from sqlalchemy import select
@@ -39,20 +41,37 @@ def create_run(session: Session, *, spec: RunSpec) -> Run:
     Raises:
         InputError: bad parameters, a bad pool, or an advised algo without advice.
         NotFoundError: no such study or participant (or not in this study).
-        ConflictError: the study is not ready, or a participant has not finished.
+        ConflictError: the study is not ready, a participant has not finished or is excluded,
+            or a reliability-weighted pool's reliabilities are all 0.
     """
     study = get_ready_study(session, study_id=spec.study_id)
-    if not 0 < spec.timesteps <= MAX_TIMESTEPS:
-        raise InputError(f"timesteps must be in 1..{MAX_TIMESTEPS}, got {spec.timesteps}")
+    _check_timesteps(spec)
     config = train_config(spec, env_id=study.env_id)
-    pool, tree = advice.resolve(
+    pooled, tree = advice.resolve(
         session, spec.advice, study_id=spec.study_id, tree_options=config.tree_options()
     )
     if tree is None and config.uses_advice:
         raise InputError(
             f"algo {spec.algo} trains with advice: give participant_id, participant_ids or teacher"
         )
-    return _queue(session, spec, config, pool, tree)
+    if pooled is not None and pooled.weights is not None:  # F trains with the verdict's weights
+        config = replace(config, pool_weights=pooled.weights)
+    return _queue(session, spec, config, None if pooled is None else pooled.members, tree)
+
+
+def _check_timesteps(spec: RunSpec) -> None:
+    if not 0 < spec.timesteps <= MAX_TIMESTEPS:
+        raise InputError(f"timesteps must be in 1..{MAX_TIMESTEPS}, got {spec.timesteps}")
+
+
+def run_config(session: Session, *, spec: RunSpec) -> TrainConfig:
+    """The configuration :func:`create_run` would store for ``spec`` now (a weighted pool's
+    weights included), without creating the run: what a reusable run must match."""
+    study = get_ready_study(session, study_id=spec.study_id)
+    _check_timesteps(spec)
+    config = train_config(spec, env_id=study.env_id)
+    weights = advice.pool_weights(session, spec.advice, study_id=spec.study_id)
+    return config if weights is None else replace(config, pool_weights=weights)
 
 
 def _queue(
@@ -133,7 +152,7 @@ def same_advice_runs(session: Session, *, run: Run) -> list[Run]:
         select(Run).where(Run.study_id == run.study_id, source).order_by(Run.id)
     )
     # a pool is compared in Python: JSON has no equality in PostgreSQL
-    return [r for r in found if pools.members(r) == pools.members(run)]
+    return [r for r in found if pools.same_pool(r, run)]
 
 
 def advice_of(run: Run) -> TreeDocument:
@@ -154,7 +173,7 @@ def advice_label(run: Run) -> str:
     """Who gave the advice, for people: ``participant #3``, ``3 participants pooled (#1, #2,
     #4)``, ``teacher standing``, ``none``."""
     if (ids := pools.members(run)) is not None:
-        return pools.pool_label(ids)
+        return pools.pool_label(ids, weighted=pools.weighting_of(run) == "reliability")
     if run.participant_id is not None:
         return f"participant #{run.participant_id}"
     return f"teacher {run.teacher}" if run.teacher is not None else "none"

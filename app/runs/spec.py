@@ -1,24 +1,29 @@
 """What a run trains, as the services take it: a typed spec with one advice source.
 
 A request names its advice with four optional fields (``participant_id``,
-``participant_ids``, ``all_participants``, ``teacher``); :meth:`RunSpec.from_request` turns
-them into one :data:`AdviceSource` (or refuses two at once), and :meth:`RunSpec.to_request`
-gives the flat form back (an experiment stores it).
+``participant_ids``, ``all_participants``, ``teacher``), and a pool's weighting with
+``pool_weighting``; :meth:`RunSpec.from_request` turns them into one :data:`AdviceSource` (or
+refuses two at once), and :meth:`RunSpec.to_request` gives the flat form back (an experiment
+stores it).
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import Any, Literal, cast, get_args
 
 from engine.errors import InputError
 
 #: The request fields that name the advice source.
 ADVICE_FIELDS = ("participant_id", "participant_ids", "all_participants", "teacher")
+#: How a pool's trees are averaged: the plain mean, or weighted by each participant's
+#: reliability (:func:`app.runs.pools.reliability_weights`).
+PoolWeighting = Literal["mean", "reliability"]
+POOL_WEIGHTINGS: tuple[str, ...] = get_args(PoolWeighting)
 #: Run options that only shape the advice: a no-advice baseline trains without them.
 ADVICE_OPTIONS = ("advice_mode", "advice_scale")
-_IDENTITY = ("study_id", "algo", "timesteps", "seed", "n_envs", *ADVICE_FIELDS)
+_IDENTITY = ("study_id", "algo", "timesteps", "seed", "n_envs", "pool_weighting", *ADVICE_FIELDS)
 
 
 @dataclass(frozen=True)
@@ -31,9 +36,11 @@ class ParticipantAdvice:
 @dataclass(frozen=True)
 class PooledAdvice:
     """Several finished participants' trees pooled; ``participant_ids`` None: every
-    finished participant of the study."""
+    finished participant of the study (not excluded). ``weighting``: how their trees'
+    F are averaged."""
 
     participant_ids: tuple[int, ...] | None = None
+    weighting: PoolWeighting = "mean"
 
 
 @dataclass(frozen=True)
@@ -100,9 +107,10 @@ def advice_source(fields: Mapping[str, Any]) -> AdviceSource:
     """The one advice source that the request ``fields`` name.
 
     Raises:
-        InputError: more than one.
+        InputError: more than one, or a ``pool_weighting`` other than the mean without a pool.
     """
     pooled = fields.get("participant_ids") is not None or bool(fields.get("all_participants"))
+    weighting = _weighting(fields.get("pool_weighting"), pooled=pooled)
     named = (fields.get("participant_id") is not None, fields.get("teacher") is not None, pooled)
     if sum(named) > 1:
         raise InputError(
@@ -116,7 +124,23 @@ def advice_source(fields: Mapping[str, Any]) -> AdviceSource:
     if fields.get("teacher") is not None:
         return TeacherAdvice(str(fields["teacher"]))
     ids = fields.get("participant_ids")
-    return PooledAdvice(None if ids is None else tuple(ids)) if pooled else None
+    return PooledAdvice(None if ids is None else tuple(ids), weighting) if pooled else None
+
+
+def _weighting(given: Any, *, pooled: bool) -> PoolWeighting:
+    """``pool_weighting`` checked: one of :data:`POOL_WEIGHTINGS`, and not the mean only
+    for pooled advice."""
+    if given is None:
+        return "mean"
+    if given not in POOL_WEIGHTINGS:
+        raise InputError(
+            f"unknown pool_weighting {given!r}: expected one of {', '.join(POOL_WEIGHTINGS)}"
+        )
+    if given != "mean" and not pooled:
+        raise InputError(
+            f"pool_weighting {given!r} weights a pool: give participant_ids or all_participants"
+        )
+    return cast(PoolWeighting, given)
 
 
 def advice_fields(source: AdviceSource) -> dict[str, Any]:
@@ -124,10 +148,10 @@ def advice_fields(source: AdviceSource) -> dict[str, Any]:
     match source:
         case ParticipantAdvice(participant_id):
             return {"participant_id": participant_id}
-        case PooledAdvice(None):
-            return {"all_participants": True}
-        case PooledAdvice(ids):
-            return {"participant_ids": list(ids or ())}
+        case PooledAdvice(ids, weighting):
+            chosen = {"all_participants": True} if ids is None else {"participant_ids": list(ids)}
+            # the mean is left out: requests stored before weighting existed stay the same
+            return chosen | ({} if weighting == "mean" else {"pool_weighting": weighting})
         case TeacherAdvice(teacher):
             return {"teacher": teacher}
     return {}

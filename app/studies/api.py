@@ -39,6 +39,7 @@ from app.studies.schemas import (
     StudyCreate,
     StudyOut,
 )
+from engine.render.image import with_marker
 from engine.treefile import tree_to_json
 
 router = APIRouter(prefix="/studies", tags=["studies"])
@@ -107,8 +108,10 @@ def candidate_image(
     settings: SettingsDep,
     viewer: ViewerDep,
     size: ImageSize = "full",
-) -> FileResponse:
-    """A candidate's rendered image (``size=thumb`` for a small one), for the researcher and
+    marker: bool = False,
+) -> Response:
+    """A candidate's rendered image (``size=thumb`` for a small one; ``marker=true`` with
+    the marker of an instructed-response gold item drawn on it), for the researcher and
     the study's participants (``<img>`` tags send the role's cookie)."""
     if not viewer.researcher and (
         viewer.participant is None or viewer.participant.study_id != study_id
@@ -118,9 +121,10 @@ def candidate_image(
     path = image_file(settings.data_dir, cand.image_path if size == "full" else cand.thumb_path)
     if not path.is_file():
         raise NotFoundError(f"the image of candidate {candidate_id} is missing on disk")
-    return FileResponse(
-        path, media_type=MEDIA_TYPE, headers={"Cache-Control": "private, max-age=86400"}
-    )
+    headers = {"Cache-Control": "private, max-age=86400"}
+    if marker:
+        return Response(with_marker(path.read_bytes()), media_type=MEDIA_TYPE, headers=headers)
+    return FileResponse(path, media_type=MEDIA_TYPE, headers=headers)
 
 
 @router.post("/{study_id}/participants", status_code=201)

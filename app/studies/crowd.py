@@ -43,6 +43,8 @@ class CrowdOptions(LinkOptions):
 
     consistency_check: bool = False
     speed_threshold_ms: int = DEFAULT_SPEED_THRESHOLD_MS
+    gold_gate: float | None = None
+    gate_excludes: bool = False
 
 
 def _stage(session: Session, person: Participant) -> None:
@@ -71,4 +73,6 @@ def configure(session: Session, *, study_id: int, options: CrowdOptions) -> Crow
     """
     if not 0 <= options.speed_threshold_ms <= 600_000:
         raise InputError("speed_threshold_ms must be in 0..600000")
+    if options.gold_gate is not None and not 0.0 <= options.gold_gate <= 1.0:
+        raise InputError(f"gold_gate must be in [0, 1], got {options.gold_gate}")
     return recruiting.configure(session, LINK, study_id, options)

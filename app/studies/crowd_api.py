@@ -5,9 +5,9 @@ for reuse (issue 14). Researcher only."""
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any
+from typing import Annotated, Any
 
-from fastapi import APIRouter, Response
+from fastapi import APIRouter, Query, Response
 
 from app.core.errors import NotFoundError
 from app.http.deps import DbId, ResearcherDep, SessionDep
@@ -41,7 +41,7 @@ link_router = open_link_api_router(
         body=CrowdIn,
         out=CrowdOut,
         options=crowd.CrowdOptions,
-        configure=lambda session, study_id, options: crowd.configure(
+        configure=lambda session, study_id, options: crowd_stats.configure_crowd(
             session, study_id=study_id, options=options
         ),
     )
@@ -55,11 +55,13 @@ def _bias(b: crowd_stats.agreement.SideBias) -> SideBiasOut:
 @router.get("/{study_id}/quality")
 def get_quality(study_id: DbId, session: SessionDep, _: ResearcherDep) -> QualityOut:
     """Position bias (share of left choices, binomial test) per participant and study,
-    median response times with the speed flag, and consistency-check agreement."""
+    median response times with the speed flag, consistency-check agreement, gold accuracy
+    with its interval and the gate, reliability, ties and exclusions."""
     q = crowd_stats.quality(session, study_id=study_id)
     return QualityOut(
         study_id=study_id,
         speed_threshold_ms=q.speed_threshold_ms,
+        gold_gate=q.gold_gate,
         position_bias=_bias(q.bias),
         participants=[
             ParticipantQualityOut(
@@ -72,6 +74,12 @@ def get_quality(study_id: DbId, session: SessionDep, _: ResearcherDep) -> Qualit
                 consistency_agrees=p.consistency_agrees,
                 reliability=p.reliability,
                 reliability_checks=p.checks.asked,
+                gold_right=p.gold.right,
+                gold_asked=p.gold.asked,
+                gold_interval=p.gold_interval,
+                ties=p.ties,
+                excluded=p.participant.excluded,
+                exclusion_reason=p.participant.exclusion_reason,
                 flags=p.flags,
             )
             for p in q.participants
@@ -107,11 +115,25 @@ _EXPORTS: dict[str, tuple[str, Callable[[list[dict[str, Any]]], bytes | str]]] =
     response_class=Response,
     responses={200: {"content": {t: {} for t, _ in _EXPORTS.values()}}},
 )
-def export_labels(study_id: DbId, fmt: str, session: SessionDep, _: ResearcherDep) -> Response:
+def export_labels(
+    study_id: DbId,
+    fmt: str,
+    session: SessionDep,
+    _: ResearcherDep,
+    include_excluded: Annotated[
+        bool,
+        Query(
+            description="Also the labels of participants excluded from pooling and exports "
+            "(their ``excluded`` column is true); by default they are left out."
+        ),
+    ] = False,
+) -> Response:
     """One row per label (``jsonl``, ``csv`` or ``parquet``), with external ids, sides,
-    times and the participant's quality flags."""
+    times, ties, and the participant's quality flags, reliability and exclusion."""
     if fmt not in _EXPORTS:
         raise NotFoundError(f"unknown export format {fmt!r}: expected jsonl, csv or parquet")
     media_type, write = _EXPORTS[fmt]
-    body = write(label_export.records(session, study_id=study_id))
+    body = write(
+        label_export.records(session, study_id=study_id, include_excluded=include_excluded)
+    )
     return attachment(body, media_type, f"study-{study_id}-labels.{fmt}")

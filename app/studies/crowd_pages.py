@@ -15,8 +15,9 @@ from app.http.rendering import PageRoute, redirect
 from app.labelling import quality as crowd_stats
 from app.recruiting import service as recruiting
 from app.recruiting.pages import link_form, validated, whole
-from app.studies import crowd
+from app.studies import crowd, gold
 from app.studies.crowd_schemas import CrowdIn
+from engine.errors import InputError
 
 router = APIRouter(route_class=PageRoute, include_in_schema=False, dependencies=[ResearcherPage])
 
@@ -65,6 +66,7 @@ def crowd_context(request: Request, session: Session, study_id: int) -> dict[str
         "heat_rows": heat_map(agreement),
         "teacher_names": crowd_stats.COMPARED_TEACHERS,
         "teacher_agreement": teachers,
+        "gold_items": gold.list_items(session, study_id=study_id),
     }
 
 
@@ -76,13 +78,24 @@ def _options(fields: dict[str, str]) -> crowd.CrowdOptions:
         | {
             "consistency_check": fields.get("consistency_check") == "on",
             "speed_threshold_ms": whole(fields, "speed_threshold_ms"),
+            "gold_gate": _share(fields, "gold_gate"),
+            "gate_excludes": fields.get("gate_excludes") == "on",
         },
     )
     return body.options(crowd.CrowdOptions)
 
 
+def _share(fields: dict[str, str], name: str) -> float | None:
+    """An optional number field: ``None`` when left empty."""
+    text = fields.get(name, "").strip()
+    try:
+        return float(text) if text else None
+    except ValueError:
+        raise InputError(f"{name} must be a number from 0 to 1") from None
+
+
 @router.post("/studies/{study_id}/crowd", dependencies=[CsrfChecked])
 def set_crowd(study_id: DbId, session: SessionDep, fields: FormFields) -> Response:
     """Save the open-link form, then show the study page's crowd section."""
-    crowd.configure(session, study_id=study_id, options=_options(fields))
+    crowd_stats.configure_crowd(session, study_id=study_id, options=_options(fields))
     return redirect(f"/studies/{study_id}#crowd")

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from pydantic import BaseModel, ConfigDict, Field, StrictBool
 
-from app.core.json_types import JsonInt
+from app.core.json_types import JsonFloat, JsonInt
 from app.recruiting.schemas import OpenLinkIn
 from app.studies.crowd import DEFAULT_SPEED_THRESHOLD_MS
 
@@ -15,6 +15,19 @@ class CrowdIn(OpenLinkIn):
 
     consistency_check: StrictBool = False
     speed_threshold_ms: JsonInt = Field(DEFAULT_SPEED_THRESHOLD_MS, ge=0, le=600_000)
+    gold_gate: JsonFloat | None = Field(
+        None,
+        ge=0.0,
+        le=1.0,
+        allow_inf_nan=False,
+        description="Qualification gate: flag a participant whose gold accuracy's 95% "
+        "Clopper-Pearson upper bound is below it (null: no gate).",
+    )
+    gate_excludes: StrictBool = Field(
+        False,
+        description="Also exclude the participants the gate flags from pooling and exports "
+        "(their labels are kept; off: flags only).",
+    )
 
 
 class CrowdOut(CrowdIn):
@@ -49,12 +62,21 @@ class ParticipantQualityOut(BaseModel):
         "never from agreement with others): docs/method.md §2.13."
     )
     reliability_checks: int = Field(description="How many known-answer checks it rests on.")
+    gold_right: int = Field(description="Gold items answered right.")
+    gold_asked: int = Field(description="Gold items answered.")
+    gold_interval: tuple[float, float] | None = Field(
+        description="95% Clopper-Pearson interval of gold accuracy; null before any gold item."
+    )
+    ties: int = Field(description='Matches answered "can\'t tell".')
+    excluded: bool = Field(description="Left out of pooling and exports (labels kept).")
+    exclusion_reason: str | None
     flags: list[str]
 
 
 class QualityOut(BaseModel):
     study_id: int
     speed_threshold_ms: int
+    gold_gate: float | None
     position_bias: SideBiasOut
     participants: list[ParticipantQualityOut]
 

@@ -15,10 +15,11 @@ from sqlalchemy.orm import Session
 
 from app.core.json_types import FORM_INPUT
 from app.http.csrf import CsrfChecked, FormFields
-from app.http.deps import DbId, RuntimeDep, SessionDep
+from app.http.deps import DbId, RuntimeDep, SessionDep, SettingsDep
 from app.http.guards import ResearcherPage
 from app.http.rendering import PageRoute, redirect, render, thumb_template
 from app.http.urls import image_url
+from app.labelling import dashboard as live
 from app.models import StudyStatus
 from app.runs import power as study_power
 from app.runs.experiments import DEFAULT_SEEDS
@@ -27,10 +28,13 @@ from app.studies import service as studies
 from app.studies.crowd_pages import crowd_context
 from app.studies.participants import MAX_BATCH
 from app.studies.schemas import StudyCreate
+from app.webhooks.outbox import Owner
+from app.webhooks.pages import webhooks_context
 from engine.candidates import MAX_CANDIDATES, SAMPLING_MODES
 from engine.disagreement import MAX_PAIRS
 from engine.envs import DEFAULT_ENV_ID
 from engine.errors import InputError
+from engine.practice import MAX_PRACTICE_PAIRS, MIN_PRACTICE_PAIRS
 
 router = APIRouter(route_class=PageRoute, include_in_schema=False, dependencies=[ResearcherPage])
 
@@ -57,12 +61,15 @@ FORM_DEFAULTS = {
     "seed": "0",
     "sampling": "uniform",
     "disagreement_pairs": "0",
+    "practice_pairs": "0",
+    "allow_ties": "",
     "instructions": DEFAULT_INSTRUCTIONS,
 }
 
 
-#: Fields a posted form may leave out (a form from before they existed): their defaults.
-OPTIONAL_FIELDS = {"disagreement_pairs": "0"}
+#: Fields a posted form may leave out (a form from before they existed, a checkbox not
+#: ticked): their defaults.
+OPTIONAL_FIELDS = {"disagreement_pairs": "0", "practice_pairs": "0", "allow_ties": ""}
 
 
 @router.get("/studies")
@@ -84,6 +91,7 @@ def _form_page(
             "sampling_modes": SAMPLING_MODES,
             "max_candidates": MAX_CANDIDATES,
             "max_pairs": MAX_PAIRS,
+            "practice_range": (MIN_PRACTICE_PAIRS, MAX_PRACTICE_PAIRS),
         },
         status_code=status_code,
     )
@@ -101,10 +109,7 @@ def create_study(
     """Validate like ``POST /api/studies``; errors are shown next to the form's fields."""
     values = {k: fields.get(k, OPTIONAL_FIELDS.get(k, "")) for k in FORM_DEFAULTS}
     try:
-        body = StudyCreate.model_validate(
-            {k: v.strip() if k != "instructions" else v for k, v in values.items()},
-            context=FORM_INPUT,
-        )
+        body = StudyCreate.model_validate(_form_body(values), context=FORM_INPUT)
         study = studies.create_study(session, spec=body.spec())
     except ValidationError as exc:
         errors = {str(e["loc"][0]) if e["loc"] else "form": e["msg"] for e in exc.errors()}
@@ -115,14 +120,24 @@ def create_study(
     return redirect(f"/studies/{study.id}")
 
 
+def _form_body(values: dict[str, str]) -> dict[str, Any]:
+    """The form's text fields as ``StudyCreate`` reads them: trimmed (the instructions as
+    typed), and the ties checkbox as a boolean (a browser sends it only when ticked)."""
+    body: dict[str, Any] = {k: v if k == "instructions" else v.strip() for k, v in values.items()}
+    body["allow_ties"] = bool(body["allow_ties"])
+    return body
+
+
 @router.get("/studies/{study_id}")
 def study_page(
     study_id: DbId,
     request: Request,
     session: SessionDep,
+    settings: SettingsDep,
     invited: Annotated[int, Query(ge=0, le=MAX_BATCH)] = 0,
 ) -> HTMLResponse:
-    """Candidates, participants with progress and invite links, and finished trees."""
+    """Candidates, participants with progress and invite links, finished trees, and
+    webhooks."""
     study = studies.get_study(session, study_id=study_id)
     return render(
         request,
@@ -140,8 +155,16 @@ def study_page(
                 else {}
             ),
             **(_power(session, study_id) if study.status == StudyStatus.READY else {}),
+            **(_live(session, study_id) if study.status == StudyStatus.READY else {}),
+            **webhooks_context(session, Owner("study", study_id), settings),
         },
     )
+
+
+def _live(session: Session, study_id: int) -> dict[str, Any]:
+    """The live dashboard's first state (``_study_dashboard.html``); the page's script then
+    keeps it current from ``GET /api/studies/{id}/dashboard``."""
+    return {"live": live.dashboard(session, study_id=study_id)}
 
 
 def _power(session: Session, study_id: int) -> dict[str, Any]:

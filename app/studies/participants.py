@@ -14,6 +14,7 @@ from app.core.limits import check_text
 from app.db import writing
 from app.models import Label, Match, Participant, Study
 from app.recruiting.members import STUDY
+from app.studies.gold import stage_gold
 from app.studies.service import first_round, get_ready_study, get_study
 from app.studies.sides import a_on_left
 from engine.bracket import Bracket
@@ -101,6 +102,7 @@ def stage_participants(session: Session, *, study: Study, people: list[Participa
         for p in people
         for m in opening
     )
+    stage_gold(session, study=study, people=people)
 
 
 def get_participant(session: Session, *, participant_id: int) -> Participant:
@@ -109,6 +111,30 @@ def get_participant(session: Session, *, participant_id: int) -> Participant:
     if participant is None:
         raise NotFoundError(f"participant {participant_id} not found")
     return participant
+
+
+def set_exclusion(
+    session: Session, *, participant_id: int, excluded: bool, reason: str | None = None
+) -> Participant:
+    """Exclude a participant from pooling and exports, or include them again; their labels
+    are kept. The reason is recorded (a default one when none is given), and a gate that
+    excludes leaves the participant as the researcher decided."""
+    person = get_participant(session, participant_id=participant_id)
+    check_text(reason=reason)
+    default = "excluded by the researcher" if excluded else "included by the researcher"
+    with writing(session):
+        person.excluded, person.exclusion_reason = excluded, reason or default
+    return person
+
+
+def set_share_consent(session: Session, *, participant_id: int, share: bool) -> Participant:
+    """Record whether the participant agrees that their labels may be shared in a public
+    dataset under a pseudonym (:mod:`app.labelling.dataset`); they may change their mind,
+    and an export follows their choice at the time it is made."""
+    person = get_participant(session, participant_id=participant_id)
+    with writing(session):
+        person.share_consent = share
+    return person
 
 
 def n_matches(n_candidates: int) -> int:

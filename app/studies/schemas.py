@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Annotated, Literal
 
 from pydantic import (
+    AfterValidator,
     BaseModel,
     ConfigDict,
     Field,
+    StrictBool,
 )
 
 from app.core.json_types import JsonFloat, JsonInt, UtcDatetime
@@ -18,6 +20,7 @@ from app.studies.service import StudySpec
 from engine.candidates import MAX_CANDIDATES
 from engine.disagreement import MAX_PAIRS
 from engine.envs import DEFAULT_ENV_ID
+from engine.practice import MAX_PRACTICE_PAIRS, MIN_PRACTICE_PAIRS, check_practice_pairs
 
 
 class StudyCreate(BaseModel):
@@ -58,6 +61,18 @@ class StudyCreate(BaseModel):
         max_length=MAX_INSTRUCTIONS_CHARS,
         description="Shown to participants before the first match.",
     )
+    allow_ties: StrictBool = Field(
+        False,
+        description='A participant may answer "can\'t tell"; the bracket then advances by a '
+        "seeded coin.",
+    )
+    practice_pairs: Annotated[JsonInt, AfterValidator(check_practice_pairs)] = Field(
+        0,
+        description=f"Practice pairs before the bracket: 0 (none) or {MIN_PRACTICE_PAIRS} to "
+        f"{MAX_PRACTICE_PAIRS}. Their states are not among the candidates; answers are not "
+        "stored.",
+        json_schema_extra={"minimum": 0, "maximum": MAX_PRACTICE_PAIRS},
+    )
 
     def spec(self) -> StudySpec:
         """The study this request asks for, as the services take it."""
@@ -75,6 +90,8 @@ class StudyOut(BaseModel):
     seed: int
     sampling: str
     disagreement_pairs: int
+    allow_ties: bool
+    practice_pairs: int
     instructions: str
     status: StudyStatus
     error: str | None
@@ -140,3 +157,22 @@ class ParticipantOut(ParticipantCreated):
     finished: bool
     created_at: UtcDatetime
     finished_at: UtcDatetime | None
+    excluded: bool = Field(False, description="Left out of pooling and exports (labels kept).")
+    exclusion_reason: str | None = Field(
+        None, description="Why excluded, or that the researcher included them again."
+    )
+    share_consent: bool = Field(
+        False,
+        description="Agreed that their labels may be shared in a public dataset, under a "
+        "pseudonym (PUT /api/participants/me/share-consent).",
+    )
+
+
+class ExclusionIn(BaseModel):
+    """The researcher's decision on a participant: exclude them from pooling and exports,
+    or include them again (their labels are kept either way)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    excluded: StrictBool
+    reason: str | None = Field(None, min_length=1, max_length=200)

@@ -3,7 +3,8 @@
 Creating a study stores its parameters with status ``preparing``; :func:`prepare_study`
 (usually on a background thread) then samples the candidate states, seeds the first round
 with the Braverman-Mossel model and renders the images, exactly as
-:func:`engine.pipeline.run_tournament` does for the same seed, and sets ``ready``.
+:func:`engine.pipeline.run_tournament` does for the same seed, prepares its practice states
+when it asks practice pairs (:mod:`app.studies.practice_states`), and sets ``ready``.
 
 ``informative`` sampling rolls out a trained no-advice baseline
 (:mod:`app.studies.baseline`).
@@ -33,12 +34,14 @@ from app.studies.baseline import (
     study_policy,
 )
 from app.studies.images import ImageSize, render_candidates
+from app.studies.practice_states import prepare_practice
 from engine import candidates as engine_candidates
 from engine.bracket import FirstRound, make_first_round
 from engine.candidates import SamplingMode
 from engine.disagreement import MAX_PAIRS
 from engine.envs import check_env_id
 from engine.errors import InputError
+from engine.practice import practice_pairs_error
 from engine.render import RenderService
 
 log = logging.getLogger(__name__)
@@ -56,6 +59,8 @@ class StudySpec:
     sampling: str = "uniform"
     instructions: str = ""
     disagreement_pairs: int = 0
+    allow_ties: bool = False
+    practice_pairs: int = 0
 
 
 def create_study(session: Session, *, spec: StudySpec) -> Study:
@@ -92,6 +97,8 @@ def _check_spec(session: Session, spec: StudySpec) -> None:
         raise InputError(
             f"disagreement_pairs must be in 0..{MAX_PAIRS}, got {spec.disagreement_pairs}"
         )
+    if (practice := practice_pairs_error(spec.practice_pairs)) is not None:
+        raise InputError(practice)
     if len(spec.instructions) > MAX_INSTRUCTIONS_CHARS:
         raise InputError(f"instructions must be at most {MAX_INSTRUCTIONS_CHARS} characters")
     _check_env(session, spec)
@@ -140,6 +147,10 @@ def prepare_study(
         returns = baseline_returns(study, baseline, cands, runs, policy)
         paths = render_candidates(
             renderer, data_dir=data_dir, env_id=study.env_id, candidates=cands
+        )
+        assert renderer.cache is not None  # render_candidates refused a renderer without one
+        prepare_practice(
+            renderer, images_dir=renderer.cache.root, study=study, exclude=[c.qpos for c in cands]
         )
         with sessions() as session:
             _store(session, study_id, cands, bracket, paths, returns)

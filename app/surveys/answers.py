@@ -17,6 +17,8 @@ from app.core.errors import ConflictError, NotFoundError
 from app.core.limits import check_text
 from app.db import writing
 from app.models import SurveyAnswer, SurveyRespondent, SurveyScreen, SurveyStimulus, utcnow
+from app.recruiting import events
+from app.surveys.crowd import LINK
 from app.surveys.respond import start
 from app.surveys.service import get_survey, questions_for
 from engine.errors import InputError
@@ -126,18 +128,22 @@ def _store(
 
 
 def _finish_if_done(session: Session, respondent_id: int, now: datetime) -> None:
-    """Mark the respondent finished once no screen of theirs is left unanswered."""
+    """Mark the respondent finished once no screen of theirs is left unanswered
+    (``respondent.finished`` and ``survey.target_reached``: :mod:`app.recruiting.events`)."""
     left = session.scalar(
         select(func.count(SurveyScreen.position)).where(
             SurveyScreen.respondent_id == respondent_id, SurveyScreen.answered_at.is_(None)
         )
     )
     if left == 0:
-        session.execute(
+        done = session.execute(
             update(SurveyRespondent)
             .where(SurveyRespondent.id == respondent_id, SurveyRespondent.finished_at.is_(None))
             .values(finished_at=now)
-        )
+            .returning(SurveyRespondent.survey_id)
+        ).scalar_one_or_none()
+        if done is not None:  # just finished: the webhook events, in this transaction
+            events.finished(session, LINK, member_id=respondent_id, owner_id=done)
 
 
 def _lock_respondent(session: Session, respondent_id: int) -> None:

@@ -16,7 +16,7 @@ from sqlalchemy.orm import Session
 
 from app.core.errors import AuthError, NotFoundError
 from app.http import cookies
-from app.http.deps import DbId, SessionDep
+from app.http.deps import DbId, SessionDep, SettingsDep
 from app.http.guards import ResearcherPage, page_member
 from app.http.member_auth import RespondentCookie
 from app.http.rendering import PageRoute, is_https, redirect, render
@@ -29,6 +29,8 @@ from app.surveys import respond as survey_respond
 from app.surveys import results as survey_results
 from app.surveys import service as surveys
 from app.surveys.sources import source_menus
+from app.webhooks.outbox import Owner
+from app.webhooks.pages import webhooks_context
 
 router = APIRouter(route_class=PageRoute, include_in_schema=False)
 RESPOND = "/survey"
@@ -86,10 +88,15 @@ def _survey_context(session: Session, survey: Survey, request: Request) -> dict[
 
 
 @router.get("/surveys/{survey_id}", dependencies=[ResearcherPage])
-def survey_page(survey_id: DbId, request: Request, session: SessionDep) -> HTMLResponse:
-    """A survey: its stimuli drawn as respondents see them, invite links, and results."""
+def survey_page(
+    survey_id: DbId, request: Request, session: SessionDep, settings: SettingsDep
+) -> HTMLResponse:
+    """A survey: its stimuli drawn as respondents see them, invite links, results, and
+    webhooks."""
     survey = surveys.get_survey(session, survey_id=survey_id)
-    return render(request, "survey.html", _survey_context(session, survey, request))
+    context = _survey_context(session, survey, request)
+    hooks = webhooks_context(session, Owner("survey", survey_id), settings)
+    return render(request, "survey.html", context | hooks)
 
 
 @router.get("/r/{token}")

@@ -51,6 +51,15 @@ MIN_MINIBATCH = 2
 std of one value is NaN (silently NaN training)."""
 
 
+def _weights(given: Any) -> tuple[float, ...]:
+    """``pool_weights`` as a tuple of floats; :class:`InputError` for anything but numbers."""
+    if not isinstance(given, list | tuple) or not all(
+        isinstance(w, int | float) and not isinstance(w, bool) for w in given
+    ):
+        raise InputError(f"pool weights must be a list of numbers, got {given!r}")
+    return tuple(float(w) for w in given)
+
+
 @dataclass(frozen=True)
 class TrainConfig:
     """Everything that determines a training run (saved as the run's ``config.json``)."""
@@ -118,8 +127,13 @@ class TrainConfig:
     """inner step size of the one-step meta-gradient (bipars-mgl)"""
     checkpoint_every: int = 50_000
     """write ``checkpoints/step_<timesteps>.pt`` every this many env steps"""
+    pool_weights: tuple[float, ...] | None = None
+    """pooled advice: one weight per tree, in the pool's order (F and the pooled verdict are
+    the weighted mean, :class:`engine.advice.PooledAdvice`); None: the plain mean"""
 
     def __post_init__(self) -> None:
+        if self.pool_weights is not None:  # JSON gives a list; a frozen config keeps a tuple
+            object.__setattr__(self, "pool_weights", _weights(self.pool_weights))
         errors = self._errors()
         if errors:
             raise InputError(errors[0])
@@ -146,8 +160,18 @@ class TrainConfig:
                 f"advice-offset must be in [0, 100], got {self.advice_offset}",
             ),
             *self._advice_checks(),
+            (
+                self._pool_weights_ok(),
+                "pool weights must be two or more numbers, finite, >= 0, and not all 0",
+            ),
         ]
         return [message for ok, message in checks if not ok]
+
+    def _pool_weights_ok(self) -> bool:
+        w = self.pool_weights
+        return w is None or (
+            all(math.isfinite(x) and x >= 0 for x in w) and sum(w) > 0 and len(w) >= 2
+        )
 
     def _advice_checks(self) -> list[tuple[bool, str]]:
         # deferred: engine.advice loads mujoco and gymnasium; this module stays light
@@ -213,8 +237,11 @@ class TrainConfig:
         return {"mode": mode, "depth_factor": self.advice_depth_factor, "kappa": self.advice_kappa}
 
     def to_json(self) -> dict[str, Any]:
-        """Plain dict for ``config.json``."""
-        return dataclasses.asdict(self)
+        """Plain dict for ``config.json``; ``pool_weights`` only when set, so that a config
+        without them is the same dict as before they existed (runs are reused by config)."""
+        out = dataclasses.asdict(self)
+        weights = out.pop("pool_weights")
+        return out if weights is None else out | {"pool_weights": list(weights)}
 
     @classmethod
     def from_json(cls, obj: Any) -> TrainConfig:

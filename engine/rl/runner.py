@@ -64,7 +64,8 @@ def train(
         config: the run's configuration.
         advice: a Human Preference Tree (F is built from it with the config's advice options
             and saved as ``advice.json``), a list of trees over one bracket (pooled: F is the
-            mean of their F; saved in ``advice_pool/``), any F callable on ``qpos`` batches,
+            mean of their F, weighted by ``config.pool_weights`` when set; saved in
+            ``advice_pool/``), any F callable on ``qpos`` batches,
             or None (only for ``ppo``; on resume, the saved advice is reloaded).
         out_dir: the run directory (created).
         progress: called with every metrics row (``sps`` included).
@@ -174,7 +175,8 @@ def _write_new_run(config: TrainConfig, advice: Advice, out_dir: Path) -> None:
         (out_dir / POOL_DIR).mkdir(exist_ok=True)
         for i, doc in enumerate(advice):
             dump_tree(doc, out_dir / POOL_DIR / f"{i}.json")
-        dump_tree(pooled_tree(advice, **config.tree_options()), out_dir / ADVICE_FILE)
+        verdict = pooled_tree(advice, **config.tree_options(), weights=config.pool_weights)
+        dump_tree(verdict, out_dir / ADVICE_FILE)
     (out_dir / CONFIG_FILE).write_text(json.dumps(config.to_json(), indent=1) + "\n")
 
 
@@ -228,6 +230,7 @@ def _is_pool(advice: Advice) -> TypeGuard[Sequence[TreeDocument]]:
 
 def _advice_fn(config: TrainConfig, advice: Advice) -> AdviceFn | None:
     """F for the run; trees must be over the run's env."""
+    _check_pool_weights(config, advice)
     if advice is None:
         if config.uses_advice:
             raise InputError(f"--algo {config.algo} needs advice (an acv.tree/1 file)")
@@ -245,14 +248,33 @@ def _advice_fn(config: TrainConfig, advice: Advice) -> AdviceFn | None:
     return advice_reward(config, docs[0]) if len(docs) == 1 else pool_reward(config, docs)
 
 
+def _check_pool_weights(config: TrainConfig, advice: Advice) -> None:
+    """Pool weights need pooled advice, one weight per tree."""
+    weights = config.pool_weights
+    if weights is None:
+        return
+    if not _is_pool(advice):
+        raise InputError("pool weights need pooled advice: two or more advice trees")
+    if len(weights) != len(advice):
+        raise InputError(
+            f"{len(weights)} pool weights for {len(advice)} pooled trees: give one per tree"
+        )
+
+
 def pool_reward(config: TrainConfig, docs: Sequence[TreeDocument]) -> AdviceFn:
-    """F of pooled advice: the mean of the trees' F with the config's options (F = R for the
-    ``reward`` mode, whatever the trees)."""
+    """F of pooled advice: the mean of the trees' F with the config's options, weighted by
+    its ``pool_weights`` when set (F = R for the ``reward`` mode, whatever the trees)."""
     from engine.pooling import pooled_advice
 
     if config.advice_mode == REWARD_ADVICE:
         return EnvRewardAdvice()
-    return pooled_advice(docs, config.advice_mode, config.advice_depth_factor, config.advice_kappa)
+    return pooled_advice(
+        docs,
+        config.advice_mode,
+        config.advice_depth_factor,
+        config.advice_kappa,
+        weights=config.pool_weights,
+    )
 
 
 def advice_reward(config: TrainConfig, doc: TreeDocument) -> AdviceFn:

@@ -5,7 +5,8 @@
 // `#match` carries `data-ready` (the controls are enabled) and `data-settled` (enabled, and
 // nothing on the page is animating): tests wait for `data-settled`. Undo takes
 // back the latest label while no later match depends on it. A label's answer carries the
-// next match, and the next match's pictures are fetched while the participant decides, so
+// next match (the page updates its live bracket from that answer, so a decision costs one
+// request), and the next match's pictures are fetched while the participant decides, so
 // the next pair appears at once.
 /* global ACV */
 "use strict";
@@ -16,11 +17,20 @@ const API = {
   bracket: "/api/participants/me/bracket",
   undo: "/api/participants/me/undo",
   label: (matchId) => `/api/matches/${matchId}/label`,
+  gold: (itemId) => `/api/participants/me/gold/${itemId}/label`,
 };
+
+// What the page shows now: a bracket match, or a gold item shown before it (its own key,
+// since it precedes the match whose id it carries).
+const shownKey = (next) => (next.gold ? `gold-${next.gold.item_id}` : String(next.match_id));
 
 // `shown`: the match's pictures are on screen and settled; `shownAt`: when its controls
 // began to answer (the response clock's start).
-const state = { match: null, shown: false, shownAt: null, busy: false, canUndo: false };
+// `rounds`: the live bracket, fetched on load and after an undo, and otherwise kept up to
+// date here from each label's answer, so that a decision costs one request.
+const state = {
+  match: null, shown: false, shownAt: null, busy: false, canUndo: false, rounds: [],
+};
 const $ = (id) => document.getElementById(id);
 
 class ApiError extends Error {
@@ -35,7 +45,7 @@ class ApiError extends Error {
 function setEnabled() {
   const ready = !state.busy && state.shown;
   if (ready && state.shownAt === null) state.shownAt = performance.now();
-  for (const id of ["pick-a", "pick-b", "btn-left", "btn-right"]) $(id).disabled = !ready;
+  for (const id of ["pick-a", "pick-b", "btn-left", "btn-right", "tie"]) $(id).disabled = !ready;
   $("undo").disabled = state.busy || !state.canUndo;
   $("match").setAttribute("aria-busy", String(!ready));
   $("match").dataset.ready = String(ready);
@@ -74,13 +84,16 @@ function placed(next) {
 
 // Show the two pictures; the clock starts once both are decoded, on screen and settled.
 async function showMatch(next) {
-  if (state.match && state.match.match_id === next.match_id && state.shown) return;
+  if (state.match && shownKey(state.match) === shownKey(next) && state.shown) return;
   state.match = next;
   state.shown = false;
   state.shownAt = null;
   const box = $("match");
   box.classList.add("loading");
-  box.dataset.matchId = String(next.match_id);
+  box.dataset.matchId = shownKey(next);
+  // An instructed check says what to do; every other pair asks the study's question.
+  $("prompt-text").textContent = next.gold && next.gold.prompt ? next.gold.prompt : $("prompt-text").dataset.question;
+  $("tie").hidden = !next.allow_ties;
   const onScreen = placed(next);
   const images = [[$("img-a"), onScreen.a], [$("img-b"), onScreen.b]];
   for (const [img, side] of images) {
@@ -127,8 +140,8 @@ function finish() {
   window.location.assign($("labelling").dataset.thanksUrl);
 }
 
-// Fetch the next match, the undo state and the live bracket; go to the thank-you page at
-// the end.
+// Fetch the next match, the undo state and the live bracket (on load and after an undo);
+// go to the thank-you page at the end.
 async function refresh() {
   const [next, me, bracket] = await Promise.all(
     [ACV.api("GET", API.next), ACV.api("GET", API.me), ACV.api("GET", API.bracket)]);
@@ -138,35 +151,56 @@ async function refresh() {
   }
   for (const result of [next, me, bracket]) if (result.status !== 200) throw new ApiError(result);
   state.canUndo = me.data.can_undo;
+  state.rounds = bracket.data.rounds;
   showStatus(next.data);
-  drawBracket(bracket.data.rounds, next.data.match_id);
-  preload(upcomingImageUrls(bracket.data.rounds, next.data));
+  placeCurrent(state.rounds, next.data);
+  drawBracket(state.rounds, next.data.match_id);
+  preload(upcomingImageUrls(state.rounds, next.data));
   await showMatch(next.data);
 }
 
+// A decided match in the live bracket: its winner, who moves up into the next round's cell
+// (first in it from an even slot, second from an odd one), as the server's bracket has it.
+function recordLabel(rounds, decided) {
+  rounds.forEach((cells, r) => cells.forEach((cell) => {
+    if (cell.match_id !== decided.match_id) return;
+    cell.winner = decided.winner;
+    const parent = r + 1 < rounds.length ? rounds[r + 1][cell.slot >> 1] : null;
+    if (parent) parent[cell.slot % 2 === 0 ? "a" : "b"] = decided.winner;
+  }));
+}
+
+// The match shown now gets its id in its cell (it exists from the moment it is served).
+function placeCurrent(rounds, next) {
+  if (next.gold) return;  // a gold item is not a bracket match
+  const players = [next.a.candidate_id, next.b.candidate_id].sort().join();
+  for (const cell of rounds[next.round - 1] || []) {
+    if ([cell.a, cell.b].sort().join() === players) cell.match_id = next.match_id;
+  }
+}
+
 // After a label: show the next match its answer carried (its pictures are usually
-// preloaded), and redraw the live bracket meanwhile. The latest label can always be undone.
-async function advance(next) {
+// preloaded), and update the live bracket from the answer. The latest label can be undone.
+async function advance(next, decided) {
   state.canUndo = true;
   showStatus(next);
-  const bracket = ACV.api("GET", API.bracket).then((result) => {
-    if (result.status !== 200) throw new ApiError(result);
-    drawBracket(result.data.rounds, next.match_id);
-    preload(upcomingImageUrls(result.data.rounds, next));
-  });
-  await Promise.all([showMatch(next), bracket]);
+  if (decided) recordLabel(state.rounds, decided);
+  placeCurrent(state.rounds, next);
+  drawBracket(state.rounds, next.match_id);
+  preload(upcomingImageUrls(state.rounds, next));
+  await showMatch(next);
 }
 
 // Run one action (label or undo) at a time, then show the new state: the next match the
-// action returned, or else whatever the server says now.
+// action's answer carried (with the match it decided), or else what the server says now.
 async function act(action) {
   state.busy = true;
   setEnabled();
   try {
-    const next = await action();
-    if (next === null) finish();
-    else if (next !== undefined) await advance(next);
-    else await refresh();
+    const outcome = await action();
+    if (outcome === undefined) await refresh();
+    else if (outcome.next === null) finish();
+    else await advance(outcome.next, outcome.decided);
   } catch (err) {
     say(err.message, true);
   } finally {
@@ -175,21 +209,32 @@ async function act(action) {
   }
 }
 
+// Send the answer to what is shown: a gold item's, a tie ("can't tell"), or a winner.
+function answer(match, side, responseMs) {
+  if (match.gold) {
+    return ACV.api("POST", API.gold(match.gold.item_id),
+      { winner: placed(match)[side].candidate_id, response_ms: responseMs });
+  }
+  const decision = side === "tie" ? { tie: true } : { winner: placed(match)[side].candidate_id };
+  return ACV.api("POST", API.label(match.match_id), { ...decision, response_ms: responseMs });
+}
+
 function choose(side) {
   if (state.busy || state.shownAt === null) return;
+  if (side === "tie" && !state.match.allow_ties) return;
   const match = state.match;
   const responseMs = Math.max(0, Math.round(performance.now() - state.shownAt));
-  $(side === "a" ? "pick-a" : "pick-b").classList.add("chosen");
+  if (side !== "tie") $(side === "a" ? "pick-a" : "pick-b").classList.add("chosen");
   act(async () => {
-    const result = await ACV.api("POST", API.label(match.match_id),
-      { winner: placed(match)[side].candidate_id, response_ms: responseMs });
+    const result = await answer(match, side, responseMs);
     if (result.status === 409) {
-      say("That match was already decided (in another window?).");
+      say("That pair was already decided (in another window?).");
       return undefined;
     }
     if (result.status !== 201 && result.status !== 200) throw new ApiError(result);
     say("");
-    return result.data.next;  // null once the bracket is finished
+    // `next` is null once the bracket is finished; a gold answer decides no match.
+    return { next: result.data.next, decided: match.gold ? null : result.data };
   });
 }
 
@@ -262,6 +307,8 @@ function onKey(event) {
     choose(event.key === "ArrowLeft" ? "a" : "b");
   } else if (event.key === "u" || event.key === "U") {
     undo();
+  } else if (event.key === "t" || event.key === "T") {
+    choose("tie");
   }
 }
 
@@ -271,6 +318,7 @@ function onKey(event) {
     el.addEventListener("click", () => choose(el.dataset.side));
   }
   $("undo").addEventListener("click", undo);
+  $("tie").addEventListener("click", () => choose("tie"));
   document.addEventListener("keydown", onKey);
   act(async () => undefined);  // first load
 })();

@@ -75,8 +75,12 @@ def backend_url(
 
 @pytest.fixture(scope="module")
 def settings(backend_url: tuple[Path, str]) -> Settings:
+    """The app's settings; webhooks may point at 127.0.0.1 only (tests send no traffic
+    elsewhere, and never ask DNS for a name)."""
     data_dir, url = backend_url
-    return Settings(data_dir=data_dir, database_url=url, admin_token=ADMIN_TOKEN)
+    return Settings(
+        data_dir=data_dir, database_url=url, admin_token=ADMIN_TOKEN, webhook_targets="loopback"
+    )
 
 
 @pytest.fixture(scope="module")
@@ -140,7 +144,11 @@ def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[str, Path
     """``acv serve`` on a free port; yields ``(base URL, file with its output and logs)``."""
     data_dir = tmp_path_factory.mktemp("acv-browser-data")
     log = data_dir / "server.log"  # one per server: tests find the data dir as its folder
-    env = clean_env(ACV_DATA_DIR=str(data_dir), ACV_ADMIN_TOKEN=SERVER_ADMIN_TOKEN)
+    env = clean_env(
+        ACV_DATA_DIR=str(data_dir),
+        ACV_ADMIN_TOKEN=SERVER_ADMIN_TOKEN,
+        ACV_WEBHOOK_TARGETS="loopback",
+    )
     with acv_serve(env, log) as base:
         yield base, log
 

@@ -164,6 +164,12 @@ def world(client: TestClient, study: dict[str, Any], make_study) -> dict[str, An
         headers=ADMIN,
         json={"enabled": True, "max_participants": 100},
     ).json()
+    gold_item = client.post(
+        f"/api/studies/{study['id']}/gold", headers=ADMIN, json={"a": 0, "b": 1, "answer": 0}
+    ).json()
+    webhook = client.post(  # to 127.0.0.1 (the tests' setting); port 9 listens to nothing
+        "/api/webhooks", headers=ADMIN, json={"study_id": study["id"], "url": "http://127.0.0.1:9/"}
+    ).json()
     params = {
         "experiment_id": _experiment(client, study_id=study["id"], run_id=run_id),
         "survey_slug": survey_link["slug"],  # ``slug`` in /q/{slug}
@@ -178,6 +184,8 @@ def world(client: TestClient, study: dict[str, Any], make_study) -> dict[str, An
         "fmt": "svg",
         "survey_id": survey["id"],
         "position": 1,
+        "webhook_id": webhook["id"],
+        "item_id": gold_item["id"],
     }
     return {
         "callers": callers,

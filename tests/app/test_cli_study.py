@@ -67,6 +67,31 @@ def test_create_invite_simulate_list(run, tmp_path) -> None:
     )
 
 
+def test_create_with_practice_pairs_and_ties(run, client, admin) -> None:
+    created = run(
+        "study",
+        "create",
+        "--name",
+        "practice",
+        "--env",
+        "Hopper-v5",
+        "--candidates",
+        "4",
+        "--practice-pairs",
+        "2",
+        "--allow-ties",
+    )
+    assert created.exit_code == 0, created.output
+    study_id = re.search(r"study (\d+) ready", created.output)[1]
+    study = client.get(f"/api/studies/{study_id}", headers=admin).json()
+    assert (study["practice_pairs"], study["allow_ties"]) == (2, True)
+    added = client.post(f"/api/studies/{study_id}/participants", headers=admin).json()
+    practice = client.get(
+        "/api/participants/me/practice", headers={"Authorization": f"Bearer {added['token']}"}
+    )
+    assert len(practice.json()) == 2  # its practice states were prepared with it
+
+
 @pytest.mark.parametrize(
     ("args", "message"),
     [
@@ -81,6 +106,14 @@ def test_create_invite_simulate_list(run, tmp_path) -> None:
             "disagreement pairs need a finished no-advice ppo run on Hopper-v5; train one first",
         ),
         (["study", "create", "--name", "x", "--disagreement-pairs", "11"], "disagreement_pairs"),
+        (
+            ["study", "create", "--name", "x", "--practice-pairs", "1"],
+            "practice_pairs must be 0 (no practice) or 2 to 5, got 1",
+        ),
+        (
+            ["study", "create", "--name", "x", "--practice-pairs", "6"],
+            "practice_pairs must be 0 (no practice) or 2 to 5, got 6",
+        ),
         (["participant", "add", "--study", "424242"], "study 424242 not found"),
         (["simulate", "--study", "424242"], "study 424242 not found"),
         (

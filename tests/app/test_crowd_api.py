@@ -294,6 +294,11 @@ def test_exports_have_one_row_per_label(client, four) -> None:
         "shown_at",
         "labelled_at",
         "flags",
+        "tie",
+        "reliability",
+        "gold_right",
+        "gold_asked",
+        "excluded",
     }
     assert {r["kind"] for r in mine} == {"bracket"}  # this study asks no disagreement pairs
     assert all(r["response_ms"] == 500 and r["shown_at"] < r["labelled_at"] for r in mine)

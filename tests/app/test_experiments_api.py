@@ -24,7 +24,7 @@ from app.models import Run
 from app.runs import artefacts, comparison
 from tests.support.artefacts import report_body
 from tests.support.labelling import label_bracket
-from tests.support.runs import TINY, run_app
+from tests.support.runs import TINY, finished_participant, run_app
 from tests.support.studies import new_study
 from tests.support.web import ADMIN, audit, csrf_token, logged_in
 
@@ -328,6 +328,29 @@ def test_advice_scale_shapes_the_advised_runs_only(client, study) -> None:
             headers=ADMIN,
         )
         assert response.status_code == 422 and "advice_scale" in response.text, (bad, response.text)
+
+
+def test_a_reliability_weighted_pool_shares_its_baseline(client) -> None:
+    """Every run of an experiment on a reliability-weighted pool (baseline and pilot included:
+    they are judged against its verdict) records the pool's weights; a second experiment on
+    the same pool, with the same weights, reuses the baseline and pilot runs."""
+    study = new_study(client, seed=13)
+    people = [finished_participant(client, study["id"]) for _ in range(2)]
+    body = {"study_id": study["id"], "participant_ids": people, "seeds": 2, "pilot_seeds": 1}
+    first = _create(client, **body, pool_weighting="reliability", **BODY)
+    assert first["spec"]["pool_weighting"] == "reliability"
+    quality = client.get(f"/api/studies/{study['id']}/quality", headers=ADMIN).json()
+    weights = [p["reliability"] for p in quality["participants"]]
+    for member in first["runs"]:
+        run = client.get(f"/api/runs/{member['id']}", headers=ADMIN).json()
+        assert run["pool_weighting"] == "reliability" and run["config"]["pool_weights"] == weights
+    before = _n_runs(client)
+    second = _create(client, **body, pool_weighting="reliability", **BODY)
+    assert _n_runs(client) == before + 2  # its own advised runs only
+    shared = lambda e: [r["id"] for r in e["runs"] if r["role"] != "advised"]  # noqa: E731
+    assert shared(second) == shared(first)
+    plain = _create(client, **body, **BODY)  # the plain mean: another advice, another baseline
+    assert "pool_weighting" not in plain["spec"] and not set(shared(plain)) & set(shared(first))
 
 
 def test_a_study_says_whether_its_bracket_can_tell(client, study) -> None:

@@ -68,3 +68,63 @@ def test_next_pictures_are_fetched_before_the_choice(server, browser: Browser) -
     assert not any(u.endswith("/me/next-match") for u in requested[posted:])
     context.close()
     assert errors == []
+
+
+def _drawn_winners(page) -> list[str]:
+    """The live bracket's winners as drawn: "round:candidate" per won chip."""
+    return page.eval_on_selector_all(
+        "#mini-bracket .round",
+        """rounds => rounds.flatMap((round, r) => [...round.querySelectorAll('.p.w')]
+            .map(chip => `${r + 1}:${chip.textContent.match(/#(\\d+)/)[1]}`))""",
+    )
+
+
+def _server_winners(base: str, token: str) -> list[str]:
+    rounds = httpx.get(
+        f"{base}/api/participants/me/bracket", headers={"Authorization": f"Bearer {token}"}
+    ).json()["rounds"]
+    return [
+        f"{c['round']}:{c['winner']}"
+        for cells in rounds
+        for c in cells
+        if c["winner"] is not None and not c["is_bye"]
+    ]
+
+
+def test_one_request_per_decision_and_the_bracket_kept_up_to_date(server, browser: Browser) -> None:
+    """After the page has loaded, each decision is one API request (the label, whose answer
+    carries the next match); the live bracket drawn from those answers is the server's."""
+    base, _ = server
+    errors: list[str] = []
+    researcher, page = new_page(browser, errors)
+    _, invite = create_study_and_invite(page, base)
+    researcher.close()
+    token = invite.rsplit("/", 1)[1]
+    context, p = new_page(browser, errors)
+    p.goto(invite)
+    p.click("#start")
+    match = wait_for_match(p)
+    api_calls: list[str] = []
+    p.on(
+        "request",
+        lambda r: (
+            api_calls.append(f"{r.method} {r.url}")
+            if "/api/" in r.url and "/image" not in r.url
+            else None
+        ),
+    )
+    decisions = 0
+    while True:
+        p.keyboard.press("ArrowRight" if decisions % 2 else "ArrowLeft")
+        decisions += 1
+        try:
+            match = wait_for_match(p, match)
+        except Exception:  # the last decision leads to the thank-you page
+            break
+        assert sorted(_drawn_winners(p)) == sorted(_server_winners(base, token))
+    p.wait_for_url(f"{base}/participate/thanks")
+    labelling = [c for c in api_calls if not c.endswith("/tree")]  # the thank-you page's tree
+    assert len(labelling) == decisions, api_calls
+    assert all(c.startswith("POST") and c.endswith("/label") for c in labelling), api_calls
+    context.close()
+    assert errors == []

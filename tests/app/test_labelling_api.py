@@ -35,6 +35,7 @@ def test_label_status_codes(invite) -> None:
     assert first.json() == {
         "match_id": match["match_id"],
         "winner": a,
+        "tie": False,
         "created": True,
         "progress": {"done": 1, "total": 4},
         "finished": False,

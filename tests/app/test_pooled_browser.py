@@ -1,7 +1,8 @@
 """A real browser (Debian's Chromium through Playwright) on pooled advice: the researcher
-launches a run on two finished participants ticked in the new-run form, and the comparison
-page shows the agent against each participant's tree and against the pooled verdict. axe-core
-checks both pages (no serious or critical violation).
+launches a run on two finished participants ticked in the new-run form, weighted by
+reliability; the run page lists each pooled participant's weight, and the comparison page
+shows the agent against each participant's tree and against the pooled verdict. axe-core
+checks the three pages (no serious or critical violation).
 """
 
 from __future__ import annotations
@@ -39,6 +40,7 @@ def test_a_run_on_pooled_advice_from_the_form_to_the_comparison(
     page.select_option("#advice", "pool:chosen")
     for pid in people:
         page.check(f"input[name=pool_{pid}]")
+    page.select_option("#pool_weighting", "reliability")
     page.fill("#timesteps", "256")
     page.fill("#n_envs", "1")
     page.fill("#num_steps", "128")
@@ -54,7 +56,16 @@ def test_a_run_on_pooled_advice_from_the_form_to_the_comparison(
             timeout_s=180,
         )
         assert run["status"] == "succeeded" and run["participant_ids"] == people, run
+        assert run["pool_weighting"] == "reliability", run
         advisors = api.get(f"/api/runs/{run_id}/advisors").json()
+    page.reload()  # the run page as it stands after training
+    weights = page.locator("#pool-weights tbody tr")
+    expect(weights).to_have_count(2)
+    for i, w in enumerate(run["pool_weights"]):
+        expect(weights.nth(i).locator("th")).to_have_text(f"participant #{w['participant_id']}")
+        expect(weights.nth(i).locator("td").first).to_have_text(f"{w['weight']:.2f}")
+    assert_accessible(page, "run page of a reliability-weighted pool")
+    page.locator("#pool-weights").screenshot(path=screens / "run-pool-weights.png")
     page.goto(f"{base}/runs/{run_id}/compare")
     rows = page.locator("#advisors-body tr")
     expect(rows).to_have_count(3)

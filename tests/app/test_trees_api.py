@@ -6,7 +6,10 @@ import csv
 import io
 
 import numpy as np
+from sqlalchemy import select
 
+from app.db import make_engine, make_sessions
+from app.models import Label, Match
 from engine.envs import env_model
 from engine.pipeline import run_tournament
 from engine.teachers import standing_score
@@ -89,3 +92,45 @@ def test_labels_csv(client, admin, study, invite) -> None:
     )
     assert all(int(r["response_ms"]) >= 0 for r in rows)  # estimated when not sent
     assert all(r["labelled_at"].endswith("+00:00") for r in rows)
+    assert all(r["tie"] == "False" for r in rows)
+
+
+def _tie_first_match(settings, participant_id: int) -> tuple[int, int, int]:
+    """Mark the participant's round-1 label "can't tell" in the database, as the app stores
+    a tie (the coin's winner kept); returns its match's id, slot and loser."""
+    engine = make_engine(settings.sqlalchemy_url)
+    try:
+        with make_sessions(engine)() as session:
+            label, match = session.execute(
+                select(Label, Match)
+                .join(Match, Match.id == Label.match_id)
+                .where(Match.participant_id == participant_id, Match.round == 1)
+            ).one()
+            label.tie = True
+            session.commit()
+            return match.id, match.slot, match.b if label.winner == match.a else match.a
+    finally:
+        engine.dispose()
+
+
+def test_a_tied_label_is_a_tie_in_the_tree_and_the_csv(
+    client, admin, settings, study, invite
+) -> None:
+    player = invite()
+    player.play()
+    match_id, slot, loser = _tie_first_match(settings, player.id)
+    tree = client.get(f"/api/participants/{player.id}/tree", headers=admin).json()
+    assert [m.get("tie") for m in tree["matches"]] == [True] + [None] * 3  # round 1 first
+    doc = tree_from_json(tree)
+    assert doc.ties == {(1, slot)}
+    assert doc.tree.nodes[loser].height == 1  # raised to the tied match's height
+    assert doc.tree.nodes[loser].reward == 0.0  # r_e * 1 - r_b, as its winner after the match
+    listed = client.get(f"/api/studies/{study['id']}/trees", headers=admin).json()
+    assert next(t["tree"] for t in listed if t["participant_id"] == player.id) == tree
+    csv_text = client.get(f"/api/studies/{study['id']}/labels.csv", headers=admin).text
+    ties = {
+        r["match_id"]: r["tie"]
+        for r in csv.DictReader(io.StringIO(csv_text))
+        if r["participant_id"] == str(player.id)
+    }
+    assert ties.pop(str(match_id)) == "True" and set(ties.values()) == {"False"}

@@ -69,11 +69,22 @@ class Player(Member):
             f"/api/matches/{match_id}/label", headers=self.headers, json={"winner": winner, **extra}
         )
 
+    def answer_gold(self, item_id: int, winner: int):
+        return self.client.post(
+            f"/api/participants/me/gold/{item_id}/label",
+            headers=self.headers,
+            json={"winner": winner},
+        )
+
     def play(self, choose: Callable[[dict[str, Any]], int] | None = None) -> int:
-        """Label every match (``choose`` picks the winner; default the ``a`` side)."""
+        """Label every match (``choose`` picks the winner; default the ``a`` side), and
+        answer any gold item shown between them the same way; returns the labels sent."""
         sent = 0
         while (match := self.next_match()) is not None:
             winner = choose(match) if choose else match["a"]["candidate_id"]
+            if match.get("gold"):
+                assert self.answer_gold(match["gold"]["item_id"], winner).status_code == 201
+                continue
             assert self.label(match["match_id"], winner).status_code == 201
             sent += 1
         return sent

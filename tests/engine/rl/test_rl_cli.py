@@ -10,8 +10,9 @@ import pytest
 from PIL import Image
 
 from app.cli import main
-from engine.pipeline import run_tournament
-from engine.treefile import dump_tree
+from engine.pipeline import replay_with_teacher, run_tournament
+from engine.pooling import pooled_tree
+from engine.treefile import dump_tree, load_tree, tree_to_json
 
 pytestmark = pytest.mark.training
 
@@ -140,6 +141,22 @@ def test_reward_advice_and_the_behaviour_judge_from_the_cli(
     assert json.loads(agent.read_text())["judge"] == "agent:return@256"  # the default judge
 
 
+def test_pool_weights_from_the_cli(monkeypatch, capsys, tree: Path, tmp_path: Path) -> None:
+    """``--pool-weight`` once per ``--advice`` tree: F and the pooled verdict are weighted."""
+    other = tmp_path / "other.json"
+    dump_tree(replay_with_teacher(load_tree(tree), "good"), other)
+    run = tmp_path / "weighted"
+    pool = ["--advice", str(tree), "--advice", str(other), "--algo", "bipars-em"]
+    weights = ["--pool-weight", "0.9", "--pool-weight", "0.1"]
+    code, err = acv(monkeypatch, capsys, "train", *pool, *weights, "--out", str(run), *TINY)
+    assert code == 0, err
+    assert json.loads((run / "config.json").read_text())["pool_weights"] == [0.9, 0.1]
+    verdict = pooled_tree([load_tree(tree), load_tree(other)], weights=[0.9, 0.1])
+    assert tree_to_json(load_tree(run / "advice.json")) == tree_to_json(verdict)
+    code, err = acv(monkeypatch, capsys, "train", "--resume", *weights[:2], "--out", str(run))
+    assert code == 2 and "pool_weights=(0.9,)" in err
+
+
 def test_resume_continues_a_run_and_refuses_other_options(
     monkeypatch, capsys, tree: Path, tmp_path: Path
 ) -> None:
@@ -188,6 +205,15 @@ def test_resume_continues_a_run_and_refuses_other_options(
         (
             ["train", "--algo", "ppo-shaped", "--advice", "{tree}", "--advice-mode", "best"],
             "unknown advice mode 'best'",
+        ),
+        (
+            ["train", "--algo", "ppo-shaped", "--advice", "{tree}"]
+            + ["--pool-weight", "1", "--pool-weight", "2"],
+            "pool weights need pooled advice",
+        ),
+        (
+            ["train", "--algo", "ppo", "--pool-weight", "-1", "--pool-weight", "1"],
+            "pool weights must be",
         ),
     ],
 )

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import pytest
 
 from engine.errors import InputError
@@ -61,3 +63,23 @@ def test_derived_sizes() -> None:
 
 def test_smallest_valid_minibatch_is_two() -> None:
     assert TrainConfig(n_envs=1, num_steps=64, num_minibatches=32).minibatch_size == 2
+
+
+def test_pool_weights_round_trip_as_a_list_and_are_left_out_when_unset() -> None:
+    """JSON gives a list back; a config without weights is the dict it was before them (runs
+    are reused by config)."""
+    cfg = TrainConfig(algo="bipars-em", pool_weights=(1, 0.5, 0.0))
+    assert cfg.pool_weights == (1.0, 0.5, 0.0)
+    assert cfg.to_json()["pool_weights"] == [1.0, 0.5, 0.0]
+    assert TrainConfig.from_json(json.loads(json.dumps(cfg.to_json()))) == cfg
+    assert "pool_weights" not in TrainConfig().to_json()
+
+
+@pytest.mark.parametrize(
+    "weights",
+    [[1.0], [0, 0], [1, -1], [1, float("nan")], [1, float("inf")], ["a", 1], [True, 1], "12"],
+    ids=str,
+)
+def test_bad_pool_weights_raise_input_error(weights: object) -> None:
+    with pytest.raises(InputError, match="pool weights must be"):
+        TrainConfig(pool_weights=weights)  # type: ignore[arg-type]

@@ -15,7 +15,7 @@ from engine.pooling import pooled_advice, pooled_tree
 from engine.rl.agent_judge import agent_scores, agent_tree
 from engine.rl.checkpoint import find_checkpoint
 from engine.rl.config import TrainConfig
-from engine.rl.runner import load_run_advice, load_run_pool, train
+from engine.rl.runner import load_run_advice, load_run_pool, pool_reward, train
 from engine.rl.trained import load_agent
 from engine.treefile import TreeDocument, tree_to_json
 
@@ -79,6 +79,35 @@ def test_a_pool_needs_two_trees_over_one_bracket(people: list[TreeDocument]) -> 
     other = run_tournament(env_id="Hopper-v5", n_candidates=8, p=0.9, seed=5, teacher="standing")
     with pytest.raises(InputError, match="different brackets"):
         pooled_tree([people[0], other])
+
+
+def test_the_configs_pool_weights_weight_f(people: list[TreeDocument]) -> None:
+    """What a run trains with (``pool_reward``) is the weighted mean its verdict uses."""
+    weights = (0.6, 0.1, 0.0)
+    cfg = TrainConfig(env_id="Hopper-v5", algo="bipars-em", pool_weights=weights)
+    qpos = np.stack([c.qpos for c in people[0].candidates]) + 0.01
+    got = pool_reward(cfg, people)(qpos)
+    np.testing.assert_allclose(got, pooled_advice(people, weights=weights)(qpos))
+    assert not np.allclose(got, pooled_advice(people)(qpos))
+    scores = pooled_tree(people, **cfg.tree_options(), weights=cfg.pool_weights).scores
+    assert scores is not None
+    np.testing.assert_allclose(
+        np.array([scores[c.id] for c in people[0].candidates]),
+        pooled_advice(people, weights=weights)(qpos - 0.01),
+    )
+
+
+@pytest.mark.parametrize(
+    ("advice", "words"),
+    [("pool", "2 pool weights for 3 pooled trees"), ("one", "need pooled advice")],
+)
+def test_pool_weights_need_one_per_pooled_tree(
+    people: list[TreeDocument], tmp_path: Path, advice: str, words: str
+) -> None:
+    cfg = TrainConfig(env_id="Hopper-v5", algo="bipars-em", pool_weights=(1.0, 1.0))
+    with pytest.raises(InputError, match=words):
+        train(cfg, people if advice == "pool" else people[0], tmp_path / "run")
+    assert not (tmp_path / "run").exists()  # refused before anything is written
 
 
 @pytest.mark.training

@@ -1,0 +1,268 @@
+"""The shared dataset's tables and its card (issue 29 §4): each table's folder and typed
+columns, their Arrow schema, and ``README.md`` with the Hub's YAML metadata.
+
+The folder that :mod:`app.labelling.dataset` writes::
+
+    README.md                                    this card: configs, features, licence, citation
+    data/train-00000-of-00001.parquet            labels: one row per labelled pair (default)
+    candidates/train-00000-of-00001.parquet      the candidate states, with their images
+    participants/train-00000-of-00001.parquet    who labelled, under pseudonyms
+    trees/train-00000-of-00001.parquet           each finished participant's Preference Tree
+
+The labels sit in ``data/`` under the Hub's shard name because
+``load_dataset("parquet", data_dir=DIR)`` reads no card: it takes the first file pattern that
+matches, and ``data/{split}-NNNNN-of-NNNNN.*`` is tried first, so it loads the labels alone
+(the other tables' columns differ, and one table cannot hold them). Every table is a config
+of the card: ``load_dataset(DIR, "candidates")``.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from dataclasses import dataclass
+from typing import Any
+
+from engine.errors import InputError
+
+SHARD = "train-00000-of-00001.parquet"
+DEFAULT_LICENSE = "cc-by-4.0"
+#: A licence as the Hub names them (``cc-by-4.0``, ``mit``, ``other``).
+_LICENSE = re.compile(r"[a-z0-9][a-z0-9.+-]{0,63}")
+CITATION = """@misc{verma-acv,
+  title  = {Advice Conformance Verification by Reinforcement Learning agents for
+            Human-in-the-Loop},
+  author = {Verma, Mudit and Kharkwal, Ayush and Kambhampati, Subbarao},
+  note   = {SCAI, Arizona State University}
+}"""
+
+
+@dataclass(frozen=True)
+class Column:
+    """A column: its name, its kind (``int64``, ``float64``, ``string``, ``bool``,
+    ``list<...>`` of one of these, or ``image``) and what it holds."""
+
+    name: str
+    kind: str
+    doc: str
+
+
+@dataclass(frozen=True)
+class Table:
+    """A table of the dataset: its config name, folder and columns."""
+
+    name: str
+    folder: str
+    doc: str
+    columns: tuple[Column, ...]
+
+    @property
+    def path(self) -> str:
+        """The table's file, relative to the dataset folder."""
+        return f"{self.folder}/{SHARD}"
+
+
+PSEUDONYM = Column("participant", "string", "The participant's pseudonym (keyed hash of id).")
+LABELS = Table(
+    "labels",
+    "data",
+    "One row per labelled pair, grouped by participant in the order they labelled.",
+    (
+        PSEUDONYM,
+        Column("kind", "string", "`bracket` (a match) or `disagreement` (asked after it)."),
+        Column("round", "int64", "The bracket round, from 1; null for a disagreement pair."),
+        Column("left", "int64", "The candidate shown on the left."),
+        Column("right", "int64", "The candidate shown on the right."),
+        Column("winner", "int64", "The candidate the participant preferred."),
+        Column("side", "string", "`left` or `right`: the side chosen."),
+        Column("tie", "bool", "The participant could not tell; the winner is a seeded coin's."),
+        Column("response_ms", "int64", "Milliseconds from both pictures shown to the choice."),
+    ),
+)
+CANDIDATES = Table(
+    "candidates",
+    "candidates",
+    "The candidate states: enough to restore each in the environment, and its picture.",
+    (
+        Column("id", "int64", "The candidate id used by `left`, `right`, `winner` and trees."),
+        Column("qpos", "list<float64>", "MuJoCo positions (`env.unwrapped.set_state`)."),
+        Column("qvel", "list<float64>", "MuJoCo velocities."),
+        Column("env_reward", "float64", "The environment reward R(s) of the state."),
+        Column("baseline_return", "float64", "A no-advice agent's return from it, or null."),
+        Column("image", "image", "The picture participants were shown."),
+    ),
+)
+PARTICIPANTS = Table(
+    "participants",
+    "participants",
+    "The participants who agreed to share their labels, under pseudonyms.",
+    (
+        PSEUDONYM,
+        Column("external_id", "string", "Keyed hash of the crowd platform's id, or null."),
+        Column("finished", "bool", "Whether they decided every match of their bracket."),
+        Column("labels", "int64", "How many rows of `labels` are theirs."),
+        Column("flags", "list<string>", "Label-quality flags (position bias, speed, ...)."),
+        Column("reliability", "float64", "MACE competence from their known-answer checks."),
+    ),
+)
+TREES = Table(
+    "trees",
+    "trees",
+    "Each finished participant's Human Preference Tree, one entry per candidate id.",
+    (
+        PSEUDONYM,
+        Column("champion", "int64", "The tree's root: the candidate that won the bracket."),
+        Column("parent", "list<int64>", "Per candidate id, the candidate that beat it."),
+        Column("height", "list<int64>", "Per candidate id, its dendrogram height."),
+        Column("depth", "list<int64>", "Per candidate id, its depth (the root's is 1)."),
+        Column("reward", "list<float64>", "Per candidate id, the tree reward T_r."),
+        Column("document", "string", "The whole `acv.tree/1` JSON document."),
+    ),
+)
+TABLES = (LABELS, CANDIDATES, PARTICIPANTS, TREES)
+
+
+def check_license(license_id: str) -> str:
+    """``license_id`` if it looks like a Hub licence id.
+
+    Raises:
+        InputError: it does not.
+    """
+    if not _LICENSE.fullmatch(license_id):
+        raise InputError(
+            f"license {license_id[:80]!r} is not a licence id such as {DEFAULT_LICENSE} or mit"
+        )
+    return license_id
+
+
+def arrow_schema(table: Table) -> Any:
+    """The table's ``pyarrow.Schema``, with the ``datasets`` feature of its images in the
+    metadata (the other columns' features follow from their Arrow types)."""
+    import pyarrow as pa  # imported here: only exports need it
+
+    fields = [pa.field(c.name, _arrow_type(pa, c.kind)) for c in table.columns]
+    images = {c.name: {"_type": "Image"} for c in table.columns if c.kind == "image"}
+    meta = {"huggingface": json.dumps({"info": {"features": images}})} if images else None
+    return pa.schema(fields, metadata=meta)
+
+
+def _arrow_type(pa: Any, kind: str) -> Any:
+    if kind == "image":  # what datasets' Image feature stores
+        return pa.struct([("bytes", pa.binary()), ("path", pa.string())])
+    if kind.startswith("list<"):
+        return pa.list_(_arrow_type(pa, kind[5:-1]))
+    return {"int64": pa.int64(), "float64": pa.float64(), "string": pa.string()}.get(
+        kind, pa.bool_()
+    )
+
+
+def _feature(column: Column) -> dict[str, str]:
+    """A column as the card's ``dataset_info`` lists it."""
+    if column.kind == "image":
+        return {"name": column.name, "dtype": "image"}
+    if column.kind.startswith("list<"):
+        return {"name": column.name, "list": column.kind[5:-1]}
+    return {"name": column.name, "dtype": column.kind}
+
+
+@dataclass(frozen=True)
+class Facts:
+    """What the card says about the study and the export."""
+
+    name: str
+    env_id: str
+    n_candidates: int
+    p: float
+    seed: int
+    sampling: str
+    instructions: str
+    participants: int
+    labels: int
+    trees: int
+    license: str
+
+
+def readme(facts: Facts) -> str:
+    """The dataset card: YAML metadata, then what the data is and how it was collected."""
+    from huggingface_hub import DatasetCardData  # imported here: only exports need it
+
+    meta = DatasetCardData(
+        license=facts.license,
+        pretty_name=f"ACV preference labels: {facts.name}",
+        annotations_creators=["crowdsourced"],
+        source_datasets=["original"],
+        task_categories=["reinforcement-learning"],
+        size_categories=[_size(facts.labels)],
+        tags=["human-feedback", "preferences", "preference-tree", "mujoco", facts.env_id],
+        configs=[
+            {"config_name": t.name, "data_files": [{"split": "train", "path": t.path}]}
+            | ({"default": True} if t is LABELS else {})
+            for t in TABLES
+        ],
+        dataset_info=[
+            {"config_name": t.name, "features": [_feature(c) for c in t.columns]} for t in TABLES
+        ],
+    )
+    return f"---\n{meta.to_yaml()}\n---\n\n{_body(facts)}"
+
+
+def _size(n: int) -> str:
+    """The Hub's size category of ``n`` rows."""
+    for bound, name in ((1_000, "n<1K"), (10_000, "1K<n<10K"), (100_000, "10K<n<100K")):
+        if n < bound:
+            return name
+    return "100K<n<1M"
+
+
+def _told(f: Facts) -> str:
+    """The study's instructions as a quotation, when it has any."""
+    lines = [line.strip() for line in f.instructions.strip().splitlines()]
+    return "\n\nParticipants were told:\n\n" + "\n".join(f"> {x}" for x in lines) if lines else ""
+
+
+def _body(f: Facts) -> str:
+    tables = "\n\n".join(
+        f"### `{t.name}` (`{t.path}`)\n\n{t.doc}\n\n| column | type | meaning |\n|---|---|---|\n"
+        + "\n".join(f"| `{c.name}` | `{c.kind}` | {c.doc} |" for c in t.columns)
+        for t in TABLES
+    )
+    return f"""# ACV preference labels: {f.name}
+
+Pairwise preferences over robot states in `{f.env_id}`, collected with ACV (Advice
+Conformance Verification). Participants: {f.participants}; labels: {f.labels}; Human
+Preference Trees: {f.trees}.
+
+## How it was collected
+
+{f.n_candidates} candidate states were sampled (`{f.sampling}`, seed {f.seed}) from rollouts
+of the environment and rendered. They were seeded into a single-elimination bracket with the
+Braverman-Mossel noisy model (coin probability p = {f.p}). Each participant decided the
+bracket's matches one pair at a time, round by round; some studies then ask a few extra
+*disagreement* pairs. Each finished bracket gives a Human Preference Tree (the paper's
+Algorithm 1): the champion at the root, under each state the states it beat.{_told(f)}
+
+Only participants who agreed to have their labels shared in a public dataset, under a
+pseudonym, are here, and none the researcher excluded. A participant is named by a keyed
+hash (HMAC-SHA256 with a salt the researcher keeps secret) of their id, and their crowd
+platform id likewise: the same study exported again gives the same pseudonyms, and they
+cannot be traced back without the salt. Times of day are left out.
+
+## Loading
+
+```python
+from datasets import load_dataset
+
+labels = load_dataset("parquet", data_dir="DIR")  # the labels (data/)
+candidates = load_dataset("DIR", "candidates")  # or "labels", "participants", "trees"
+```
+
+## Tables
+
+{tables}
+
+## Citation
+
+```bibtex
+{CITATION}
+```
+"""

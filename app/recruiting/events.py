@@ -1,0 +1,135 @@
+"""Webhook events of the people layer, written once for studies and surveys (issue 29 §3):
+a member finished (``participant.finished``, ``respondent.finished``) or was flagged
+(``*.flagged``), a visitor of an open link declined consent (``*.declined``), and a
+collection reached its target
+(``study.target_reached``, ``survey.target_reached``): its finished open-link members
+reached the link's maximum, the number of people the researcher wanted.
+
+Each is written by :func:`app.webhooks.outbox.emit` inside the caller's write transaction,
+the one that makes the change, and costs one indexed query when nobody listens.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
+
+from sqlalchemy import Connection, func, select
+from sqlalchemy.orm import Session
+
+from app.webhooks.outbox import Data, Owner, emit, webhook_ids
+
+if TYPE_CHECKING:  # the service writes declines through this module
+    from app.recruiting.service import LinkKind
+
+DB = Session | Connection
+
+
+def _connection(db: DB) -> Connection:
+    return db.connection() if isinstance(db, Session) else db
+
+
+def owner(kind: LinkKind[Any, Any], owner_id: int) -> Owner:
+    """The study or survey ``owner_id`` of ``kind``, as webhooks name it."""
+    return Owner(kind.members.noun, owner_id)  # type: ignore[arg-type]  # "study" or "survey"
+
+
+def declined(db: DB, kind: LinkKind[Any, Any], *, owner_id: int) -> None:
+    """A visitor declined consent (nothing about them is stored, so the event carries only
+    the count of declines)."""
+    conn = _connection(db)
+    count = select(kind.link.declines).where(kind.owner_is(owner_id))
+    emit(
+        conn,
+        owner=owner(kind, owner_id),
+        type_=f"{kind.members.person}.declined",
+        subject=None,
+        data=lambda: {"declines": conn.scalar(count)},
+    )
+
+
+def finished(
+    db: DB,
+    kind: LinkKind[Any, Any],
+    *,
+    member_id: int,
+    owner_id: int,
+    extra: Callable[[], Data] = dict,
+) -> None:
+    """A member finished: ``<person>.finished`` with their external ids (and ``extra``),
+    then the target event if their collection just reached it.
+
+    Call it only when the member has just been marked finished, in that transaction.
+    """
+    conn, own = _connection(db), owner(kind, owner_id)
+    if not webhook_ids(conn, own):
+        return
+    emit(
+        conn,
+        owner=own,
+        type_=f"{kind.members.person}.finished",
+        subject=str(member_id),
+        data=lambda: _member_data(conn, kind, member_id) | extra(),
+    )
+    _target(conn, kind, own)
+
+
+def flagged(
+    db: DB, kind: LinkKind[Any, Any], *, member_id: int, owner_id: int, by: str, data: Data
+) -> None:
+    """``<person>.flagged`` by ``by`` (``finish``, ``gold_gate``), sent once per member and
+    ``by`` whatever number of times it is written."""
+    emit(
+        _connection(db),
+        owner=owner(kind, owner_id),
+        type_=f"{kind.members.person}.flagged",
+        subject=f"{member_id}:{by}",
+        data=lambda: {f"{kind.members.person}_id": member_id, "by": by} | data,
+    )
+
+
+def _member_data(conn: Connection, kind: LinkKind[Any, Any], member_id: int) -> Data:
+    member = kind.members.member
+    row = conn.execute(
+        select(member.external_id, member.external_ids, member.via_link, member.finished_at).where(
+            member.id == member_id
+        )
+    ).one()
+    return {
+        f"{kind.members.person}_id": member_id,
+        "external_id": row.external_id,
+        "external_ids": row.external_ids or {},
+        "via_link": row.via_link,
+        "finished_at": row.finished_at.isoformat() if row.finished_at else None,
+    }
+
+
+def _target(conn: Connection, kind: LinkKind[Any, Any], own: Owner) -> None:
+    """``<noun>.target_reached`` once the finished open-link members reach the maximum,
+    once per maximum (raising it and reaching it again is a new event).
+
+    The link's row is locked first (PostgreSQL; SQLite has one writer anyway), so that of
+    two members finishing at once the second counts the first: neither misses the target.
+    """
+    link = kind.link
+    maximum = conn.scalar(
+        select(link.max_participants).where(kind.owner_is(own.id)).with_for_update()
+    )
+    if maximum is None:
+        return  # no open link: no target
+    member = kind.members.member
+    done = conn.scalar(
+        select(func.count(member.id)).where(
+            getattr(member, kind.members.owner) == own.id,
+            member.via_link.is_(True),
+            member.finished_at.is_not(None),
+        )
+    )
+    if done is not None and done >= maximum:
+        emit(
+            conn,
+            owner=own,
+            type_=f"{kind.members.noun}.target_reached",
+            subject=f"target:{maximum}",
+            data=lambda: {"finished": done, "max_participants": maximum},
+        )
