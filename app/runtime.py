@@ -8,8 +8,12 @@ from __future__ import annotations
 
 import logging
 import threading
+from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
+from typing import TypeVar
 
+import anyio
+import anyio.to_thread
 from sqlalchemy.orm import Session, sessionmaker
 
 from app.core.auth import ensure_admin_token
@@ -21,6 +25,7 @@ from app.studies.service import prepare_study, preparing_study_ids
 from engine.render import RenderCache, RenderService
 
 log = logging.getLogger(__name__)
+T = TypeVar("T")
 
 
 class Runtime:
@@ -38,6 +43,11 @@ class Runtime:
         self.sessions: sessionmaker[Session] = make_sessions(self.engine)
         self.admin_token = ensure_admin_token(settings)
         self._lock = threading.Lock()
+        # The participants' hot path (next match, label) runs on worker threads, at most this
+        # many at once: SQLite writes one transaction at a time, and more threads than that
+        # only take turns at the GIL and the write lock, so that a burst of requests queues
+        # in the threads instead of in the event loop's fair queue (benchmarks/crowd_load.py).
+        self.hot_path = anyio.CapacityLimiter(1 if self.engine.dialect.name == "sqlite" else 8)
         self._renderer: RenderService | None = None
         self._jobs: ThreadPoolExecutor | None = None
 
@@ -48,6 +58,10 @@ class Runtime:
             if self._renderer is None:
                 self._renderer = RenderService(RenderCache(self.settings.images_dir))
             return self._renderer
+
+    async def run_hot(self, func: Callable[..., T], *args: object) -> T:
+        """Run ``func(*args)`` on a worker thread of the hot path (:attr:`hot_path`)."""
+        return await anyio.to_thread.run_sync(func, *args, limiter=self.hot_path)
 
     def prepare(self, study_id: int) -> None:
         """Sample and render a study now, on this thread."""

@@ -6,7 +6,6 @@ from typing import Annotated, Any
 
 from fastapi import APIRouter, Path, Request, Response
 from fastapi.responses import JSONResponse
-from starlette.concurrency import run_in_threadpool
 
 from app.core.errors import ForbiddenError
 from app.http.deps import DbId, ResearcherDep, RuntimeDep, SessionDep, ViewerDep
@@ -66,7 +65,7 @@ async def next_match(token: InviteTokenDep, runtime: RuntimeDep) -> Response:
     # Hot path: authentication and one query in one worker-thread hop, with a session of
     # its own (held only while the thread runs), and the JSON written without a validation
     # layer (the body is built from typed rows; the schema is NextMatchOut).
-    body = await run_in_threadpool(_next_match, runtime, token)
+    body = await runtime.run_hot(_next_match, runtime, token)
     return Response(status_code=204) if body is None else JSONResponse(body)
 
 

@@ -6,7 +6,6 @@ from typing import Any
 
 from fastapi import APIRouter, Response
 from fastapi.responses import JSONResponse
-from starlette.concurrency import run_in_threadpool
 
 from app.http.deps import DbId, RuntimeDep, SessionDep
 from app.http.member_auth import InviteTokenDep, ParticipantDep
@@ -42,7 +41,7 @@ async def label_match(
     (``next``, ``null`` once the bracket is finished), so a participant needs one round trip
     per decision."""
     # Hot path: one worker-thread hop with a session of its own, as in ``next-match``.
-    result, study_id = await run_in_threadpool(_label, runtime, token, match_id, body)
+    result, study_id = await runtime.run_hot(_label, runtime, token, match_id, body)
     return JSONResponse(label_body(result, study_id), status_code=201 if result.created else 200)
 
 

@@ -187,9 +187,10 @@ def test_bad_gold_items_are_refused_and_change_nothing(
 
 
 def test_a_gold_item_somebody_answered_is_kept(
-    client: TestClient, gold_study: dict[str, Any], gold_items: list[dict[str, Any]]
+    client: TestClient, gold_study: dict[str, Any], gold_items: list[dict[str, Any]], invite
 ) -> None:
     sid, item = gold_study["id"], gold_items[0]
+    _walk(invite(sid), lambda m: m["a"]["candidate_id"])  # answers every gold item
     assert client.delete(f"/api/studies/{sid}/gold/{item['id']}", headers=ADMIN).status_code == 409
     spare = _add_gold(client, sid, kind="pair", a=4, b=5, answer=4).json()
     assert client.delete(f"/api/studies/{sid}/gold/{spare['id']}", headers=ADMIN).status_code == 204
