@@ -57,6 +57,7 @@ class Snapshot:
     n_candidates: int
     labels: int
     last_label: int
+    response_ms_total: int
     last_minute: int
     last_5_minutes: int
     people: int

@@ -50,6 +50,8 @@ def _labels_now() -> Subquery:
         select(
             func.count(Label.id).label("labels"),
             func.coalesce(func.max(Label.id), 0).label("last_label"),
+            # SQLite may reuse an undone label's id: the times tell a new label apart
+            func.coalesce(func.sum(Label.response_ms), 0).label("response_ms_total"),
             _count_if(Label.created_at >= bindparam("minute_ago")).label("last_minute"),
             _count_if(Label.created_at >= bindparam("five_ago")).label("last_5_minutes"),
         )

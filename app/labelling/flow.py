@@ -217,7 +217,8 @@ def submit_label(
         NotFoundError: no such match among this participant's.
         InputError: ``winner`` did not play the match, ``response_ms`` is out of range,
             neither or both of ``winner`` and ``tie``, or a tie the study does not allow.
-        ConflictError: the match is already decided the other way.
+        ConflictError: the match is already decided the other way, or a gold item is due
+            before it.
     """
     if response_ms is not None and not 0 <= response_ms <= MAX_RESPONSE_MS:
         raise InputError(f"response_ms must be in 0..{MAX_RESPONSE_MS}, got {response_ms}")
@@ -266,6 +267,8 @@ def _submit(
         return _same_or_conflict(
             conn, participant, decision, (existing, was_tie), Progress(done, shape.n - 1), with_next
         )
+    if due_gold(conn, participant_id=pid, done=done) is not None:  # no skipping the checks
+        raise ConflictError("answer the check pair shown before this match first")
     winner = _insert_label(conn, pid, shape, decision, row, now)
     progress = Progress(done + 1, shape.n - 1)
     if rnd == 1 and slot ^ 1 in shape.byes:

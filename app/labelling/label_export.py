@@ -224,6 +224,8 @@ def to_parquet(rows: list[dict[str, Any]]) -> bytes:
             ("flags", pa.list_(pa.string())),
             ("tie", pa.bool_()),
             ("reliability", pa.float64()),
+            ("gold_right", pa.int64()),
+            ("gold_asked", pa.int64()),
             ("excluded", pa.bool_()),
         ]
     )

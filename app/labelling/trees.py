@@ -82,9 +82,11 @@ def study_trees(session: Session, *, study_id: int) -> list[tuple[int, TreeDocum
     return [(pid, participant_tree(session, participant_id=pid)) for pid in finished]
 
 
-def labels_csv(session: Session, *, study_id: int) -> str:
-    """Every label of the study as CSV (header :data:`LABEL_COLUMNS`), in label order."""
+def labels_csv(session: Session, *, study_id: int, include_excluded: bool = False) -> str:
+    """Every label of the study as CSV (header :data:`LABEL_COLUMNS`), in label order;
+    excluded participants' labels only with ``include_excluded`` (they are never deleted)."""
     get_study(session, study_id=study_id)
+    kept = [] if include_excluded else [Participant.excluded.is_(False)]
     rows = session.execute(
         select(
             Match.participant_id,
@@ -100,7 +102,7 @@ def labels_csv(session: Session, *, study_id: int) -> str:
         )
         .join(Match, Match.id == Label.match_id)
         .join(Participant, Participant.id == Match.participant_id)
-        .where(Participant.study_id == study_id)
+        .where(Participant.study_id == study_id, *kept)
         .order_by(Label.id)
     )
     return csv_export.csv_text(

@@ -31,6 +31,7 @@ from app.studies.images import MEDIA_TYPE, ImageSize, image_file
 from app.studies.schemas import (
     AdvicePowerOut,
     CandidateOut,
+    IncludeExcluded,
     ParticipantBatchCreate,
     ParticipantCreate,
     ParticipantCreated,
@@ -189,11 +190,15 @@ def participant_out(
     response_class=Response,
     responses={200: {"content": {"text/csv": {}}}},
 )
-def labels_csv(study_id: DbId, session: SessionDep, _: ResearcherDep) -> Response:
-    """Every label of the study, one row per label."""
-    return attachment(
-        trees.labels_csv(session, study_id=study_id), "text/csv", f"study-{study_id}-labels.csv"
-    )
+def labels_csv(
+    study_id: DbId,
+    session: SessionDep,
+    _: ResearcherDep,
+    include_excluded: IncludeExcluded = False,
+) -> Response:
+    """Every label of the study, one row per label (excluded participants' only on request)."""
+    text = trees.labels_csv(session, study_id=study_id, include_excluded=include_excluded)
+    return attachment(text, "text/csv", f"study-{study_id}-labels.csv")
 
 
 @router.get("/{study_id}/trees")

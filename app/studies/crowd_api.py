@@ -5,9 +5,9 @@ for reuse (issue 14). Researcher only."""
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Annotated, Any
+from typing import Any
 
-from fastapi import APIRouter, Query, Response
+from fastapi import APIRouter, Response
 
 from app.core.errors import NotFoundError
 from app.http.deps import DbId, ResearcherDep, SessionDep
@@ -26,6 +26,7 @@ from app.studies.crowd_schemas import (
     SideBiasOut,
     TeacherAgreementOut,
 )
+from app.studies.schemas import IncludeExcluded
 
 router = APIRouter(prefix="/studies", tags=["crowd"])
 
@@ -120,13 +121,7 @@ def export_labels(
     fmt: str,
     session: SessionDep,
     _: ResearcherDep,
-    include_excluded: Annotated[
-        bool,
-        Query(
-            description="Also the labels of participants excluded from pooling and exports "
-            "(their ``excluded`` column is true); by default they are left out."
-        ),
-    ] = False,
+    include_excluded: IncludeExcluded = False,
 ) -> Response:
     """One row per label (``jsonl``, ``csv`` or ``parquet``), with external ids, sides,
     times, ties, and the participant's quality flags, reliability and exclusion."""

@@ -20,10 +20,10 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Literal
+from typing import Any, Literal, cast
 
 import numpy as np
-from sqlalchemy import Connection, bindparam, case, func, select
+from sqlalchemy import Connection, CursorResult, bindparam, case, func, select, update
 from sqlalchemy.orm import Session
 
 from app.core.errors import ConflictError, NotFoundError
@@ -238,9 +238,26 @@ def answer(
         opened = participant.last_active_at or participant.created_at
         response_ms = max(0, round((now - as_utc(opened)).total_seconds() * 1000))
     with writing(session):
-        row.winner, row.response_ms, row.answered_at = winner, response_ms, now
+        # only if still open: of two answers sent at once, one is stored and the other sees it
+        result = cast(
+            CursorResult[Any],
+            session.execute(
+                update(GoldAnswer)
+                .where(
+                    GoldAnswer.participant_id == participant_id,
+                    GoldAnswer.gold_item_id == item_id,
+                    GoldAnswer.winner.is_(None),
+                )
+                .values(winner=winner, response_ms=response_ms, answered_at=now)
+                .execution_options(synchronize_session=False)
+            ),
+        )
+        stored = result.rowcount
         participant.last_active_at = now
-    return row, True
+    session.refresh(row)
+    if not stored and row.winner != winner:
+        raise ConflictError(f"gold item {item_id} is already answered")
+    return row, bool(stored)
 
 
 def scores(session: Session, *, study_id: int) -> dict[int, GoldScore]:

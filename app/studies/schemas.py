@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from typing import Annotated, Literal
 
+from fastapi import Query
 from pydantic import (
     AfterValidator,
     BaseModel,
@@ -166,6 +167,16 @@ class ParticipantOut(ParticipantCreated):
         description="Agreed that their labels may be shared in a public dataset, under a "
         "pseudonym (PUT /api/participants/me/share-consent).",
     )
+
+
+#: The exports' query parameter: also the labels of excluded participants.
+IncludeExcluded = Annotated[
+    bool,
+    Query(
+        description="Also the labels of participants excluded from pooling and exports "
+        "(their ``excluded`` column is true); by default they are left out."
+    ),
+]
 
 
 class ExclusionIn(BaseModel):

@@ -158,7 +158,7 @@ def post(client: httpx.Client, event: Outgoing, *, targets: Targets) -> Outcome:
         status, error = _send(client, target, event), None
     except InputError as exc:
         status, error = None, f"refused: {exc}"
-    except httpx.HTTPError as exc:
+    except Exception as exc:  # noqa: BLE001  # any failure is this attempt's, logged and retried
         status, error = None, f"{type(exc).__name__}: {exc}"[:500]
     if status is not None and 300 <= status < 400:
         error = "redirects are not followed"
@@ -219,7 +219,14 @@ class Deliverer:
     def __init__(self, sessions: sessionmaker[Session], policy: Policy) -> None:
         self.sessions, self.policy = sessions, policy
         self.rng = random.Random()
-        self.client = httpx.Client(timeout=TIMEOUT_S, follow_redirects=False, trust_env=False)
+        # No kept-alive connections: a pool keyed by address would let two hosts behind one
+        # address share a TLS connection, whose certificate was checked for the first only.
+        self.client = httpx.Client(
+            timeout=TIMEOUT_S,
+            follow_redirects=False,
+            trust_env=False,
+            limits=httpx.Limits(max_keepalive_connections=0),
+        )
 
     def tick(self, stop: threading.Event | None = None) -> int:
         """Attempt the due events once each; returns how many were attempted."""
@@ -273,7 +280,7 @@ class DeliveryThread:
     def stop(self) -> None:
         """Stop after the attempt in flight (at most :data:`TIMEOUT_S`)."""
         self._stop.set()
-        self._thread.join()
+        self._thread.join(timeout=2 * TIMEOUT_S)  # never hang a shutdown on a slow receiver
 
 
 def start_delivery(sessions: sessionmaker[Session], settings: Settings) -> DeliveryThread:

@@ -58,8 +58,10 @@ class Target:
 
 def address_kind(address: IPAddress) -> str:
     """``public``, or the kind of non-public address (``private``, ``loopback``, ...)."""
-    if isinstance(address, ipaddress.IPv6Address) and address.ipv4_mapped is not None:
-        address = address.ipv4_mapped  # ::ffff:10.0.0.1 is 10.0.0.1
+    if isinstance(address, ipaddress.IPv6Address):
+        # ::ffff:10.0.0.1 is 10.0.0.1, and 2002:0a00:0001:: (6to4) routes to it
+        embedded = address.ipv4_mapped or address.sixtofour
+        address = embedded if embedded is not None else address
     for kind in ("unspecified", "loopback", "link_local", "multicast", "reserved", "private"):
         if getattr(address, f"is_{kind}"):
             return kind.replace("_", "-")

@@ -96,11 +96,19 @@ async function showMatch(next) {
   $("tie").hidden = !next.allow_ties;
   const onScreen = placed(next);
   const images = [[$("img-a"), onScreen.a], [$("img-b"), onScreen.b]];
+  const instructed = Boolean(next.gold && next.gold.prompt);
   for (const [img, side] of images) {
     img.src = side.image_url;
     img.alt = `candidate ${side.candidate_id}`;
     img.parentElement.classList.remove("chosen");
   }
+  // The marker is drawn on a picture: say in words which one has it, for screen readers.
+  images.forEach(([img, side], k) => {
+    const where = k === 0 ? "left" : "right";
+    const marked = side.image_url.includes("marker=true") ? "with" : "without";
+    img.parentElement.setAttribute("aria-label", instructed
+      ? `The ${where} picture, ${marked} the marker` : `Prefer the ${where} picture`);
+  });
   await Promise.all(images.map(([img]) => img.decode().catch(() => undefined)));
   if (state.match !== next) return;  // a newer match replaced this one meanwhile
   box.classList.remove("loading");

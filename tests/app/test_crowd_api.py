@@ -17,6 +17,7 @@ from sqlalchemy import text
 from app.core.auth import PARTICIPANT_COOKIE
 from app.db import make_engine, upgrade
 from app.http.ratelimit import LoginLimiter
+from app.labelling.label_export import COLUMNS
 from app.studies.sides import a_on_left
 from tests.support.crowd import SETTINGS, configure, joined_player, visit, visitor
 from tests.support.postgres import empty_database
@@ -306,6 +307,7 @@ def test_exports_have_one_row_per_label(client, four) -> None:
     table = list(csv.DictReader(io.StringIO(client.get(base + ".csv", headers=ADMIN).text)))
     assert len(table) == len(rows) and table[-1]["external_id"] == "exp"
     parquet = pq.read_table(io.BytesIO(client.get(base + ".parquet", headers=ADMIN).content))
+    assert parquet.column_names == list(COLUMNS)  # every format has every column
     assert parquet.num_rows == len(rows) and parquet.column("winner").to_pylist() == [
         r["winner"] for r in rows
     ]

@@ -67,6 +67,11 @@ def _label_through(page: Page, what: str) -> dict[str, int]:
             expect(page.locator("#prompt-text")).to_have_text(
                 "Check: choose the picture with the marker."
             )
+            names = [page.get_attribute(f"#pick-{k}", "aria-label") for k in "ab"]
+            assert sorted(n.split(", ")[1] for n in names) == [
+                "with the marker",
+                "without the marker",
+            ]
             if seen["checks"] == 0:
                 assert_accessible(page, f"labelling page at a check on a {what}")
             marked = (

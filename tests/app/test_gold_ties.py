@@ -96,6 +96,20 @@ def test_gold_items_come_among_the_matches_and_never_enter_the_bracket(
     } == {(2, 2)}
 
 
+def test_a_due_gold_item_cannot_be_skipped(
+    client: TestClient, gold_study: dict[str, Any], gold_items: list[dict[str, Any]], invite
+) -> None:
+    player = invite(gold_study["id"])
+    while (match := player.next_match())["gold"] is None:
+        assert player.label(match["match_id"], match["a"]["candidate_id"]).status_code == 201
+    done = match["progress"]["done"]
+    skipped = player.label(match["match_id"], match["a"]["candidate_id"])
+    assert skipped.status_code == 409 and "check pair" in skipped.json()["detail"]
+    assert player.next_match()["progress"]["done"] == done
+    answered = player.answer_gold(match["gold"]["item_id"], match["a"]["candidate_id"])
+    assert answered.status_code == 201 and answered.json()["next"]["match_id"] == match["match_id"]
+
+
 def test_the_marker_is_drawn_on_the_image(client: TestClient, gold_study: dict[str, Any]) -> None:
     url = f"/api/studies/{gold_study['id']}/candidates/2/image"
     plain, marked = client.get(url, headers=ADMIN), client.get(url + "?marker=true", headers=ADMIN)
@@ -124,10 +138,15 @@ def test_the_gate_flags_a_careless_participant_and_excludes_only_when_asked(
     assert mine["excluded"] is excludes
     if excludes:
         assert mine["exclusion_reason"].startswith("gold gate: 0 of 2")
-    labels = csv.DictReader(
-        io.StringIO(client.get(f"/api/studies/{sid}/labels.csv", headers=ADMIN).text)
-    )
-    assert sum(row["participant_id"] == str(careless.id) for row in labels) == N - 1  # kept
+
+    def rows(query: str = "") -> int:
+        text = client.get(f"/api/studies/{sid}/labels.csv{query}", headers=ADMIN).text
+        return sum(
+            r["participant_id"] == str(careless.id) for r in csv.DictReader(io.StringIO(text))
+        )
+
+    assert rows("?include_excluded=true") == N - 1  # kept
+    assert rows() == (0 if excludes else N - 1)  # left out of the export when excluded
     configure(client, sid, gold_gate=None, gate_excludes=False)
 
 

@@ -50,6 +50,7 @@ def resolves_to(*addresses: str):
         ("https://[::1]/", f"::1 is a loopback address: {ONLY_PUBLIC}"),
         ("https://[::ffff:10.0.0.1]/", f"::ffff:10.0.0.1 is a private address: {ONLY_PUBLIC}"),
         ("https://[fd00::1]/", f"fd00::1 is a private address: {ONLY_PUBLIC}"),
+        ("https://[2002:a00:1::]/", f"2002:a00:1:: is a private address: {ONLY_PUBLIC}"),
         ("https://0.0.0.0/", f"0.0.0.0 is an unspecified address: {ONLY_PUBLIC}"),
         ("https://224.0.0.1/", f"224.0.0.1 is a multicast address: {ONLY_PUBLIC}"),
         ("https://100.64.0.1/", f"100.64.0.1 is a special-purpose address: {ONLY_PUBLIC}"),

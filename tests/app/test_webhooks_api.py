@@ -103,7 +103,7 @@ def test_a_finished_participant_is_posted_signed_and_logged(
 def test_a_receiver_that_is_down_loses_no_event(
     client: TestClient, study: dict[str, Any], invite: Callable[..., Player]
 ) -> None:
-    receiver = Receiver()  # its port is free: nothing listens there yet
+    receiver = Receiver()  # its port is held but nothing listens there yet
     hook = register(client, receiver.url(), study_id=study["id"])
     for _ in range(2):
         invite().play()

@@ -5,6 +5,7 @@ events and attempts through the API."""
 from __future__ import annotations
 
 import json
+import socket
 import threading
 from dataclasses import dataclass
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
@@ -12,7 +13,6 @@ from typing import Any
 
 from standardwebhooks import Webhook as Verifier
 
-from tests.support.net import free_port
 from tests.support.web import ADMIN
 
 
@@ -37,12 +37,24 @@ class Delivery:
         return Verifier(secret).verify(self.body, self.headers)
 
 
+def _reserve(port: int) -> socket.socket:
+    """A socket bound to ``127.0.0.1:port`` (0: any free port), not listening."""
+    held = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+    held.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    held.bind(("127.0.0.1", port))
+    return held
+
+
 class Receiver:
     """An HTTP server on ``127.0.0.1:port`` (a free one by default) answering ``status`` to
     every POST and recording it. Use as a context manager: it listens inside only."""
 
     def __init__(self, port: int | None = None, status: int = 200) -> None:
-        self.port, self.status = port or free_port(), status
+        # The port is held from the start by a bound socket that does not listen (a
+        # connection to it is refused, as to a receiver that is down), so that no other
+        # test's server can take it while this receiver is down.
+        self._socket = _reserve(port or 0)
+        self.port, self.status = self._socket.getsockname()[1], status
         self.deliveries: list[Delivery] = []
         self._lock = threading.Lock()
         self._server: ThreadingHTTPServer | None = None
@@ -58,14 +70,21 @@ class Receiver:
         return {d.event_id for d in self.received()}
 
     def __enter__(self) -> Receiver:
-        self._server = ThreadingHTTPServer(("127.0.0.1", self.port), self._handler())
-        threading.Thread(target=self._server.serve_forever, daemon=True).start()
+        server = ThreadingHTTPServer(
+            ("127.0.0.1", self.port), self._handler(), bind_and_activate=False
+        )
+        server.socket.close()
+        server.socket = self._socket  # the held port, now listening
+        server.server_activate()
+        self._server = server
+        threading.Thread(target=server.serve_forever, daemon=True).start()
         return self
 
     def __exit__(self, *_: object) -> None:
         assert self._server is not None
         self._server.shutdown()
         self._server.server_close()
+        self._socket = _reserve(self.port)  # down again, and the port still held
 
     def _handler(self) -> type[BaseHTTPRequestHandler]:
         receiver = self
