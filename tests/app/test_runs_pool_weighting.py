@@ -152,12 +152,9 @@ def test_the_plain_mean_stays_the_default_and_is_other_advice(
 ) -> None:
     """A pool without ``pool_weighting`` is the plain mean, as before; the multi-run
     comparison keeps it apart from the same pool weighted by reliability."""
-    weighted = [
-        r["id"]
-        for r in api(client, f"/api/runs?study_id={study['id']}")
-        if r["pool_weighting"] == "reliability" and r["participant_ids"] == people
-    ]
     body = {"study_id": study["id"], "participant_ids": people, "algo": "ppo"}
+    # its own weighted run: under xdist another worker may have run the test that makes one
+    weighted = [create_run(client, **body, pool_weighting="reliability", timesteps=128, **TINY)]
     run = wait_run(client, create_run(client, **body, timesteps=128, **TINY))
     assert run["pool_weighting"] == "mean" and run["pool_weights"] is None
     assert "pool_weights" not in run["config"] and run["status"] == "succeeded"
@@ -267,10 +264,11 @@ def _check_exports(client: TestClient, study_id: int, people: list[int], gone: i
     for r in everyone:
         assert r["excluded"] is (r["participant_id"] == gone) and r["tie"] is False
         assert r["reliability"] == reliability[r["participant_id"]]
-    plain = csv.DictReader(
-        io.StringIO(client.get(f"/api/studies/{study_id}/labels.csv", headers=ADMIN).text)
-    )
-    kept = [r for r in plain if r["participant_id"] == str(gone)]  # never deleted
+    csv_url = f"/api/studies/{study_id}/labels.csv"
+    plain = csv.DictReader(io.StringIO(client.get(csv_url, headers=ADMIN).text))
+    assert all(r["participant_id"] != str(gone) for r in plain)  # left out by default
+    asked = client.get(csv_url + "?include_excluded=true", headers=ADMIN).text
+    kept = [r for r in csv.DictReader(io.StringIO(asked)) if r["participant_id"] == str(gone)]
     assert len([r for r in everyone if r["participant_id"] == gone]) == len(kept) > 0
     table = list(csv.DictReader(io.StringIO(client.get(base + ".csv", headers=ADMIN).text)))
     assert list(table[0])[-5:] == [
