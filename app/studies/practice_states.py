@@ -15,8 +15,6 @@ from __future__ import annotations
 
 import json
 import logging
-import os
-import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,6 +26,7 @@ from app.models import Study
 from app.studies.images import SPECS
 from engine.practice import sample_practice_states
 from engine.render import RenderService
+from engine.render.cache import write_atomically
 from engine.render.image import with_marker
 
 log = logging.getLogger(__name__)
@@ -75,10 +74,10 @@ def prepare_practice(
     folder = practice_folder(images_dir, study.id)
     pictures = renderer.iter_render(study.env_id, [(s.qpos, s.qvel) for s in states], SPECS["full"])
     for index, picture in enumerate(pictures):
-        _write(folder / _image_name(index, marked=False), picture)
-        _write(folder / _image_name(index, marked=True), with_marker(picture))
+        write_atomically(folder / _image_name(index, marked=False), picture)
+        write_atomically(folder / _image_name(index, marked=True), with_marker(picture))
     manifest = {**_owner(study), "states": [{"qpos": s.qpos.tolist()} for s in states]}
-    _write(folder / MANIFEST, json.dumps(manifest).encode())
+    write_atomically(folder / MANIFEST, json.dumps(manifest).encode())
 
 
 def practice_states(images_dir: Path, study: Study) -> PracticeStates | None:
@@ -112,17 +111,3 @@ def _owner(study: Study) -> dict[str, Any]:
 
 def _image_name(index: int, *, marked: bool) -> str:
     return f"state-{index}{'-marked' if marked else ''}.{SPECS['full'].fmt}"
-
-
-def _write(path: Path, data: bytes) -> None:
-    """Write ``data`` to ``path`` atomically (a temporary file, then a rename)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-        os.chmod(tmp, 0o644)  # mkstemp makes it owner-only; pictures are not secret
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise

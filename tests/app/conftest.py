@@ -23,6 +23,7 @@ from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
 from typing import Any
 
+import httpx
 import pytest
 from fastapi.testclient import TestClient
 from playwright.sync_api import Browser, sync_playwright
@@ -137,6 +138,15 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
 
 
 # --- browser tests: acv serve in a subprocess, Debian's Chromium -----------------------------
+
+
+@pytest.fixture(scope="module")
+def api(server: tuple[str, Path]) -> Iterator[httpx.Client]:
+    """A researcher's REST client on this module's ``acv serve``."""
+    base, _ = server
+    admin = {"Authorization": f"Bearer {SERVER_ADMIN_TOKEN}"}
+    with httpx.Client(base_url=base, headers=admin, timeout=60) as client:
+        yield client
 
 
 @pytest.fixture(scope="module")

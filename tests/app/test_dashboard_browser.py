@@ -6,7 +6,6 @@ desktop and on a phone (screenshot: /tmp/acv_screens/study-live.png)."""
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 from pathlib import Path
 
 import httpx
@@ -29,15 +28,6 @@ N = 4  # 3 matches per bracket
 
 # The page's script counts the bodies it applied and the 304s it got (static/js/dashboard.js).
 _MORE = "([what, than]) => Number(document.getElementById('dashboard').dataset[what]) > than"
-
-
-@pytest.fixture(scope="module")
-def api(server) -> Iterator[httpx.Client]:
-    base, _ = server
-    with httpx.Client(
-        base_url=base, headers={"Authorization": f"Bearer {ADMIN_TOKEN}"}, timeout=60
-    ) as client:
-        yield client
 
 
 def invite(api: httpx.Client, study_id: int) -> tuple[int, dict[str, str]]:

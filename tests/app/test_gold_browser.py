@@ -7,7 +7,6 @@ and on a phone, and the study page with its gold and quality tables."""
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 from typing import Any
 
 import httpx
@@ -16,10 +15,10 @@ from playwright.sync_api import Browser, Page, expect
 
 from tests.support.a11y import assert_accessible
 from tests.support.browser import (
-    ADMIN_TOKEN,
     DESKTOP,
     PHONE,
     new_page,
+    researcher_page,
     wait_for_match,
     wait_until_still,
 )
@@ -30,27 +29,11 @@ N = 8
 
 
 @pytest.fixture(scope="module")
-def api(server) -> Iterator[httpx.Client]:
-    base, _ = server
-    with httpx.Client(
-        base_url=base, headers={"Authorization": f"Bearer {ADMIN_TOKEN}"}, timeout=60
-    ) as client:
-        yield client
-
-
-@pytest.fixture(scope="module")
 def study(api: httpx.Client) -> dict[str, Any]:
     body = {"name": "Gold study", "env_id": "Hopper-v5", "n_candidates": N, "seed": 9}
     created = api.post("/api/studies", json=body | {"allow_ties": True})
     assert created.status_code == 201, created.text
     return wait_until_prepared(api, created.json()["id"])
-
-
-def _researcher(browser: Browser, base: str, errors: list[str]) -> Page:
-    _, page = new_page(browser, errors, viewport=DESKTOP)
-    page.goto(f"{base}/login#token={ADMIN_TOKEN}")
-    page.wait_for_url(f"{base}/studies")
-    return page
 
 
 def _label_through(page: Page, what: str) -> dict[str, int]:
@@ -131,7 +114,7 @@ def test_the_researcher_adds_gold_sets_a_gate_and_excludes(
     base, _ = server
     sid = study["id"]
     errors: list[str] = []
-    page = _researcher(browser, base, errors)
+    page = researcher_page(browser, base, errors)
     page.goto(f"{base}/studies/{sid}#gold")
     page.select_option("#gold-kind", "pair")
     page.fill("#gold-a", "3")

@@ -5,7 +5,6 @@ audits each page on each viewport, after several answers too."""
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 from typing import Any
 
 import httpx
@@ -20,15 +19,6 @@ from tests.support.wait import wait_for
 
 pytestmark = pytest.mark.browser
 PAIRS = 3
-
-
-@pytest.fixture(scope="module")
-def api(server) -> Iterator[httpx.Client]:
-    base, _ = server
-    with httpx.Client(
-        base_url=base, headers={"Authorization": f"Bearer {ADMIN_TOKEN}"}, timeout=60
-    ) as client:
-        yield client
 
 
 @pytest.fixture(scope="module")

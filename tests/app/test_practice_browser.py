@@ -7,7 +7,6 @@ feedback (after a reload too)."""
 from __future__ import annotations
 
 import re
-from collections.abc import Iterator
 from typing import Any
 
 import httpx
@@ -16,7 +15,6 @@ from playwright.sync_api import Browser, Page, expect
 
 from tests.support.a11y import assert_accessible
 from tests.support.browser import (
-    ADMIN_TOKEN,
     DESKTOP,
     PHONE,
     new_page,
@@ -28,15 +26,6 @@ from tests.support.labelling import wait_until_prepared
 pytestmark = pytest.mark.browser
 PAIRS = 2
 FEEDBACK = re.compile(r"^(Right|Not quite): the marker was on the (left|right)\.$")
-
-
-@pytest.fixture(scope="module")
-def api(server) -> Iterator[httpx.Client]:
-    base, _ = server
-    with httpx.Client(
-        base_url=base, headers={"Authorization": f"Bearer {ADMIN_TOKEN}"}, timeout=60
-    ) as client:
-        yield client
 
 
 @pytest.fixture(scope="module")

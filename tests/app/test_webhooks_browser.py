@@ -6,7 +6,6 @@ both pages with a webhook and its log, on a desktop and on a phone. The receiver
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 from pathlib import Path
 
 import httpx
@@ -14,28 +13,18 @@ import pytest
 from playwright.sync_api import Browser, Page, expect
 
 from tests.support.a11y import assert_accessible
-from tests.support.browser import ADMIN_TOKEN, DESKTOP, PHONE, new_page, wait_until_still
+from tests.support.browser import (
+    DESKTOP,
+    PHONE,
+    researcher_page,
+    wait_until_still,
+)
 from tests.support.labelling import label_bracket, wait_until_prepared
 from tests.support.surveys import paper_body, two_finished_participants
 from tests.support.wait import wait_for
 from tests.support.webhooks import Receiver, events
 
 pytestmark = pytest.mark.browser
-
-
-@pytest.fixture(scope="module")
-def api(server) -> Iterator[httpx.Client]:
-    base, _ = server
-    admin = {"Authorization": f"Bearer {ADMIN_TOKEN}"}
-    with httpx.Client(base_url=base, headers=admin, timeout=60) as client:
-        yield client
-
-
-def _researcher(browser: Browser, base: str, errors: list[str]) -> Page:
-    _, page = new_page(browser, errors, viewport=DESKTOP)
-    page.goto(f"{base}/login#token={ADMIN_TOKEN}")
-    page.wait_for_url(f"{base}/studies")
-    return page
 
 
 def _register(page: Page, path: str, url: str) -> None:
@@ -68,7 +57,7 @@ def test_the_study_page_registers_a_webhook_and_shows_its_log(
     )
     sid = wait_until_prepared(api, created.json()["id"])["id"]
     path, errors = f"{base}/studies/{sid}", []
-    page = _researcher(browser, base, errors)
+    page = researcher_page(browser, base, errors)
     _register(page, path, "https://10.0.0.1/hook")
     expect(page.locator("main")).to_contain_text("10.0.0.1 is a private address")
     assert_accessible(page, "the refused webhook's error page")
@@ -115,7 +104,7 @@ def test_the_survey_page_registers_and_removes_a_webhook(
     trees = [{"kind": "participant", "participant_id": p} for p in people[:2]]
     survey = api.post("/api/surveys", json=paper_body(*trees)).json()
     path, errors = f"{base}/surveys/{survey['id']}", []
-    page = _researcher(browser, base, errors)
+    page = researcher_page(browser, base, errors)
     with Receiver() as receiver:
         _register(page, path, receiver.url())
         page.wait_for_url(f"{path}#webhooks")

@@ -131,3 +131,11 @@ def create_study_and_invite(page: Page, base: str) -> tuple[str, str]:
     invite = page.locator("td.invite input").first.input_value()
     assert invite.startswith(f"{base}/p/")
     return page.url.split("?")[0], invite
+
+
+def researcher_page(browser: Browser, base: str, errors: list[str]) -> Page:
+    """A desktop page logged in as the researcher (by the ``#token=`` link)."""
+    _, page = new_page(browser, errors, viewport=DESKTOP)
+    page.goto(f"{base}/login#token={ADMIN_TOKEN}")
+    page.wait_for_url(f"{base}/studies")
+    return page
