@@ -87,7 +87,7 @@ def _run_with_progress(out: Path, plan: Plan, jobs: int) -> None:
         thread.start()
         while thread.is_alive():
             for bar, runs in bars.values():
-                progress.update(bar, completed=sum(steps_done(out, t) for t in runs))
+                progress.update(bar, completed=sum(steps_done(out, plan, t) for t in runs))
             thread.join(timeout=2.0)
     if failure:
         raise failure[0]

@@ -9,8 +9,7 @@ never resets from, so that ``behaviour`` and U do not average over the same stat
 from __future__ import annotations
 
 import json
-from concurrent.futures import ProcessPoolExecutor
-from multiprocessing import get_context
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -19,6 +18,7 @@ import torch
 
 from engine.envs import env_model
 from engine.errors import InputError
+from engine.provenance import git_commit
 from engine.rl.agent_judge import candidate_terms
 from engine.rl.behaviour import RolloutOptions, visited_states
 from engine.rl.checkpoint import find_checkpoint
@@ -26,7 +26,14 @@ from engine.rl.trained import deterministic_policy, load_agent
 from engine.teachers import POSTURE_SCORES
 from engine.treefile import TreeDocument
 from engine.validation.design import TRUTH_RESET_SEED0, Plan
-from engine.validation.runs import Task, read_json, run_dir
+from engine.validation.runs import (
+    Task,
+    in_processes,
+    measures_path,
+    read_json,
+    run_dir,
+    train_task,
+)
 from engine.verdict_runs import judge_scores
 
 #: The judges validated: the two the verdict offers, and the shaped critic as a reference.
@@ -55,11 +62,11 @@ def teacher_truth(run: Path, env_id: str, teacher: str, episodes: int) -> float:
 
 
 def measure(out: Path, plan: Plan, task: Task, brackets: list[TreeDocument]) -> dict[str, Any]:
-    """The run's measures, computed and saved once."""
-    path = out / "measures" / f"{task[0]}-{task[1]}.json"
+    """The run's measures, computed and saved once (with the commit that measured them)."""
+    path = measures_path(out, task)
     if path.is_file():
         return read_json(path)
-    torch.set_num_threads(1)  # one core per run: measure_all measures several at once
+    torch.set_num_threads(1)  # one core per run: complete_all measures several at once
     run = run_dir(out, *task)
     agent = load_agent(find_checkpoint(run))
     found = {
@@ -68,19 +75,24 @@ def measure(out: Path, plan: Plan, task: Task, brackets: list[TreeDocument]) -> 
             judge: [judge_scores([run], b, judge)[0].tolist() for b in brackets] for judge in JUDGES
         },
         "reward": [candidate_terms(agent, b).reward.tolist() for b in brackets],
+        "commit": git_commit(),
     }
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(found) + "\n")
     return found
 
 
-def measure_all(
+def complete(out: Path, plan: Plan, task: Task, brackets: list[TreeDocument]) -> dict[str, Any]:
+    """The run's measures: trained first (or resumed) unless they are saved already."""
+    if not measures_path(out, task).is_file():
+        train_task(out, plan, task)
+    return measure(out, plan, task, brackets)
+
+
+def complete_all(
     out: Path, plan: Plan, tasks: list[Task], brackets: list[TreeDocument], jobs: int
 ) -> dict[Task, dict[str, Any]]:
-    """Every run's measures, ``jobs`` runs at a time (each one core: rollouts and judges)."""
-    if jobs <= 1:
-        return {task: measure(out, plan, task, brackets) for task in tasks}
-    # spawn, because torch and MuJoCo are not fork-safe
-    with ProcessPoolExecutor(max_workers=jobs, mp_context=get_context("spawn")) as pool:
-        futures = {task: pool.submit(measure, out, plan, task, brackets) for task in tasks}
-        return {task: future.result() for task, future in futures.items()}
+    """Every run trained and measured, ``jobs`` runs at a time (each on one core); each run is
+    measured as soon as it is trained, so a stopped validation keeps every finished run."""
+    found = in_processes(partial(complete, out, plan, brackets=brackets), tasks, jobs)
+    return dict(zip(tasks, found, strict=True))

@@ -5,17 +5,24 @@ is refused), ``runs/<arm>-<seed>/`` (ordinary training runs, resumed from their 
 checkpoint), ``brackets/bracket_<b>.json`` (the teacher's tree over informative candidates
 sampled from a pilot's policy), ``advice/{advice,shuffled,inverted}.json`` (what the arms
 train on: bracket 0's tree and its two controls) and ``measures/<arm>-<seed>.json`` (each
-finished run's judge scores on every bracket and its ground truth U, measured once).
+finished run's judge scores on every bracket and its ground truth U, measured as soon as it
+is trained).
+
+Everything but ``runs/`` is small JSON and is the validation's *state*: a run whose measures
+are saved is done and needs no folder, so those files, copied into a fresh ``out`` on another
+machine, resume the validation there without training a measured run again.
 """
 
 from __future__ import annotations
 
 import json
 import shutil
+from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
+from functools import partial
 from multiprocessing import get_context
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -28,7 +35,15 @@ from engine.rl.config import TrainConfig
 from engine.rl.runner import train
 from engine.tournament import ScoreJudge
 from engine.treefile import TreeDocument, dump_tree, load_tree
-from engine.validation.design import ARM_BY_NAME, BRACKET_SEED0, PILOT, AdviceKind, Arm, Plan
+from engine.validation.design import (
+    ARM_BY_NAME,
+    BASELINE,
+    BRACKET_SEED0,
+    PILOT,
+    AdviceKind,
+    Arm,
+    Plan,
+)
 
 PLAN_FILE = "validate.json"
 #: Checkpoints per run: an interrupted validation loses at most a tenth of a run.
@@ -64,8 +79,21 @@ def pilot_tasks(plan: Plan) -> list[Task]:
 
 
 def arm_tasks(plan: Plan) -> list[Task]:
-    """Every arm's runs, seed by seed (so that seed 0 of every arm comes first)."""
-    return [(arm.name, seed) for seed in range(plan.seeds) for arm in plan.chosen]
+    """Every arm's runs: the baseline's seeds first (every verdict and criterion reads them),
+    then the other arms seed by seed (so that seed 0 of every arm comes before seed 1)."""
+    others = [arm for arm in plan.chosen if arm.name != BASELINE]
+    return [(BASELINE, seed) for seed in range(plan.seeds)] + [
+        (arm.name, seed) for seed in range(plan.seeds) for arm in others
+    ]
+
+
+def measures_path(out: Path, task: Task) -> Path:
+    return out / "measures" / f"{task[0]}-{task[1]}.json"
+
+
+def measured(out: Path, task: Task) -> bool:
+    """Whether the run's measures are saved: then it is done, with or without its folder."""
+    return measures_path(out, task).is_file()
 
 
 def finished(out: Path, plan: Plan, task: Task) -> bool:
@@ -104,19 +132,28 @@ def train_task(out: Path, plan: Plan, task: Task) -> Task:
 
 
 def train_tasks(out: Path, plan: Plan, tasks: list[Task], jobs: int) -> None:
-    """Train the unfinished ``tasks``, ``jobs`` at a time."""
-    todo = [t for t in tasks if not finished(out, plan, t)]
+    """Train the ``tasks`` neither finished nor measured, ``jobs`` at a time."""
+    todo = [t for t in tasks if not (measured(out, t) or finished(out, plan, t))]
+    in_processes(partial(train_task, out, plan), todo, jobs)
+
+
+T = TypeVar("T")
+
+
+def in_processes(work: Callable[[Task], T], tasks: list[Task], jobs: int) -> list[T]:
+    """``work`` of every task, ``jobs`` processes at a time (in this one when ``jobs`` is 1),
+    in the order of ``tasks``; the first failure stops the rest.
+
+    ``work`` must be picklable with ``jobs`` > 1: a module-level function or a ``partial``.
+    """
     if jobs <= 1:
-        for task in todo:
-            train_task(out, plan, task)
-        return
+        return [work(task) for task in tasks]
     # Runs are independent and single-threaded: processes give a near-linear speed-up;
     # spawn, because torch and MuJoCo are not fork-safe.
     with ProcessPoolExecutor(max_workers=jobs, mp_context=get_context("spawn")) as pool:
-        futures = [pool.submit(train_task, out, plan, t) for t in todo]
+        futures = [pool.submit(work, task) for task in tasks]
         try:
-            for future in futures:
-                future.result()
+            return [future.result() for future in futures]
         except BaseException:  # report a failed run now, not after every queued run
             pool.shutdown(cancel_futures=True)
             raise

@@ -14,11 +14,12 @@ from engine.rl.logger import METRICS_FILE
 from engine.validation.analysis import judge_summary
 from engine.validation.design import Plan
 from engine.validation.figures import draw
-from engine.validation.measure import JUDGES, measure_all
+from engine.validation.measure import JUDGES, complete_all
 from engine.validation.runs import (
     Task,
     arm_tasks,
     make_brackets,
+    measured,
     pilot_tasks,
     prepare,
     run_dir,
@@ -38,9 +39,7 @@ def validate(
     prepare(out, plan)
     train_tasks(out, plan, pilot_tasks(plan), jobs)
     brackets = make_brackets(out, plan)
-    train_tasks(out, plan, arm_tasks(plan), jobs)
-    tasks = [*pilot_tasks(plan), *arm_tasks(plan)]
-    measures = measure_all(out, plan, tasks, brackets, jobs)
+    measures = complete_all(out, plan, [*pilot_tasks(plan), *arm_tasks(plan)], brackets, jobs)
     summary: dict[str, Any] = _json_safe(
         {
             "schema": "acv.validation/1",
@@ -72,9 +71,12 @@ def _json_safe(value: Any) -> Any:
 TAIL_BYTES = 4096
 
 
-def steps_done(out: Path, task: Task) -> int:
-    """Env steps a run has logged so far (0 before its first update): for progress bars."""
+def steps_done(out: Path, plan: Plan, task: Task) -> int:
+    """Env steps a run has logged so far (0 before its first update; the plan's budget once
+    it is measured, with or without its folder): for progress bars."""
     path = run_dir(out, *task) / METRICS_FILE
+    if measured(out, task):
+        return plan.timesteps
     if not path.is_file():
         return 0
     with path.open("rb") as f:  # the last row only: polled every 2 s for every run

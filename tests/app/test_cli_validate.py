@@ -4,6 +4,7 @@ the smallest real validation, Hopper ``n1`` against ``p1-10``, finds the advice 
 from __future__ import annotations
 
 import json
+import shutil
 from pathlib import Path
 
 import pytest
@@ -43,7 +44,8 @@ def test_a_folder_with_another_plan_is_refused(tmp_path: Path) -> None:
 @pytest.mark.training
 def test_the_smallest_real_validation_runs_end_to_end_and_resumes(tmp_path: Path) -> None:
     """Hopper ``n1`` against ``p1-10``, 2 seeds x 50k steps, 8 candidates: every run is
-    trained, measured and reported; a second call trains nothing and reports the same.
+    trained, measured and reported; a second call, with the run folders gone (the small
+    files alone, as on another machine), trains nothing and reports the same.
 
     Issue 27 asks this design to show ΔU > 0 and Δ > 0. It did not (docs/validation.md §5):
     with 8 candidates and one pilot there is no contested match to count, and 2 seeds of U
@@ -62,6 +64,8 @@ def test_the_smallest_real_validation_runs_end_to_end_and_resumes(tmp_path: Path
         assert all(0 <= u <= 1 for arm in found["truth"].values() for u in arm)
     runs = sorted(p.name for p in (tmp_path / "v" / "runs").iterdir())
     assert runs == ["n1-0", "n1-1", "p1-10-0", "p1-10-1", "pilot-1000"]
+    shutil.rmtree(tmp_path / "v" / "runs")
     again = acv(*args)
     assert again.exit_code == 0 and (tmp_path / "v" / "summary.json").read_text() == summary
+    assert not (tmp_path / "v" / "runs").exists()
     assert sorted((tmp_path / "v" / "figures").iterdir())

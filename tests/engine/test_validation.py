@@ -15,14 +15,22 @@ from engine.pipeline import run_tournament
 from engine.rl.agent_judge import CandidateTerms, term_scores
 from engine.rl.behaviour import occupancy_scores
 from engine.treefile import TreeDocument
-from engine.validation import criteria
+from engine.validation import criteria, runs
 from engine.validation.analysis import arm_table, judge_summary
 from engine.validation.criteria import ArmData
 from engine.validation.design import ARMS, PILOT, Plan
 from engine.validation.figures import draw
 from engine.validation.power import power
-from engine.validation.runs import finished, inverted, prepare, run_dir
-from engine.validation.validate import report
+from engine.validation.runs import (
+    arm_tasks,
+    finished,
+    inverted,
+    measures_path,
+    prepare,
+    run_dir,
+    train_tasks,
+)
+from engine.validation.validate import report, steps_done
 from engine.verdict import advice_scores
 
 SEEDS, PILOTS = 5, 2  # 5: the exact one-sided test of ΔU reaches p = 1/32 < 0.05
@@ -204,6 +212,27 @@ def test_a_run_is_finished_at_its_last_whole_rollout(tmp_path: Path) -> None:
     assert not finished(tmp_path, plan, ("n1", 0))
     (folder / "checkpoints" / "step_1024.pt").touch()  # past the plan's 1000 steps
     assert finished(tmp_path, plan, ("n1", 0))
+
+
+def test_the_baseline_trains_first_then_every_arm_seed_by_seed() -> None:
+    tasks = arm_tasks(_plan())
+    assert tasks[:SEEDS] == [("n1", seed) for seed in range(SEEDS)]
+    assert tasks[SEEDS : SEEDS + 4] == [("n2-1", 0), ("n2-10", 0), ("p1-10", 0), ("n2-1", 1)]
+    assert sorted(tasks) == sorted((a, s) for a in _plan().arms for s in range(SEEDS))
+
+
+def test_a_measured_run_is_done_without_its_folder(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The small files carry a validation to another machine: measures, not run folders."""
+    plan, trained = _plan(), []
+    monkeypatch.setattr(runs, "train_task", lambda out, plan, task: trained.append(task))
+    measures_path(tmp_path, ("n1", 0)).parent.mkdir(parents=True)
+    measures_path(tmp_path, ("n1", 0)).write_text("{}")
+    train_tasks(tmp_path, plan, [("n1", 0), ("n1", 1)], jobs=1)
+    assert trained == [("n1", 1)]
+    assert steps_done(tmp_path, plan, ("n1", 0)) == plan.timesteps
+    assert steps_done(tmp_path, plan, ("n1", 1)) == 0
 
 
 @pytest.mark.parametrize("text", ["not json", '{"env_id": "Hopper-v5"}', '{"timesteps": "x"}'])
