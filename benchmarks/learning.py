@@ -9,11 +9,13 @@ mean over seeds (CleanRL's PPO reaches 716 +/- 49 on Humanoid-v4, which has no c
     .venv/bin/python benchmarks/learning.py --timesteps 1000000 --seeds 0 1 2 \
         [--acv-runs results/runs/ppo] [--jobs 2]
 
-``--acv-runs`` reuses finished ACV runs (``seed_<k>`` folders of ``acv reproduce``'s ``ppo``
-arm, whose configuration is checked to be the one this benchmark would train) instead of
-training them again. The last line is one JSON object: ``acv_return``, ``sb3_return`` (means
-over seeds), ``ratio_vs_sb3``, per-seed returns, Student's t 95% intervals over seeds and
-``reference_cleanrl_humanoid_v4``.
+``--acv-runs`` reuses finished ACV runs (``seed_<k>`` folders of ``ppo`` runs, from ``acv
+reproduce`` or the validation's ``n1``, whose configuration is checked to be the one this
+benchmark would train) instead of training them again. ``--sb3-only`` trains and keeps SB3's
+seeds in ``--out`` and stops, so that they can train while ACV's runs still do; the same
+command without it then reuses them. The last line is one JSON object: ``acv_return``,
+``sb3_return`` (means over seeds), ``ratio_vs_sb3``, per-seed returns, Student's t 95%
+intervals over seeds and ``reference_cleanrl_humanoid_v4``.
 """
 
 from __future__ import annotations
@@ -95,17 +97,23 @@ def sb3_return(cfg: TrainConfig) -> float:
     return float(np.mean([info["r"] for info in model.ep_info_buffer]))
 
 
-def one_seed(cfg: TrainConfig, out: Path, reuse: Path | None) -> dict[str, float]:
-    """Both learners at one seed (run in a worker process). SB3's result is kept in
-    ``out/sb3_seed_<k>.json``, so a second call with the same ``--out`` reuses it."""
+def sb3_kept(cfg: TrainConfig, out: Path) -> float:
+    """SB3's return at ``cfg``, trained once and kept in ``out/sb3_seed_<k>.<env>.<steps>.json``
+    (with its wall time), so a second call with the same ``--out`` reuses it."""
     cached = out / f"sb3_seed_{cfg.seed}.{cfg.env_id}.{cfg.total_timesteps}.json"
-    start = time.perf_counter()
     if cached.is_file():
-        sb3 = json.loads(cached.read_text())["sb3"]
-    else:
-        sb3 = sb3_return(cfg)
-        out.mkdir(parents=True, exist_ok=True)
-        cached.write_text(json.dumps({"sb3": sb3, "wall_s": time.perf_counter() - start}))
+        return float(json.loads(cached.read_text())["sb3"])
+    start = time.perf_counter()
+    sb3 = sb3_return(cfg)
+    out.mkdir(parents=True, exist_ok=True)
+    cached.write_text(json.dumps({"sb3": sb3, "wall_s": time.perf_counter() - start}))
+    return sb3
+
+
+def one_seed(cfg: TrainConfig, out: Path, reuse: Path | None) -> dict[str, float]:
+    """Both learners at one seed (run in a worker process)."""
+    start = time.perf_counter()
+    sb3 = sb3_kept(cfg, out)
     mid = time.perf_counter()
     acv = acv_return(cfg, out / f"acv_seed_{cfg.seed}", reuse)
     result = {
@@ -143,12 +151,18 @@ def main() -> None:
     )
     parser.add_argument("--jobs", type=int, default=1, help="seeds trained at a time")
     parser.add_argument("--out", type=Path, default=None, help="ACV run folder (default: temp)")
+    parser.add_argument("--sb3-only", action="store_true", help="train and keep SB3's seeds only")
     args = parser.parse_args()
     out = args.out or Path(tempfile.mkdtemp(prefix="acv-learning-"))
     configs = [
         TrainConfig(algo="ppo", env_id=args.env, total_timesteps=args.timesteps, seed=seed)
         for seed in args.seeds
     ]
+    if args.sb3_only:
+        with ProcessPoolExecutor(max_workers=args.jobs, mp_context=get_context("spawn")) as pool:
+            kept = list(pool.map(sb3_kept, configs, [out] * len(configs)))
+        print(json.dumps({"env": args.env, "seeds": args.seeds, "sb3_returns": kept}))
+        return
     reuse = [args.acv_runs / f"seed_{c.seed}" if args.acv_runs else None for c in configs]
     with ProcessPoolExecutor(max_workers=args.jobs, mp_context=get_context("spawn")) as pool:
         rows = list(pool.map(one_seed, configs, [out] * len(configs), reuse))

@@ -25,6 +25,7 @@ from engine.validation.runs import (
     run_dir,
     train_tasks,
 )
+from engine.validation.subsets import summary_subsets, table
 
 
 def validate(
@@ -49,6 +50,7 @@ def validate(
             "judges": {j: judge_summary(measures, plan, j, brackets) for j in JUDGES},
         }
     )
+    summary["seed_subsets"] = summary_subsets(summary)
     (out / "summary.json").write_text(json.dumps(summary, indent=1, allow_nan=False) + "\n")
     figures = draw(summary, out)
     (out / "report.md").write_text(report(summary, figures))
@@ -115,6 +117,10 @@ def report(summary: dict[str, Any], figures: Sequence[Path] = ()) -> str:
     for judge, found in summary["judges"].items():
         c = found["match_agreement_auc"]
         lines.append(f"- {judge}: {_num(c['value'])} {_interval(c)} {c['note']}".rstrip())
+    if "seed_subsets" in summary:
+        lines += ["", "The product's verdict with fewer seeds: of every choice of k matched seeds,"]
+        lines += ['the share whose verdict says "used" or "went against":', ""]
+        lines += [table(summary["seed_subsets"])]
     lines += ["", *(f"![{p.stem}](figures/{p.name})" for p in figures)]
     return "\n".join(lines) + "\n"
 

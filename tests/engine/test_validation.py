@@ -4,6 +4,7 @@ statistics at advised and unadvised candidates, and synthetic CA tables (issue 2
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import numpy as np
@@ -30,6 +31,7 @@ from engine.validation.runs import (
     run_dir,
     train_tasks,
 )
+from engine.validation.subsets import subset_outcomes, summary_subsets, table
 from engine.validation.validate import report, steps_done
 from engine.verdict import advice_scores
 
@@ -104,12 +106,14 @@ def test_the_summary_reports_every_criterion_and_what_it_could_not_compute(
     assert summary["match_agreement_auc"]["value"] == 1.0
     whole = {"command": "acv validate", "commit": "abc", "plan": plan.to_json()}
     whole["judges"] = {"return": summary}
+    whole["seed_subsets"] = summary_subsets(whole)
     (figure,) = draw(whole, tmp_path)
     assert Image.open(figure).size == (1300, 400)
     text = report(whole, [figure])
     assert "| return | delta(n3) | n/a |  | could not compute | arms not trained: n3 |" in text
     assert text.endswith("![return](figures/return.png)\n")
     assert "`acv validate` (commit `abc`)" in text
+    assert "| return | p1-10 | 4 | 5 | 1.00 | 0.00 |" in text  # 4 of the 5 seeds, 5 ways
 
 
 def _table(shifts: dict[str, float], seeds: int = 8, seed: int = 0) -> dict[str, ArmData]:
@@ -257,3 +261,41 @@ def test_the_power_simulation_separates_an_effect_from_none() -> None:
     assert none["AUC p1-10 vs n1+n2"] == 0.0 and large["AUC p1-10 vs n1+n2"] == 1.0
     assert set(none) == set(large) and len(none) == 7
     assert {a.name for a in ARMS} >= {"n1", "p1-10"}
+
+
+@pytest.mark.parametrize(
+    ("advised", "k", "used", "against"),
+    [
+        (1.0, 4, 1.0, 0.0),  # every advised seed above every baseline seed: p = 2/70
+        (0.0, 4, 0.0, 1.0),  # and below
+        (1.0, 3, 0.0, 0.0),  # 3 against 3 never reaches p = 0.05
+    ],
+)
+def test_fewer_seeds_say_what_the_exact_test_allows(
+    advised: float, k: int, used: float, against: float
+) -> None:
+    found = subset_outcomes(
+        np.full(8, advised), np.full(8, 1 - advised), k, np.random.default_rng(0)
+    )
+    assert (found["subsets"], found["used"], found["against"]) == (math.comb(8, k), used, against)
+
+
+def test_fewer_seeds_fire_at_most_alpha_under_the_null() -> None:
+    """Both arms from one distribution: each subset's exact test rejects at most 5% of the
+    time, so the mean share of subsets saying either outcome is at most about 0.05."""
+    rng = np.random.default_rng(1)
+    fired = []
+    for _ in range(300):
+        found = subset_outcomes(rng.uniform(size=8), rng.uniform(size=8), 4, rng)
+        fired.append(found["used"] + found["against"])
+    assert np.mean(fired) <= 0.05 + 0.015
+
+
+def test_a_summary_is_read_on_the_advice_bracket() -> None:
+    """Bracket 0 is the advice's: the other brackets' CA never enter; an arm with no
+    contested match there (NaN) is left out."""
+    ca = {"n1": [[0.0, 1.0]] * 8, "p1-10": [[1.0, 0.0]] * 8, "n3": [[None, 0.0]] * 8}
+    found = summary_subsets({"judges": {"behaviour": {"ca": ca}}})["behaviour"]
+    assert set(found) == {"p1-10"}
+    assert [(r["k"], r["used"]) for r in found["p1-10"]] == [(4, 1.0), (5, 1.0), (8, 1.0)]
+    assert "| behaviour | p1-10 | 4 | 70 | 1.00 | 0.00 |" in table({"behaviour": found})
