@@ -29,6 +29,16 @@ def create(
     timesteps: Annotated[int, Opt(help="Env steps per run.")],
     teacher: Annotated[str | None, Opt(help="A simulated teacher's advice.")] = None,
     participant: Annotated[int | None, Opt(help="A finished participant's advice.")] = None,
+    pool: Annotated[
+        list[int] | None,
+        Opt(help="Pooled advice: a finished participant; give it twice or more."),
+    ] = None,
+    all_participants: Annotated[
+        bool, Opt("--all-participants", help="Pooled advice: every finished participant.")
+    ] = False,
+    pool_weighting: Annotated[
+        str | None, Opt(help="How a pool is averaged: mean or reliability.")
+    ] = None,
     algo: Annotated[str, Opt(help="How the advised runs train.")] = "bipars-em",
     seeds: Annotated[int, Opt(help="Evaluation seeds per arm (2..20).")] = DEFAULT_SEEDS,
     pilot_seeds: Annotated[int, Opt(help="Pilot runs (1..10).")] = DEFAULT_PILOT_SEEDS,
@@ -42,6 +52,8 @@ def create(
     with the same settings are reused); prints the experiment's id and its runs."""
     run: dict[str, Any] = {"study_id": study, "algo": algo, "timesteps": timesteps}
     run |= {"n_envs": n_envs, "teacher": teacher, "participant_id": participant}
+    run |= {"participant_ids": pool, "all_participants": all_participants or None}
+    run |= {"pool_weighting": pool_weighting}
     run |= {"advice_scale": advice_scale, "checkpoint_every": checkpoint_every}
     run |= {"num_steps": num_steps}
     with cli_runtime() as runtime, runtime.sessions() as session:

@@ -268,6 +268,37 @@ def test_the_cli_queues_lists_and_gives_the_verdict(client, study, settings, mon
     assert bad.exit_code == 2 and "seeds must be in 2..20" in bad.output
 
 
+def test_the_cli_pools_participants_as_the_api_does(client, settings, monkeypatch) -> None:
+    """``acv experiment create --pool P --pool Q``: the API's ``participant_ids``, with its
+    weighting; ``--all-participants``: every finished participant; a pool of one person, or
+    a weighting without a pool, exits 2 with the service's message."""
+    monkeypatch.setenv("ACV_DATA_DIR", str(settings.data_dir))
+    monkeypatch.setenv("DATABASE_URL", settings.sqlalchemy_url)
+    study = new_study(client, seed=14)
+    people = [finished_participant(client, study["id"]) for _ in range(2)]
+    args = ["experiment", "create", "--study", str(study["id"]), "--timesteps", "640"]
+    args += ["--seeds", "2", "--pilot-seeds", "1"]
+
+    def spec(*more: str) -> dict[str, Any]:
+        created = CliRunner().invoke(cli, [*args, *more])
+        assert created.exit_code == 0, created.output
+        path = f"/api/experiments/{created.output.split()[1]}"
+        return client.get(path, headers=ADMIN).json()["spec"]
+
+    pooled = spec(
+        "--pool", str(people[0]), "--pool", str(people[1]), "--pool-weighting", "reliability"
+    )
+    assert pooled["participant_ids"] == people and pooled["pool_weighting"] == "reliability"
+    assert spec("--all-participants")["all_participants"] is True
+    for more, message in [
+        (["--pool", str(people[0])], "at least two"),
+        (["--teacher", "good", "--pool-weighting", "reliability"], "weights a pool"),
+        (["--pool", str(people[0]), "--pool", str(people[1]), "--teacher", "good"], "one advice"),
+    ]:
+        refused = CliRunner().invoke(cli, [*args, *more])
+        assert refused.exit_code == 2 and message in refused.output, refused.output
+
+
 def test_the_run_form_starts_an_experiment_and_its_page_shows_it(client, study) -> None:
     page = logged_in(client)
     form = {
