@@ -9,7 +9,9 @@ its webhook, logs the attempt, and marks it delivered (a 2xx) or retries it late
   server goes on where the last one stopped.
 - **Attempt**: the URL is checked again (:mod:`app.webhooks.targets`) and the request goes
   to the address checked, not to a second lookup; redirects are never followed, proxies
-  from the environment never used, and the answer's body never read.
+  from the environment never used, and the answer's body never read. An attempt ends after
+  :data:`ATTEMPT_S` in all, whatever the receiver does: httpx's timeouts bound each read,
+  so a receiver trickling its headers a byte at a time would otherwise hold the loop.
 - **Retry**: exponential backoff with jitter, ``ACV_WEBHOOK_BACKOFF_S * 2**(n - 1)`` capped
   at ``ACV_WEBHOOK_BACKOFF_CAP_S``; after ``ACV_WEBHOOK_MAX_ATTEMPTS`` the event is failed.
 
@@ -28,6 +30,7 @@ import time
 from dataclasses import dataclass
 from datetime import datetime, timedelta
 
+import anyio
 import httpx
 from sqlalchemy import select, update
 from sqlalchemy.exc import IntegrityError
@@ -41,8 +44,10 @@ from app.webhooks.targets import Target, Targets, check_url
 from engine.errors import InputError
 
 log = logging.getLogger(__name__)
-#: Seconds one attempt may take (connecting and the answer's headers).
+#: Seconds each step of an attempt may take (connecting, one write, one read).
 TIMEOUT_S = 5.0
+#: Seconds one attempt may take in all (connecting, sending, the answer's headers).
+ATTEMPT_S = 10.0
 #: Seconds a claimed event belongs to its claimer; past this another process may retry it.
 LEASE_S = 60.0
 #: Events claimed per look at the outbox.
@@ -150,14 +155,16 @@ def claim(session: Session, *, event_pk: int, now: datetime) -> Outgoing | None:
     return Outgoing(*row)
 
 
-def post(client: httpx.Client, event: Outgoing, *, targets: Targets) -> Outcome:
-    """One signed ``POST`` of the event to its checked address."""
+def post(event: Outgoing, *, targets: Targets, deadline_s: float = ATTEMPT_S) -> Outcome:
+    """One signed ``POST`` of the event to its checked address, over within ``deadline_s``."""
     started = time.monotonic()
     try:
         target = check_url(event.url, targets=targets)
-        status, error = _send(client, target, event), None
+        status, error = anyio.run(_send, target, event, deadline_s), None
     except InputError as exc:
         status, error = None, f"refused: {exc}"
+    except TimeoutError:
+        status, error = None, f"no answer within {deadline_s:g} s"
     except Exception as exc:  # noqa: BLE001  # any failure is this attempt's, logged and retried
         status, error = None, f"{type(exc).__name__}: {exc}"[:500]
     if status is not None and 300 <= status < 400:
@@ -165,7 +172,13 @@ def post(client: httpx.Client, event: Outgoing, *, targets: Targets) -> Outcome:
     return Outcome(status, error, round((time.monotonic() - started) * 1000))
 
 
-def _send(client: httpx.Client, target: Target, event: Outgoing) -> int:
+async def _send(target: Target, event: Outgoing, deadline_s: float) -> int:
+    """POST the event and return the answer's status; cancelled at ``deadline_s``.
+
+    One client per attempt, with no kept-alive connections: a pool keyed by address would let
+    two hosts behind one address share a TLS connection, whose certificate was checked for
+    the first only.
+    """
     body = json.dumps(event.payload, separators=(",", ":"), ensure_ascii=False).encode()
     headers = {
         "Host": target.host_header,
@@ -177,11 +190,15 @@ def _send(client: httpx.Client, target: Target, event: Outgoing) -> int:
     }
     # TLS checks the certificate against the registered name while connecting to the address
     extensions = {"sni_hostname": target.host} if target.scheme == "https" else {}
-    request = client.build_request(
-        "POST", target.pinned_url, content=body, headers=headers, extensions=extensions
-    )
-    response = client.send(request, stream=True)  # the body is never read
-    response.close()
+    with anyio.fail_after(deadline_s):
+        async with httpx.AsyncClient(
+            timeout=TIMEOUT_S, follow_redirects=False, trust_env=False
+        ) as client:
+            request = client.build_request(
+                "POST", target.pinned_url, content=body, headers=headers, extensions=extensions
+            )
+            response = await client.send(request, stream=True)  # the body is never read
+            await response.aclose()
     return response.status_code
 
 
@@ -219,14 +236,6 @@ class Deliverer:
     def __init__(self, sessions: sessionmaker[Session], policy: Policy) -> None:
         self.sessions, self.policy = sessions, policy
         self.rng = random.Random()
-        # No kept-alive connections: a pool keyed by address would let two hosts behind one
-        # address share a TLS connection, whose certificate was checked for the first only.
-        self.client = httpx.Client(
-            timeout=TIMEOUT_S,
-            follow_redirects=False,
-            trust_env=False,
-            limits=httpx.Limits(max_keepalive_connections=0),
-        )
 
     def tick(self, stop: threading.Event | None = None) -> int:
         """Attempt the due events once each; returns how many were attempted."""
@@ -240,7 +249,7 @@ class Deliverer:
                 event = claim(session, event_pk=event_pk, now=utcnow())
             if event is None:
                 continue
-            outcome = post(self.client, event, targets=self.policy.targets)
+            outcome = post(event, targets=self.policy.targets)
             with self.sessions() as session:
                 try:
                     record(session, event, outcome, policy=self.policy, rng=self.rng)
@@ -252,16 +261,13 @@ class Deliverer:
     def run(self, stop: threading.Event) -> None:
         """Deliver until ``stop`` is set; a failing tick (the database away) is logged and
         the loop goes on."""
-        try:
-            while not stop.is_set():
-                try:
-                    done = self.tick(stop)
-                except Exception:
-                    log.exception("webhook delivery failed; trying again")
-                    done = 0
-                stop.wait(0 if done else self.policy.poll_s)
-        finally:
-            self.client.close()
+        while not stop.is_set():
+            try:
+                done = self.tick(stop)
+            except Exception:
+                log.exception("webhook delivery failed; trying again")
+                done = 0
+            stop.wait(0 if done else self.policy.poll_s)
 
 
 class DeliveryThread:
@@ -278,9 +284,9 @@ class DeliveryThread:
         return self
 
     def stop(self) -> None:
-        """Stop after the attempt in flight (at most :data:`TIMEOUT_S`)."""
+        """Stop after the attempt in flight (at most :data:`ATTEMPT_S`)."""
         self._stop.set()
-        self._thread.join(timeout=2 * TIMEOUT_S)  # never hang a shutdown on a slow receiver
+        self._thread.join(timeout=ATTEMPT_S)  # never hang a shutdown on a slow receiver
 
 
 def start_delivery(sessions: sessionmaker[Session], settings: Settings) -> DeliveryThread:
