@@ -10,12 +10,13 @@ mean over seeds (CleanRL's PPO reaches 716 +/- 49 on Humanoid-v4, which has no c
         [--acv-runs results/runs/ppo] [--jobs 2]
 
 ``--acv-runs`` reuses finished ACV runs (``seed_<k>`` folders of ``ppo`` runs, from ``acv
-reproduce`` or the validation's ``n1``, whose configuration is checked to be the one this
-benchmark would train) instead of training them again. ``--sb3-only`` trains and keeps SB3's
-seeds in ``--out`` and stops, so that they can train while ACV's runs still do; the same
-command without it then reuses them. The last line is one JSON object: ``acv_return``,
-``sb3_return`` (means over seeds), ``ratio_vs_sb3``, per-seed returns, Student's t 95%
-intervals over seeds and ``reference_cleanrl_humanoid_v4``.
+reproduce`` for one, whose configuration is checked to be the one this benchmark would train)
+instead of training them again; ``--acv-validation`` reads them from an ``acv validate``
+folder's measures of its ``n1`` runs, so their folders need not be there. ``--sb3-only``
+trains and keeps SB3's seeds in ``--out`` and stops, so that they can train while ACV's runs
+still do; the same command without it then reuses them. The last line is one JSON object:
+``acv_return``, ``sb3_return`` (means over seeds), ``ratio_vs_sb3``, per-seed returns,
+Student's t 95% intervals over seeds and ``reference_cleanrl_humanoid_v4``.
 """
 
 from __future__ import annotations
@@ -36,14 +37,37 @@ CLEANRL_HUMANOID_1M = 716.0  # CleanRL ppo_continuous_action, Humanoid-v4, 1M st
 TARGET = 700.0
 
 
+def _settings(cfg: TrainConfig) -> dict:
+    """What makes two runs comparable: every setting but how often they checkpoint."""
+    return cfg.to_json() | {"checkpoint_every": 0}
+
+
+def validation_return(cfg: TrainConfig, folder: Path) -> float:
+    """The return of an ``acv validate`` folder's no-advice run ``n1`` at ``cfg.seed``, read
+    from its measures (the run's folder may be on another machine); the validation's plan
+    must have trained it with this benchmark's settings."""
+    from engine.validation.design import ARM_BY_NAME, BASELINE, Plan
+    from engine.validation.runs import measures_path, read_json, train_config
+
+    plan = Plan.from_json(read_json(folder / "validate.json"))
+    if _settings(train_config(plan, ARM_BY_NAME[BASELINE], cfg.seed)) != _settings(cfg):
+        raise SystemExit(f"{folder}'s n1 runs were trained with other settings than these")
+    path = measures_path(folder, (BASELINE, cfg.seed))
+    if not path.is_file():
+        raise SystemExit(f"{folder} has not measured n1 at seed {cfg.seed} yet")
+    return float(read_json(path)["train"]["return_100"])
+
+
 def acv_return(cfg: TrainConfig, out: Path, reuse: Path | None) -> float:
-    """ACV's mean return of the last 100 episodes, training unless ``reuse`` holds the run."""
+    """ACV's mean return of the last 100 episodes, training unless ``reuse`` holds the run
+    (a run folder, or an ``acv validate`` folder whose ``n1`` runs are measured)."""
     from engine.rl.logger import read_metrics
     from engine.rl.runner import load_run_config, train
 
+    if reuse is not None and (reuse / "validate.json").is_file():
+        return validation_return(cfg, reuse)
     if reuse is not None:
-        saved = load_run_config(reuse)
-        if saved.to_json() | {"checkpoint_every": 0} != cfg.to_json() | {"checkpoint_every": 0}:
+        if _settings(load_run_config(reuse)) != _settings(cfg):
             raise SystemExit(f"{reuse} was trained with other settings than this benchmark's")
         rows = read_metrics(reuse)
     else:
@@ -149,6 +173,12 @@ def main() -> None:
         default=None,
         help="folder of finished ACV ppo runs seed_<k> to reuse",
     )
+    parser.add_argument(
+        "--acv-validation",
+        type=Path,
+        default=None,
+        help="an acv validate folder whose measured n1 runs to reuse",
+    )
     parser.add_argument("--jobs", type=int, default=1, help="seeds trained at a time")
     parser.add_argument("--out", type=Path, default=None, help="ACV run folder (default: temp)")
     parser.add_argument("--sb3-only", action="store_true", help="train and keep SB3's seeds only")
@@ -163,7 +193,10 @@ def main() -> None:
             kept = list(pool.map(sb3_kept, configs, [out] * len(configs)))
         print(json.dumps({"env": args.env, "seeds": args.seeds, "sb3_returns": kept}))
         return
-    reuse = [args.acv_runs / f"seed_{c.seed}" if args.acv_runs else None for c in configs]
+    reuse = [
+        args.acv_validation or (args.acv_runs / f"seed_{c.seed}" if args.acv_runs else None)
+        for c in configs
+    ]
     with ProcessPoolExecutor(max_workers=args.jobs, mp_context=get_context("spawn")) as pool:
         rows = list(pool.map(one_seed, configs, [out] * len(configs), reuse))
     acv, sb3 = [r["acv"] for r in rows], [r["sb3"] for r in rows]
@@ -183,7 +216,7 @@ def main() -> None:
                 "acv_spread_sd": round(float(np.std(acv, ddof=1)), 1) if len(acv) > 1 else None,
                 "target": TARGET,
                 "reference_cleanrl_humanoid_v4": CLEANRL_HUMANOID_1M,
-                "acv_reused": args.acv_runs is not None,
+                "acv_reused": str(args.acv_validation or args.acv_runs or "") or None,
             }
         )
     )

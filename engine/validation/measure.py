@@ -1,5 +1,6 @@
 """What each finished run is measured by, once (``measures/<arm>-<seed>.json``): every judge's
-scores on every evaluation bracket, the judges' R there, and the ground truth U.
+scores on every evaluation bracket, the judges' R there, the ground truth U, and where its
+training ended (steps, the return of its last 100 episodes, z).
 
 U is the teacher's own (latent) score, averaged over every state of ``truth_episodes``
 deterministic episodes reset from :data:`TRUTH_RESET_SEED0` on: seeds the behaviour judge
@@ -22,6 +23,7 @@ from engine.provenance import git_commit
 from engine.rl.agent_judge import candidate_terms
 from engine.rl.behaviour import RolloutOptions, visited_states
 from engine.rl.checkpoint import find_checkpoint
+from engine.rl.logger import read_metrics
 from engine.rl.trained import deterministic_policy, load_agent
 from engine.teachers import POSTURE_SCORES
 from engine.treefile import TreeDocument
@@ -75,11 +77,23 @@ def measure(out: Path, plan: Plan, task: Task, brackets: list[TreeDocument]) -> 
             judge: [judge_scores([run], b, judge)[0].tolist() for b in brackets] for judge in JUDGES
         },
         "reward": [candidate_terms(agent, b).reward.tolist() for b in brackets],
+        "train": training_end(run),
         "commit": git_commit(),
     }
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(found) + "\n")
     return found
+
+
+#: What a measure keeps of the run's last metrics row: how far it trained and what it earned.
+TRAINING_END = ("timesteps", "return_100", "episode_length", "z_mean")
+
+
+def training_end(run: Path) -> dict[str, Any]:
+    """The run's last metrics row, in part: kept with the measures, so that what the run
+    earned stays known where its folder does not (another machine)."""
+    last = read_metrics(run)[-1]
+    return {key: last[key] for key in TRAINING_END}
 
 
 def complete(out: Path, plan: Plan, task: Task, brackets: list[TreeDocument]) -> dict[str, Any]:

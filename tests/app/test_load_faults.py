@@ -10,16 +10,15 @@ after the restart, and the killed worker's run is ``interrupted`` and resumable.
 from __future__ import annotations
 
 import asyncio
-import importlib.util
 import subprocess
 import sys
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
-from types import ModuleType
 
 import httpx
 import pytest
 
+from tests.support.benchmarks import load_benchmark
 from tests.support.postgres import BACKENDS
 from tests.support.wait import wait_for
 
@@ -41,18 +40,9 @@ ENDLESS_RUN = {
 HTTP_TIMEOUT_S = 60.0
 
 
-def load_benchmark() -> ModuleType:
-    name = "fault_load_benchmark"
-    if name not in sys.modules:  # registered first: its dataclasses look themselves up
-        spec = importlib.util.spec_from_file_location(name, REPO / "benchmarks" / "fault_load.py")
-        sys.modules[name] = module = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(module)
-    return sys.modules[name]
-
-
 @pytest.mark.parametrize("backend", BACKENDS)
 def test_labels_survive_kill_9_under_load(request, tmp_path: Path, backend: str) -> None:
-    bench = load_benchmark()
+    bench = load_benchmark("fault_load")
     config = bench.LoadConfig(
         participants=PARTICIPANTS,
         candidates=CANDIDATES,
@@ -77,7 +67,9 @@ def test_labels_survive_kill_9_under_load(request, tmp_path: Path, backend: str)
 def _run(base: str, run_id: int) -> dict:
     return (
         httpx.get(
-            f"{base}/api/runs/{run_id}", headers=load_benchmark().ADMIN, timeout=HTTP_TIMEOUT_S
+            f"{base}/api/runs/{run_id}",
+            headers=load_benchmark("fault_load").ADMIN,
+            timeout=HTTP_TIMEOUT_S,
         )
         .raise_for_status()
         .json()
@@ -103,7 +95,7 @@ def test_labels_and_a_run_survive_kill_9_of_the_worker(tmp_path: Path) -> None:
     """``acv worker`` is killed while it trains and participants label (SQLite: the run
     process and the server write to one database file): every label is stored, the run is
     marked ``interrupted``, and resumed by a new worker it continues from its checkpoint."""
-    bench = load_benchmark()
+    bench = load_benchmark("fault_load")
     admin = bench.ADMIN
     config = bench.LoadConfig(
         participants=PARTICIPANTS,
