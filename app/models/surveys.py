@@ -1,0 +1,156 @@
+"""Tree-reading surveys, the paper's user study (app/surveys)."""
+
+from __future__ import annotations
+
+from datetime import datetime
+
+from sqlalchemy import (
+    JSON,
+    BigInteger,
+    Boolean,
+    CheckConstraint,
+    DateTime,
+    ForeignKey,
+    Index,
+    Integer,
+    String,
+    Text,
+    UniqueConstraint,
+)
+from sqlalchemy.orm import Mapped, mapped_column
+
+from app.models.base import (
+    Base,
+    utcnow,
+)
+from app.models.people import MemberColumns, OpenLink, open_link_counts
+
+SURVEY_ASSIGNMENTS = ("all", "round_robin")
+SURVEY_EXCLUSIONS = ("none", "attention_check")
+
+
+class Survey(Base):
+    """A tree-reading survey: intro, questions (JSON, the same on every stimulus), options.
+
+    ``assignment`` is ``all`` (every respondent sees every stimulus) or ``round_robin`` (one
+    stimulus each, from ``rr_counter``, a counter the database increments atomically).
+    ``exclusion_rule`` is fixed when the survey is created (it opens at once) and never
+    changes; ``seed`` seeds every respondent's order and left/right placement.
+    """
+
+    __tablename__ = "surveys"
+    __table_args__ = (
+        CheckConstraint("assignment IN ('all', 'round_robin')", name="assignment"),
+        CheckConstraint("exclusion_rule IN ('none', 'attention_check')", name="exclusion_rule"),
+        CheckConstraint("rr_counter >= 0", name="rr_counter"),
+    )
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    name: Mapped[str] = mapped_column(String(200))
+    intro: Mapped[str] = mapped_column(Text)
+    template: Mapped[str] = mapped_column(String(16))
+    questions: Mapped[list] = mapped_column(JSON)
+    highlights: Mapped[bool] = mapped_column(Boolean, default=False)
+    assignment: Mapped[str] = mapped_column(String(16))
+    exclusion_rule: Mapped[str] = mapped_column(String(32))
+    seed: Mapped[int] = mapped_column(BigInteger)
+    rr_counter: Mapped[int] = mapped_column(Integer, default=0)
+    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+
+
+class SurveyStimulus(Base):
+    """Two frozen ``acv.tree/1`` trees ("Tree 1", "Tree 2") shown on one screen.
+
+    ``trees`` is ``[{"name", "source", "study_id", "doc", "highlight"}, ...]`` (two items):
+    the document is copied in when the survey is created, so later changes to a participant or
+    a run never change what respondents saw. ``expected`` overrides the questions' expected
+    answers on this stimulus; an attention check asks only its ``check_question``.
+    """
+
+    __tablename__ = "survey_stimuli"
+    __table_args__ = (UniqueConstraint("survey_id", "position"),)
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    survey_id: Mapped[int] = mapped_column(ForeignKey("surveys.id", ondelete="CASCADE"))
+    position: Mapped[int] = mapped_column(Integer)
+    label: Mapped[str] = mapped_column(String(200))
+    attention_check: Mapped[bool] = mapped_column(Boolean, default=False)
+    check_question: Mapped[str | None] = mapped_column(String(32), default=None)
+    trees: Mapped[list] = mapped_column(JSON)
+    expected: Mapped[dict] = mapped_column(JSON)
+
+
+class SurveyRespondent(MemberColumns, Base):
+    """Someone answering a survey, known only by their invite token (as a participant).
+
+    ``started_at`` is set once, by whichever request first plans their screens (an atomic
+    ``UPDATE ... WHERE started_at IS NULL``); ``stimulus_id`` is their round-robin stimulus.
+    """
+
+    __tablename__ = "survey_respondents"
+    __table_args__ = (
+        Index("uq_survey_respondents_survey_external_id", "survey_id", "external_id", unique=True),
+    )
+
+    survey_id: Mapped[int] = mapped_column(ForeignKey("surveys.id", ondelete="CASCADE"), index=True)
+    stimulus_id: Mapped[int | None] = mapped_column(
+        ForeignKey("survey_stimuli.id", ondelete="CASCADE"), default=None
+    )
+    started_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), default=None)
+
+
+class SurveyCrowdSettings(OpenLink, Base):
+    """A survey's open link ``/q/<slug>`` (app.surveys.crowd)."""
+
+    __tablename__ = "survey_crowd_settings"
+    __table_args__ = (open_link_counts(),)
+
+    survey_id: Mapped[int] = mapped_column(
+        ForeignKey("surveys.id", ondelete="CASCADE"), primary_key=True
+    )
+
+
+class SurveyScreen(Base):
+    """One screen of a respondent's plan: which stimulus, and whether Tree 1 is on the left.
+
+    ``shown_at`` is when the server first sent it, ``screen_ms`` the time on the screen that
+    the page measured in the visit that answered it, ``answered_at`` when the answers came.
+    """
+
+    __tablename__ = "survey_screens"
+    __table_args__ = (
+        UniqueConstraint("respondent_id", "stimulus_id"),
+        CheckConstraint("screen_ms >= 0", name="screen_ms"),
+    )
+
+    respondent_id: Mapped[int] = mapped_column(
+        ForeignKey("survey_respondents.id", ondelete="CASCADE"), primary_key=True
+    )
+    position: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=False)
+    stimulus_id: Mapped[int] = mapped_column(ForeignKey("survey_stimuli.id", ondelete="CASCADE"))
+    tree1_left: Mapped[bool] = mapped_column(Boolean)
+    shown_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), default=None)
+    answered_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), default=None)
+    screen_ms: Mapped[int | None] = mapped_column(BigInteger, default=None)
+
+
+class SurveyAnswer(Base):
+    """A respondent's answer to one question on one stimulus; final (UNIQUE per question)."""
+
+    __tablename__ = "survey_answers"
+    __table_args__ = (
+        UniqueConstraint("respondent_id", "stimulus_id", "question"),
+        CheckConstraint(
+            "confidence IS NULL OR (confidence >= 1 AND confidence <= 5)", name="confidence"
+        ),
+    )
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    respondent_id: Mapped[int] = mapped_column(
+        ForeignKey("survey_respondents.id", ondelete="CASCADE"), index=True
+    )
+    stimulus_id: Mapped[int] = mapped_column(ForeignKey("survey_stimuli.id", ondelete="CASCADE"))
+    question: Mapped[str] = mapped_column(String(32))
+    value: Mapped[str] = mapped_column(Text)
+    confidence: Mapped[int | None] = mapped_column(Integer, default=None)
+    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
