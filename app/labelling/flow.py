@@ -5,8 +5,9 @@ Hundreds of people label at once (issue 16), so each request does as little as i
 - a study's bracket shape (its size and first-round byes) never changes once the study is
   ready, so each process keeps it (:func:`app.labelling.shape.shape_of`) instead of querying
   it per request;
-- the statements are built once, with bound parameters, and run on a plain connection
-  (no statement construction, cache-key walk or ORM layer per request);
+- the statements are built once, with bound parameters (:mod:`app.labelling.flow_sql`), and
+  run on a plain connection (no statement construction, cache-key walk or ORM layer per
+  request);
 - storing a label is one write transaction of at most six statements: take the
   participant's lock, read the match, its label, the label count and the sibling slot's
   winner in one ``SELECT``, insert the label, open the next-round match or mark the bracket
@@ -26,15 +27,16 @@ from dataclasses import dataclass
 from datetime import datetime
 from typing import Any
 
-from sqlalchemy import BindParameter, Connection, bindparam, func, insert, select, update
+from sqlalchemy import Connection
 from sqlalchemy.exc import IntegrityError
-from sqlalchemy.orm import Session, aliased
+from sqlalchemy.orm import Session
 
 from app.core.errors import AuthError, ConflictError, NotFoundError
 from app.db import writing
 from app.labelling import events
+from app.labelling import flow_sql as sql
 from app.labelling.shape import BracketShape, shape_of
-from app.models import Label, Match, Participant, as_utc, utcnow
+from app.models import as_utc, utcnow
 from app.recruiting.members import STUDY
 from app.studies.gold import GoldPair, due_gold
 from app.studies.participants import ParticipantKey, Progress
@@ -91,58 +93,6 @@ class LabelResult:
     tie: bool = False
 
 
-_PID: BindParameter[int] = bindparam("pid")
-_MID: BindParameter[int] = bindparam("mid")
-_DONE = select(func.count(Label.id)).where(Label.participant_id == _PID).scalar_subquery()
-_OPEN = (
-    select(Match.id, Match.round, Match.slot, Match.a, Match.b, Match.a_left)
-    .outerjoin(Label, Label.match_id == Match.id)
-    .where(Match.participant_id == _PID, Label.id.is_(None))
-    .order_by(Match.round, Match.slot)
-    .limit(1)
-)
-_OPEN_AND_DONE = _OPEN.add_columns(_DONE)
-#: The first statement of a label's transaction: takes the participant's lock.
-_LOCK = (
-    update(Participant).where(Participant.id == _PID).values(finished_at=Participant.finished_at)
-)
-_sibling, _sibling_label = aliased(Match), aliased(Label)
-#: The winner of the slot whose winner meets this match's (slots 2k and 2k + 1 pair up).
-_SIBLING_WINNER = (
-    select(_sibling_label.winner)
-    .join(_sibling, _sibling.id == _sibling_label.match_id)
-    .where(
-        _sibling.participant_id == _PID,
-        _sibling.round == Match.round,
-        _sibling.slot == Match.slot + 1 - 2 * (Match.slot % 2),
-    )
-    .scalar_subquery()
-)
-_MATCH_ROW = (
-    select(
-        Match.round,
-        Match.slot,
-        Match.a,
-        Match.b,
-        Match.a_left,
-        Match.created_at,
-        Label.winner,
-        Label.tie,
-        Participant.last_active_at,
-        _DONE,
-        _SIBLING_WINNER,
-    )
-    .join(Participant, Participant.id == Match.participant_id)
-    .outerjoin(Label, Label.match_id == Match.id)
-    .where(Match.id == _MID, Match.participant_id == _PID)
-)
-_INSERT_LABEL, _INSERT_MATCH = insert(Label), insert(Match)
-_TOUCH = update(Participant).where(Participant.id == _PID).values(last_active_at=bindparam("now"))
-_FINISH = _TOUCH.values(finished_at=bindparam("now"))
-_LABEL_WINNER = select(Label.winner, Label.tie).where(Label.match_id == _MID)
-_DONE_ONLY = select(_DONE)
-
-
 def _connection(db: Session | Connection) -> Connection:
     return db.connection() if isinstance(db, Session) else db
 
@@ -158,7 +108,7 @@ def next_match(
     """
     shape, conn = shape_of(db, participant.study_id), _connection(db)
     row = conn.execute(
-        _OPEN if done is not None else _OPEN_AND_DONE, {"pid": participant.id}
+        sql.OPEN if done is not None else sql.OPEN_AND_DONE, {"pid": participant.id}
     ).one_or_none()
     if row is None:
         return None
@@ -233,10 +183,10 @@ def submit_label(
             return _submit(_connection(db), participant, shape, decision, with_next)
     except IntegrityError:  # a concurrent request stored this match's label first
         conn = _connection(db)
-        existing = conn.execute(_LABEL_WINNER, {"mid": match_id}).one_or_none()
+        existing = conn.execute(sql.LABEL_WINNER, {"mid": match_id}).one_or_none()
         if existing is None:
             raise ConflictError("the bracket changed concurrently; try again") from None
-        done = conn.execute(_DONE_ONLY, {"pid": participant.id}).scalar_one()
+        done = conn.execute(sql.DONE_ONLY, {"pid": participant.id}).scalar_one()
         return _same_or_conflict(
             conn,
             participant,
@@ -255,9 +205,9 @@ def _submit(
     with_next: bool,
 ) -> LabelResult:
     now, pid, match_id = utcnow(), participant.id, decision.match_id
-    if conn.execute(_LOCK, {"pid": pid}).rowcount == 0:
+    if conn.execute(sql.LOCK, {"pid": pid}).rowcount == 0:
         raise AuthError(STUDY.unknown)
-    row = conn.execute(_MATCH_ROW, {"pid": pid, "mid": match_id}).one_or_none()
+    row = conn.execute(sql.MATCH_ROW, {"pid": pid, "mid": match_id}).one_or_none()
     if row is None:
         raise NotFoundError(f"match {match_id} not found among this participant's matches")
     rnd, slot, a, b, _, _, existing, was_tie, _, done, sibling = row
@@ -275,7 +225,7 @@ def _submit(
         sibling = shape.byes[slot ^ 1]
     if not progress.finished and sibling is not None:
         _open_next_round(conn, shape, pid, rnd, slot, winner, sibling)
-    conn.execute(_FINISH if progress.finished else _TOUCH, {"pid": pid, "now": now})
+    conn.execute(sql.FINISH if progress.finished else sql.TOUCH, {"pid": pid, "now": now})
     if progress.finished:  # webhook events, in this transaction (one query when none)
         events.finished(conn, participant=participant)
     return LabelResult(
@@ -296,7 +246,7 @@ def _insert_label(
     match: Sequence[Any],
     now: datetime,
 ) -> int:
-    """Store the label of an undecided match (a :data:`_MATCH_ROW`); returns who advances:
+    """Store the label of an undecided match (a :data:`sql.MATCH_ROW`); returns who advances:
     the choice, or the seeded coin's after a tie."""
     rnd, slot, a, b, a_left, created_at, _, _, last_active = match[:9]
     winner = decision.winner
@@ -308,7 +258,7 @@ def _insert_label(
         opened = max(as_utc(t) for t in (created_at, last_active) if t is not None)
         response_ms = max(0, round((now - opened).total_seconds() * 1000))
     conn.execute(
-        _INSERT_LABEL,
+        sql.INSERT_LABEL,
         {
             "match_id": decision.match_id,
             "participant_id": pid,
@@ -328,7 +278,7 @@ def _open_next_round(
     """Insert the next-round match of ``winner`` and the winner of the sibling slot."""
     pair = (winner, sibling) if slot % 2 == 0 else (sibling, winner)
     conn.execute(
-        _INSERT_MATCH,
+        sql.INSERT_MATCH,
         {
             "participant_id": pid,
             "round": rnd + 1,

@@ -1,8 +1,8 @@
-"""Label quality and agreement of a study's participants (issues 14 and 28): position bias,
-speed, the consistency check, gold accuracy with its interval and the qualification gate,
-the reliability these give, "can't tell" answers, agreement on shared pairs,
-Krippendorff's alpha, and agreement with the simulated teachers. Flags only: nothing is
-rejected automatically, unless the researcher has the gate exclude (:func:`apply_gate`).
+"""Label quality of a study's participants (issues 14 and 28): position bias, speed, the
+consistency check, gold accuracy with its interval and the qualification gate, the
+reliability these give, and "can't tell" answers (their agreement with each other and with
+the simulated teachers: :mod:`app.labelling.consensus`). Flags only: nothing is rejected
+automatically, unless the researcher has the gate exclude (:func:`apply_gate`).
 
 A tie ("can't tell") is neither agreement nor disagreement: it is left out of every
 agreement and of position bias, and counted per participant."""
@@ -13,7 +13,6 @@ import statistics
 from dataclasses import dataclass
 from functools import lru_cache
 
-import numpy as np
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
@@ -25,17 +24,13 @@ from app.recruiting import service as recruiting
 from app.studies import gold
 from app.studies.crowd import DEFAULT_SPEED_THRESHOLD_MS, LINK, CrowdOptions, configure
 from app.studies.gold import GoldScore
-from app.studies.service import engine_candidates_of, get_study
+from app.studies.service import get_study
 from app.webhooks.outbox import Owner, webhook_ids
 from engine import agreement
-from engine.envs import env_model
 from engine.reliability import Checks, competence, gold_interval
-from engine.teachers import make_teacher
 
 #: Position bias is flagged below this p-value of the binomial test.
 BIAS_ALPHA = 0.05
-#: Teachers each participant is compared with.
-COMPARED_TEACHERS = ("standing", "good")
 
 
 @dataclass(frozen=True)
@@ -279,68 +274,3 @@ def _gate_event(session: Session, study_id: int, q: ParticipantQuality) -> None:
 
 def _gated(q: ParticipantQuality) -> bool:
     return q.below_gate and q.participant.exclusion_reason is None
-
-
-@dataclass(frozen=True)
-class TeacherAgreement:
-    participant_id: int
-    teacher: str
-    labels: int
-    agreement: float | None
-
-
-@dataclass(frozen=True)
-class StudyAgreement:
-    participants: list[int]
-    pairs: list[agreement.PairAgreement]
-    mean: float | None
-    alpha: float | None
-    shared_pairs: int
-    teachers: list[TeacherAgreement]
-
-
-def choices(rows: list[LabelRow]) -> dict[int, dict[agreement.Pair, int]]:
-    """Each participant's decided pairs (unordered) and winners, ties left out."""
-    out: dict[int, dict[agreement.Pair, int]] = {}
-    for r in rows:
-        if r.tie:  # "can't tell" is neither agreement nor disagreement
-            continue
-        out.setdefault(r.participant_id, {})[agreement.pair_key(r.a, r.b)] = r.winner
-    return out
-
-
-def _teachers(session: Session, study_id: int, rows: list[LabelRow]) -> list[TeacherAgreement]:
-    study = get_study(session, study_id=study_id)
-    cands = engine_candidates_of(session, study_id=study_id)
-    by_id, model = {c.id: c for c in cands}, env_model(study.env_id)
-    out = []
-    for name in COMPARED_TEACHERS:
-        judge, _ = make_teacher(name, cands, model, rng=np.random.default_rng(0))
-        for pid, decided in choices(rows).items():
-            same = sum(judge(by_id[a], by_id[b]) == w for (a, b), w in decided.items())
-            out.append(
-                TeacherAgreement(pid, name, len(decided), same / len(decided) if decided else None)
-            )
-    return out
-
-
-def study_agreement(session: Session, *, study_id: int) -> StudyAgreement:
-    """Pairwise agreement on shared pairs, its mean, Krippendorff's alpha (nominal), and
-    each participant's agreement with each simulated teacher.
-
-    Raises:
-        NotFoundError: no such study.
-    """
-    get_study(session, study_id=study_id)
-    rows = label_rows(session, study_id=study_id)
-    decided = choices(rows)
-    pairs = agreement.pairwise_agreement(decided)
-    teachers = _teachers(session, study_id, rows) if rows else []
-    return StudyAgreement(
-        sorted(decided),
-        pairs,
-        agreement.mean_agreement(pairs),
-        agreement.alpha_nominal(decided),
-        len(agreement.shared_units(decided)),
-        teachers,
-    )

@@ -12,7 +12,7 @@ from fastapi import APIRouter, Response
 from app.core.errors import NotFoundError
 from app.http.deps import DbId, ResearcherDep, SessionDep
 from app.http.files import attachment
-from app.labelling import label_export
+from app.labelling import consensus, label_export
 from app.labelling import quality as crowd_stats
 from app.recruiting.api import LinkApi, open_link_api_router
 from app.studies import crowd
@@ -92,7 +92,7 @@ def get_quality(study_id: DbId, session: SessionDep, _: ResearcherDep) -> Qualit
 def get_agreement(study_id: DbId, session: SessionDep, _: ResearcherDep) -> AgreementOut:
     """Pairwise agreement on shared pairs and its mean, Krippendorff's alpha (nominal), and
     each participant's agreement with the simulated teachers."""
-    a = crowd_stats.study_agreement(session, study_id=study_id)
+    a = consensus.study_agreement(session, study_id=study_id)
     return AgreementOut(
         study_id=study_id,
         participants=a.participants,

@@ -12,6 +12,7 @@ from app.http.csrf import CsrfChecked, FormFields
 from app.http.deps import DbId, SessionDep
 from app.http.guards import ResearcherPage
 from app.http.rendering import PageRoute, redirect
+from app.labelling import consensus
 from app.labelling import quality as crowd_stats
 from app.recruiting import service as recruiting
 from app.recruiting.pages import link_form, validated, whole
@@ -27,7 +28,7 @@ def _heat(value: float | None) -> str:
     return "heat-none" if value is None else f"heat-{round(value * 10)}"
 
 
-def heat_map(agreement: crowd_stats.StudyAgreement) -> list[dict[str, Any]]:
+def heat_map(agreement: consensus.StudyAgreement) -> list[dict[str, Any]]:
     """Rows of the participants x participants table: each cell's text, class and title."""
     by_pair = {(p.a, p.b): p for p in agreement.pairs}
     rows = []
@@ -53,7 +54,7 @@ def heat_map(agreement: crowd_stats.StudyAgreement) -> list[dict[str, Any]]:
 def crowd_context(request: Request, session: Session, study_id: int) -> dict[str, Any]:
     """What ``study_crowd.html`` shows: settings and link, quality, agreement."""
     row = recruiting.settings(session, crowd.LINK, study_id)
-    agreement = crowd_stats.study_agreement(session, study_id=study_id)
+    agreement = consensus.study_agreement(session, study_id=study_id)
     teachers: dict[int, dict[str, float | None]] = {}
     for t in agreement.teachers:
         teachers.setdefault(t.participant_id, {})[t.teacher] = t.agreement
@@ -64,7 +65,7 @@ def crowd_context(request: Request, session: Session, study_id: int) -> dict[str
         "quality": crowd_stats.quality(session, study_id=study_id),
         "agreement": agreement,
         "heat_rows": heat_map(agreement),
-        "teacher_names": crowd_stats.COMPARED_TEACHERS,
+        "teacher_names": consensus.COMPARED_TEACHERS,
         "teacher_agreement": teachers,
         "gold_items": gold.list_items(session, study_id=study_id),
     }

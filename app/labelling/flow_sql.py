@@ -1,0 +1,59 @@
+"""The hot path's statements (:mod:`app.labelling.flow`), built once with bound parameters
+(``pid``: the participant; ``mid``: the match; ``now``: the time of the request), so that a
+request constructs no statement and walks no cache key."""
+
+from __future__ import annotations
+
+from sqlalchemy import BindParameter, bindparam, func, insert, select, update
+from sqlalchemy.orm import aliased
+
+from app.models import Label, Match, Participant
+
+PID: BindParameter[int] = bindparam("pid")
+MID: BindParameter[int] = bindparam("mid")
+DONE = select(func.count(Label.id)).where(Label.participant_id == PID).scalar_subquery()
+OPEN = (
+    select(Match.id, Match.round, Match.slot, Match.a, Match.b, Match.a_left)
+    .outerjoin(Label, Label.match_id == Match.id)
+    .where(Match.participant_id == PID, Label.id.is_(None))
+    .order_by(Match.round, Match.slot)
+    .limit(1)
+)
+OPEN_AND_DONE = OPEN.add_columns(DONE)
+#: The first statement of a label's transaction: takes the participant's lock.
+LOCK = update(Participant).where(Participant.id == PID).values(finished_at=Participant.finished_at)
+_sibling, _sibling_label = aliased(Match), aliased(Label)
+#: The winner of the slot whose winner meets this match's (slots 2k and 2k + 1 pair up).
+SIBLING_WINNER = (
+    select(_sibling_label.winner)
+    .join(_sibling, _sibling.id == _sibling_label.match_id)
+    .where(
+        _sibling.participant_id == PID,
+        _sibling.round == Match.round,
+        _sibling.slot == Match.slot + 1 - 2 * (Match.slot % 2),
+    )
+    .scalar_subquery()
+)
+MATCH_ROW = (
+    select(
+        Match.round,
+        Match.slot,
+        Match.a,
+        Match.b,
+        Match.a_left,
+        Match.created_at,
+        Label.winner,
+        Label.tie,
+        Participant.last_active_at,
+        DONE,
+        SIBLING_WINNER,
+    )
+    .join(Participant, Participant.id == Match.participant_id)
+    .outerjoin(Label, Label.match_id == Match.id)
+    .where(Match.id == MID, Match.participant_id == PID)
+)
+INSERT_LABEL, INSERT_MATCH = insert(Label), insert(Match)
+TOUCH = update(Participant).where(Participant.id == PID).values(last_active_at=bindparam("now"))
+FINISH = TOUCH.values(finished_at=bindparam("now"))
+LABEL_WINNER = select(Label.winner, Label.tie).where(Label.match_id == MID)
+DONE_ONLY = select(DONE)
