@@ -31,6 +31,7 @@ from engine.validation.design import TRUTH_RESET_SEED0, Plan
 from engine.validation.runs import (
     Task,
     in_processes,
+    measured,
     measures_path,
     read_json,
     run_dir,
@@ -98,7 +99,7 @@ def training_end(run: Path) -> dict[str, Any]:
 
 def complete(out: Path, plan: Plan, task: Task, brackets: list[TreeDocument]) -> dict[str, Any]:
     """The run's measures: trained first (or resumed) unless they are saved already."""
-    if not measures_path(out, task).is_file():
+    if not measured(out, task):
         train_task(out, plan, task)
     return measure(out, plan, task, brackets)
 
