@@ -19,6 +19,7 @@ from app.cli.serve import service_errors
 from engine.envs import check_env_id
 from engine.errors import InputError
 from engine.validation.design import ARMS, Plan
+from engine.validation.runs import Workers
 
 Opt = typer.Option
 
@@ -39,6 +40,14 @@ def validate(
         str, Opt(help=f"Comma-separated arms: {', '.join(a.name for a in ARMS)}.")
     ] = ",".join(a.name for a in ARMS),
     jobs: Annotated[int, Opt(help="Runs trained at once (one core each).")] = 1,
+    ray_address: Annotated[
+        str | None,
+        Opt(
+            envvar="ACV_RAY_ADDRESS",
+            help="Train and measure each run as a Ray task on this cluster (host:port) "
+            "instead of --jobs processes here; this machine must be one of its nodes.",
+        ),
+    ] = None,
 ) -> None:
     """Train every arm (or reuse finished runs), measure, and write summary.json and
     report.md with each pre-registered criterion under each judge."""
@@ -58,11 +67,11 @@ def validate(
         )
         if jobs < 1:
             raise InputError(f"--jobs must be at least 1, got {jobs}")
-        _run_with_progress(out, plan, jobs)
+        _run_with_progress(out, plan, Workers(jobs, ray_address or None))
     typer.echo(f"wrote {out / 'summary.json'} and {out / 'report.md'}")
 
 
-def _run_with_progress(out: Path, plan: Plan, jobs: int) -> None:
+def _run_with_progress(out: Path, plan: Plan, workers: Workers) -> None:
     """:func:`engine.validation.validate.validate` in a thread, with a bar per arm (steps
     logged by its runs) and the time left, polled from the runs' metrics files."""
     from engine.validation.runs import arm_tasks, pilot_tasks
@@ -73,7 +82,7 @@ def _run_with_progress(out: Path, plan: Plan, jobs: int) -> None:
 
     def work() -> None:
         try:
-            validate(out, plan, jobs=jobs, command=shlex.join(["acv", *sys.argv[1:]]))
+            validate(out, plan, workers=workers, command=shlex.join(["acv", *sys.argv[1:]]))
         except BaseException as exc:  # re-raised in the main thread, where the CLI reports it
             failure.append(exc)
 

@@ -30,7 +30,7 @@ from engine.treefile import TreeDocument
 from engine.validation.design import TRUTH_RESET_SEED0, Plan
 from engine.validation.runs import (
     Task,
-    in_processes,
+    Workers,
     measured,
     measures_path,
     read_json,
@@ -105,9 +105,9 @@ def complete(out: Path, plan: Plan, task: Task, brackets: list[TreeDocument]) ->
 
 
 def complete_all(
-    out: Path, plan: Plan, tasks: list[Task], brackets: list[TreeDocument], jobs: int
+    out: Path, plan: Plan, tasks: list[Task], brackets: list[TreeDocument], workers: Workers
 ) -> dict[Task, dict[str, Any]]:
-    """Every run trained and measured, ``jobs`` runs at a time (each on one core); each run is
+    """Every run trained and measured by ``workers`` (each run on one core); each run is
     measured as soon as it is trained, so a stopped validation keeps every finished run."""
-    found = in_processes(partial(complete, out, plan, brackets=brackets), tasks, jobs)
+    found = workers.map(partial(complete, out, plan, brackets=brackets), tasks)
     return dict(zip(tasks, found, strict=True))

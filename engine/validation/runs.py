@@ -16,9 +16,11 @@ machine, resume the validation there without training a measured run again.
 from __future__ import annotations
 
 import json
+import logging
 import shutil
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
 from functools import partial
 from multiprocessing import get_context
 from pathlib import Path
@@ -131,32 +133,68 @@ def train_task(out: Path, plan: Plan, task: Task) -> Task:
     return task
 
 
-def train_tasks(out: Path, plan: Plan, tasks: list[Task], jobs: int) -> None:
-    """Train the ``tasks`` neither finished nor measured, ``jobs`` at a time."""
+def train_tasks(out: Path, plan: Plan, tasks: list[Task], workers: Workers) -> None:
+    """Train the ``tasks`` neither finished nor measured."""
     todo = [t for t in tasks if not (measured(out, t) or finished(out, plan, t))]
-    in_processes(partial(train_task, out, plan), todo, jobs)
+    workers.map(partial(train_task, out, plan), todo)
 
 
 T = TypeVar("T")
 
 
-def in_processes(work: Callable[[Task], T], tasks: list[Task], jobs: int) -> list[T]:
-    """``work`` of every task, ``jobs`` processes at a time (in this one when ``jobs`` is 1),
-    in the order of ``tasks``; the first failure stops the rest.
+@dataclass(frozen=True)
+class Workers:
+    """Where runs train and are measured: ``jobs`` processes on this machine (this one
+    process when ``jobs`` is 1), or one Ray task of one CPU per run on the cluster at
+    ``ray_address`` (``host:port``), as many at once as it has CPUs. With Ray, this machine
+    must be a node of the cluster (as for the ``ray`` run executor) and the validation folder
+    on storage that every node reaches."""
 
-    ``work`` must be picklable with ``jobs`` > 1: a module-level function or a ``partial``.
-    """
-    if jobs <= 1:
-        return [work(task) for task in tasks]
-    # Runs are independent and single-threaded: processes give a near-linear speed-up;
-    # spawn, because torch and MuJoCo are not fork-safe.
-    with ProcessPoolExecutor(max_workers=jobs, mp_context=get_context("spawn")) as pool:
-        futures = [pool.submit(work, task) for task in tasks]
-        try:
-            return [future.result() for future in futures]
-        except BaseException:  # report a failed run now, not after every queued run
-            pool.shutdown(cancel_futures=True)
-            raise
+    jobs: int = 1
+    ray_address: str | None = None
+
+    def map(self, work: Callable[[Task], T], tasks: list[Task]) -> list[T]:
+        """``work`` of every task, in the order of ``tasks``; the first failure stops the
+        rest. ``work`` must be picklable unless it runs here: a module-level function or a
+        ``partial`` of one."""
+        if self.ray_address is not None:
+            return _on_ray(work, tasks, self.ray_address)
+        if self.jobs <= 1:
+            return [work(task) for task in tasks]
+        # Runs are independent and single-threaded: processes give a near-linear speed-up;
+        # spawn, because torch and MuJoCo are not fork-safe.
+        with ProcessPoolExecutor(max_workers=self.jobs, mp_context=get_context("spawn")) as pool:
+            futures = [pool.submit(work, task) for task in tasks]
+            try:
+                return [future.result() for future in futures]
+            except BaseException:  # report a failed run now, not after every queued run
+                pool.shutdown(cancel_futures=True)
+                raise
+
+
+def _on_ray(work: Callable[[Task], T], tasks: list[Task], address: str) -> list[T]:
+    import ray  # optional dependency (the ``ray`` extra): only a validation on Ray needs it
+
+    if not ray.is_initialized():
+        ray.init(
+            address=address,
+            namespace="acv",
+            logging_level=logging.WARNING,
+            log_to_driver=False,
+            configure_logging=False,
+        )
+    remote: Any = ray.remote(num_cpus=1, max_retries=0)(_call)
+    refs = [remote.remote(work, task) for task in tasks]
+    try:
+        return list(ray.get(refs))
+    except BaseException:  # a failed run stops the rest, as on this machine
+        for ref in refs:
+            ray.cancel(ref)
+        raise
+
+
+def _call(work: Callable[[Task], T], task: Task) -> T:
+    return work(task)
 
 
 def make_brackets(out: Path, plan: Plan) -> list[TreeDocument]:

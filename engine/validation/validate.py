@@ -17,6 +17,7 @@ from engine.validation.figures import draw
 from engine.validation.measure import JUDGES, complete_all
 from engine.validation.runs import (
     Task,
+    Workers,
     arm_tasks,
     make_brackets,
     measured,
@@ -32,15 +33,16 @@ def validate(
     out: Path,
     plan: Plan,
     *,
-    jobs: int = 1,
+    workers: Workers = Workers(),
     command: str = "",
 ) -> dict[str, Any]:
     """Train what is not trained yet, measure, analyse; returns the summary it wrote, which
     names the ``command`` and the commit that wrote it."""
     prepare(out, plan)
-    train_tasks(out, plan, pilot_tasks(plan), jobs)
+    train_tasks(out, plan, pilot_tasks(plan), workers)
     brackets = make_brackets(out, plan)
-    measures = complete_all(out, plan, [*pilot_tasks(plan), *arm_tasks(plan)], brackets, jobs)
+    tasks = [*pilot_tasks(plan), *arm_tasks(plan)]
+    measures = complete_all(out, plan, tasks, brackets, workers)
     summary: dict[str, Any] = _json_safe(
         {
             "schema": "acv.validation/1",

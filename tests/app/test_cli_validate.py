@@ -5,11 +5,14 @@ from __future__ import annotations
 
 import json
 import shutil
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
+from engine.validation import measure
 from tests.support.cli import acv
+from tests.support.ray_cluster import ray_cluster
 
 
 @pytest.mark.parametrize(
@@ -69,3 +72,36 @@ def test_the_smallest_real_validation_runs_end_to_end_and_resumes(tmp_path: Path
     assert again.exit_code == 0 and (tmp_path / "v" / "summary.json").read_text() == summary
     assert not (tmp_path / "v" / "runs").exists()
     assert sorted((tmp_path / "v" / "figures").iterdir())
+
+
+@pytest.fixture(scope="module")
+def ray_address() -> Iterator[str]:
+    with ray_cluster() as address:
+        yield address
+
+
+@pytest.mark.ray
+@pytest.mark.training
+def test_a_validation_trains_and_measures_its_runs_as_ray_tasks(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, ray_address: str
+) -> None:
+    """``ACV_RAY_ADDRESS`` (or ``--ray-address``): every run trains and is measured in a Ray
+    worker. Training in this process is made to fail, which the workers, importing the
+    engine afresh, never see; without Ray the first arm's run would hit it here."""
+
+    def not_here(*_: object) -> None:
+        raise AssertionError("a run trained in the driver, not on Ray")
+
+    monkeypatch.setattr(measure, "train_task", not_here)
+    monkeypatch.setenv("ACV_RAY_ADDRESS", ray_address)
+    out = tmp_path / "v"
+    result = acv(
+        "validate", "--out", out, "--env", "Hopper-v5", "--seeds", 2, "--timesteps", 512,
+        "--n-envs", 1, "--num-steps", 256, "--pilot-seeds", 1, "--brackets", 1,
+        "--candidates", 4, "--arms", "n1,p1-10",
+    )  # fmt: skip
+    assert result.exit_code == 0, result.output + result.stderr
+    measured = sorted(p.stem for p in (out / "measures").iterdir())
+    assert measured == ["n1-0", "n1-1", "p1-10-0", "p1-10-1", "pilot-1000"]
+    summary = json.loads((out / "summary.json").read_text())
+    assert set(summary["judges"]["behaviour"]["ca"]) == {"n1", "p1-10"}

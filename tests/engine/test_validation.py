@@ -23,6 +23,7 @@ from engine.validation.design import ARMS, PILOT, Plan
 from engine.validation.figures import draw
 from engine.validation.power import power
 from engine.validation.runs import (
+    Workers,
     arm_tasks,
     finished,
     inverted,
@@ -233,7 +234,7 @@ def test_a_measured_run_is_done_without_its_folder(
     monkeypatch.setattr(runs, "train_task", lambda out, plan, task: trained.append(task))
     measures_path(tmp_path, ("n1", 0)).parent.mkdir(parents=True)
     measures_path(tmp_path, ("n1", 0)).write_text("{}")
-    train_tasks(tmp_path, plan, [("n1", 0), ("n1", 1)], jobs=1)
+    train_tasks(tmp_path, plan, [("n1", 0), ("n1", 1)], Workers())
     assert trained == [("n1", 1)]
     assert steps_done(tmp_path, plan, ("n1", 0)) == plan.timesteps
     assert steps_done(tmp_path, plan, ("n1", 1)) == 0
