@@ -68,12 +68,20 @@ def product_verdicts(
     measures: Measures, plan: Plan, judge: str, advice: TreeDocument, rng: np.random.Generator
 ) -> dict[str, dict[str, Any]]:
     """Each arm's verdict as the product gives it: its seeds against ``n1``'s on the advice's
-    own bracket (bracket 0), contested matches picked by the pilots."""
+    own bracket (bracket 0), contested matches picked by the pilots; with how many matches
+    were informative and contested (what the verdict could count) and why it cannot tell."""
     found = {}
     for arm in plan.chosen:
         if arm.name != BASELINE:
             v = verdict(_inputs(measures, plan, judge, advice, 0, arm.name), rng)
-            found[arm.name] = {"outcome": v.outcome, "delta": v.delta, "p_value": v.p_value}
+            found[arm.name] = {
+                "outcome": v.outcome,
+                "delta": v.delta,
+                "p_value": v.p_value,
+                "contested": len(v.matches.contested),
+                "informative": len(v.matches.contested) + len(v.matches.agreed),
+                "reason": v.reason,
+            }
     return found
 
 

@@ -102,7 +102,9 @@ def test_the_summary_reports_every_criterion_and_what_it_could_not_compute(
     assert by_name["AUC p1-10 vs n1+n2"]["passed"] is True
     assert by_name["delta(n3)"]["passed"] is None
     assert "n3" in by_name["delta(n3)"]["note"]
-    assert summary["verdicts"]["p1-10"]["outcome"] == "used"
+    used = summary["verdicts"]["p1-10"]
+    assert used["outcome"] == "used" and used["reason"] is None
+    assert used["contested"] == used["informative"] >= 3  # the pilots reverse the advice
     assert summary["known"]["p1-10"] == "follows"
     assert summary["match_agreement_auc"]["value"] == 1.0
     whole = {"command": "acv validate", "commit": "abc", "plan": plan.to_json()}
