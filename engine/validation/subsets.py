@@ -23,9 +23,10 @@ from typing import Any
 import numpy as np
 
 from engine.validation.design import BASELINE
+from engine.verdict import VerdictOptions
 from engine.verdict_power import permutation_p, smallest_p
 
-ALPHA = 0.05
+OPTIONS = VerdictOptions()
 #: Seeds per arm looked at: issue 25's positive control (4), the product's default (5).
 SEED_COUNTS = (4, 5)
 
@@ -47,7 +48,7 @@ def subset_outcomes(
     """
     combos = np.array(list(itertools.combinations(range(len(advised)), k)))
     a, b = advised[combos], baseline[combos]
-    rejects = permutation_p(a, b, rng) <= ALPHA
+    rejects = permutation_p(a, b, rng) <= OPTIONS.alpha
     delta = a.mean(axis=1) - b.mean(axis=1)
     return {
         "k": k,
@@ -62,7 +63,9 @@ def summary_subsets(
     summary: dict[str, Any], seed_counts: tuple[int, ...] = SEED_COUNTS
 ) -> dict[str, dict[str, list[dict[str, Any]]]]:
     """Per judge and arm (every arm but the baseline), :func:`subset_outcomes` at each count of
-    seeds and at all of them, from ``summary.json``'s per-seed CA on bracket 0."""
+    seeds and at all of them, from ``summary.json``'s per-seed CA on bracket 0. An arm whose
+    verdict had too few contested matches to count (it "cannot tell" with any seeds; only
+    summaries that record the count say so) is left out, as is one with none at all."""
     rng = np.random.default_rng(0)
     found: dict[str, dict[str, list[dict[str, Any]]]] = {}
     for judge, result in summary["judges"].items():
@@ -72,9 +75,14 @@ def summary_subsets(
         found[judge] = {
             arm: [subset_outcomes(ca[arm], ca[BASELINE], k, rng) for k in counts]
             for arm in ca
-            if arm != BASELINE and not np.isnan(ca[arm]).any()
+            if arm != BASELINE and not np.isnan(ca[arm]).any() and _countable(result, arm)
         }
     return found
+
+
+def _countable(result: dict[str, Any], arm: str) -> bool:
+    contested = result.get("verdicts", {}).get(arm, {}).get("contested")
+    return contested is None or contested >= OPTIONS.min_contested
 
 
 def table(found: dict[str, dict[str, list[dict[str, Any]]]]) -> str:
@@ -97,7 +105,7 @@ def main(argv: list[str]) -> None:
     summary = json.loads(Path(argv[0]).read_text())
     found = summary_subsets(summary)
     print(table(found))
-    print(json.dumps({"summary": argv[0], "alpha": ALPHA, "subsets": found}))
+    print(json.dumps({"summary": argv[0], "alpha": OPTIONS.alpha, "subsets": found}))
 
 
 if __name__ == "__main__":  # pragma: no cover

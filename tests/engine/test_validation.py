@@ -296,9 +296,12 @@ def test_fewer_seeds_fire_at_most_alpha_under_the_null() -> None:
 
 def test_a_summary_is_read_on_the_advice_bracket() -> None:
     """Bracket 0 is the advice's: the other brackets' CA never enter; an arm with no
-    contested match there (NaN) is left out."""
+    contested match there (NaN), or too few for the verdict to count, is left out."""
     ca = {"n1": [[0.0, 1.0]] * 8, "p1-10": [[1.0, 0.0]] * 8, "n3": [[None, 0.0]] * 8}
-    found = summary_subsets({"judges": {"behaviour": {"ca": ca}}})["behaviour"]
+    ca["p1-1"] = ca["p1-10"]
+    verdicts = {"p1-1": {"contested": 2}, "p1-10": {"contested": 3}}
+    found = summary_subsets({"judges": {"behaviour": {"ca": ca, "verdicts": verdicts}}})
+    found = found["behaviour"]
     assert set(found) == {"p1-10"}
     assert [(r["k"], r["used"]) for r in found["p1-10"]] == [(4, 1.0), (5, 1.0), (8, 1.0)]
     assert "| behaviour | p1-10 | 4 | 70 | 1.00 | 0.00 |" in table({"behaviour": found})
