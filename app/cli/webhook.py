@@ -1,5 +1,5 @@
-"""``acv webhook add|list|remove|attempts`` (issue 29 §3): a study's or a survey's webhooks
-from the command line, through the same services as ``/api/webhooks``. Events are
+"""``acv webhook add|list|remove|attempts|redeliver`` (issue 29 §3): a study's or a survey's
+webhooks from the command line, through the same services as ``/api/webhooks``. Events are
 delivered by the running server (``acv serve``), not by these commands."""
 
 from __future__ import annotations
@@ -86,3 +86,14 @@ def attempts(
             f"{a.attempted_at.isoformat()}\t{a.event_id}\t{a.type}\t{status}"
             f"\t{a.error or ''}\t{a.duration_ms} ms"
         )
+
+
+@webhook_cli.command("redeliver")
+def redeliver(
+    webhook: WebhookOpt,
+    event: Annotated[str, typer.Option(help="The event's id (its webhook-id header).")],
+) -> None:
+    """Send an event again, now, with a fresh series of attempts (the running server sends it)."""
+    with cli_runtime() as runtime, runtime.sessions() as session:
+        service.redeliver(session, webhook_id=webhook, event_id=event)
+    typer.echo(f"event {event} of webhook {webhook} queued for delivery")

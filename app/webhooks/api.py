@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import APIRouter, Query, Response
+from fastapi import APIRouter, Path, Query, Response
 from sqlalchemy.orm import Session
 
 from app.core.rows import from_row
@@ -91,6 +91,21 @@ def list_events(
         from_row(EventOut, e, status=service.event_status(e, max_attempts=limit))
         for e in service.events(session, webhook_id=webhook_id)
     ]
+
+
+@router.post("/{webhook_id}/events/{event_id}/redeliver")
+def redeliver_event(
+    webhook_id: DbId,
+    event_id: Annotated[str, Path(max_length=64)],
+    session: SessionDep,
+    settings: SettingsDep,
+    _: ResearcherDep,
+) -> EventOut:
+    """Send an event again, now, with a fresh series of attempts (a failed one, once its
+    receiver is mended; or a delivered one that it lost). Its id stays the same."""
+    event = service.redeliver(session, webhook_id=webhook_id, event_id=event_id)
+    limit = settings.webhook_max_attempts
+    return from_row(EventOut, event, status=service.event_status(event, max_attempts=limit))
 
 
 @router.get("/{webhook_id}/attempts")

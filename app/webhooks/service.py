@@ -12,7 +12,7 @@ from sqlalchemy.orm import Session
 
 from app.core.errors import ConflictError, NotFoundError
 from app.db import writing
-from app.models import Study, Survey, Webhook, WebhookAttempt, WebhookEvent
+from app.models import Study, Survey, Webhook, WebhookAttempt, WebhookEvent, utcnow
 from app.webhooks.outbox import Owner
 from app.webhooks.signing import new_secret
 from app.webhooks.targets import Targets, check_url
@@ -109,6 +109,27 @@ def remove(session: Session, *, webhook_id: int, owner: Owner | None = None) -> 
     with writing(session):
         session.execute(delete(Webhook).where(Webhook.id == webhook_id))
     session.expunge(webhook)
+
+
+def redeliver(session: Session, *, webhook_id: int, event_id: str) -> WebhookEvent:
+    """Send the event again, now, with a fresh series of attempts: one that failed (every
+    attempt used) after its receiver is mended, or one delivered that the receiver lost. It
+    keeps its id (receivers deduplicate by it) and its log; at least once, as ever: a delivery
+    loop holding it at that moment may send it too.
+
+    Raises:
+        NotFoundError: no such webhook, or no such event of it.
+    """
+    get_webhook(session, webhook_id=webhook_id)
+    mine = (WebhookEvent.webhook_id == webhook_id, WebhookEvent.event_id == event_id)
+    with writing(session):
+        event = session.scalars(select(WebhookEvent).where(*mine)).one_or_none()
+        if event is None:
+            raise NotFoundError(f"event {event_id} of webhook {webhook_id} not found")
+        event.attempts, event.delivered_at, event.next_attempt_at = 0, None, utcnow()
+        session.flush()
+        session.expunge(event)  # as set here: the delivery loop may send it before it is read
+    return event
 
 
 def counts(session: Session, *, webhook_ids: list[int], max_attempts: int) -> dict[int, Counts]:

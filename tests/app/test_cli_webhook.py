@@ -1,13 +1,15 @@
-"""``acv webhook add|list|remove|attempts`` (issue 29 §3), on SQLite and PostgreSQL: the same
-services as ``/api/webhooks``; bad input (not https, a private or public address, no owner)
-is one line on stderr and exit code 2, and changes nothing."""
+"""``acv webhook add|list|remove|attempts|redeliver`` (issue 29 §3), on SQLite and
+PostgreSQL: the same services as ``/api/webhooks``; bad input (not https, a private or public
+address, no owner) is one line on stderr and exit code 2, and changes nothing."""
 
 from __future__ import annotations
 
 import re
 
 import pytest
+from sqlalchemy import create_engine, select, update
 
+from app.models import WebhookEvent
 from tests.support.cli import acv
 
 
@@ -74,9 +76,34 @@ def test_bad_input_exits_2_and_changes_nothing(run, study_id: str, args, says: s
         (("webhook", "add", "--study", "999999", "--url", "https://127.0.0.1/"), "study 999999"),
         (("webhook", "remove", "--webhook", "999999"), "webhook 999999 not found"),
         (("webhook", "attempts", "--webhook", "999999"), "webhook 999999 not found"),
+        (("webhook", "redeliver", "--webhook", "999999", "--event", "e"), "webhook 999999"),
         (("webhook", "list", "--survey", "999999"), "survey 999999 not found"),
     ],
 )
 def test_unknown_ids_exit_2(run, args, says: str) -> None:
     result = run(*args)
     assert result.exit_code == 2 and says in result.stderr
+
+
+def test_redeliver_queues_an_event_again(run, study_id: str, backend_url) -> None:
+    """A finished participant's event (no server runs: it waits in the outbox), marked as
+    failed, is pending again with a fresh series of attempts; another id is exit 2."""
+    hook = re.search(r"webhook (\d+)", run("webhook", "add", "--study", study_id, "--url",
+                     "http://127.0.0.1:9/hook").output)[1]  # fmt: skip
+    assert run("simulate", "--study", study_id, "--teacher", "standing").exit_code == 0
+    engine = create_engine(backend_url[1])
+    with engine.begin() as db:
+        event = db.execute(select(WebhookEvent.event_id).where(
+            WebhookEvent.webhook_id == int(hook), WebhookEvent.type == "participant.finished"
+        )).scalar_one()  # fmt: skip
+        db.execute(update(WebhookEvent).values(attempts=40))
+    done = run("webhook", "redeliver", "--webhook", hook, "--event", event)
+    assert done.output == f"event {event} of webhook {hook} queued for delivery\n"
+    with engine.begin() as db:
+        row = db.execute(select(WebhookEvent).where(WebhookEvent.event_id == event)).one()
+    assert (row.attempts, row.delivered_at) == (0, None)
+    missing = run("webhook", "redeliver", "--webhook", hook, "--event", "evt_none")
+    assert (
+        missing.exit_code == 2 and f"event evt_none of webhook {hook} not found" in missing.stderr
+    )
+    engine.dispose()

@@ -15,8 +15,10 @@ from typing import Any
 
 import pytest
 from fastapi.testclient import TestClient
+from sqlalchemy import update
 
 from app.db import writing
+from app.models import WebhookEvent
 from app.settings import Settings
 from app.webhooks.delivery import Deliverer, Policy
 from app.webhooks.outbox import Owner, emit
@@ -120,6 +122,56 @@ def test_a_receiver_that_is_down_loses_no_event(
         all_delivered(client, hook, receiver)
     assert receiver.event_ids() == ids  # every event arrived, identified by its id
     remove(client, hook)
+
+
+def test_an_event_is_redelivered_on_request(
+    client: TestClient, study: dict[str, Any], invite: Callable[..., Player]
+) -> None:
+    """A failed event (every attempt used: set here, as 40 attempts would take minutes) is sent
+    again once asked, with a fresh series of attempts and its own id; so is a delivered one
+    (the receiver gets it twice, and deduplicates by id). Another webhook's event, or none, is
+    a 404 that changes nothing."""
+    runtime = client.app.state.runtime
+    with Receiver() as receiver:
+        hook = register(client, receiver.url(), study_id=study["id"])
+        invite().play()
+        outbox = all_delivered(client, hook, receiver)
+        [event] = [e for e in outbox if e["type"] == "participant.finished"]
+        path = f"/api/webhooks/{hook['id']}/events/{event['event_id']}/redeliver"
+        again = client.post(path, headers=ADMIN)
+        assert again.status_code == 200, again.text
+        assert (again.json()["attempts"], again.json()["delivered_at"]) == (0, None)
+        wait_for(
+            lambda: [d.event_id for d in receiver.received()].count(event["event_id"]),
+            lambda n: n == 2,
+            what="the delivered event sent again",
+        )
+        with runtime.sessions() as session, writing(session):
+            session.execute(
+                update(WebhookEvent)
+                .where(WebhookEvent.event_id == event["event_id"])
+                .values(attempts=runtime.settings.webhook_max_attempts, delivered_at=None)
+            )
+        assert _status(client, hook, event) == "failed"
+        assert client.post(path, headers=ADMIN).json()["status"] == "pending"
+        all_delivered(client, hook, receiver)
+    other = register(client, "http://127.0.0.1:9/other", study_id=study["id"])
+    for wrong in (
+        f"/api/webhooks/{hook['id']}/events/evt_nope/redeliver",
+        path.replace(f"/webhooks/{hook['id']}/", f"/webhooks/{other['id']}/"),
+        path.replace(f"/webhooks/{hook['id']}/", "/webhooks/999999/"),
+    ):
+        refused = client.post(wrong, headers=ADMIN)
+        assert refused.status_code == 404 and "not found" in refused.json()["detail"], wrong
+    assert client.post(path, headers={}).status_code == 401
+    assert _status(client, hook, event) == "delivered"  # the refused requests changed nothing
+    remove(client, other)
+    remove(client, hook)
+
+
+def _status(client: TestClient, hook: dict[str, Any], event: dict[str, Any]) -> str:
+    [found] = [e for e in events(client, hook["id"]) if e["event_id"] == event["event_id"]]
+    return found["status"]
 
 
 def test_two_deliverers_never_send_one_event_twice(
