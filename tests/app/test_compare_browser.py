@@ -29,7 +29,9 @@ from engine.judges import JUDGES
 from engine.teachers import standing_score
 from tests.support.a11y import assert_accessible
 from tests.support.browser import (  # noqa: F401 (SETTLE_TIMEOUT_MS sets expect's timeout)
+    PHONE,
     SETTLE_TIMEOUT_MS,
+    new_page,
     wait_until_still,
 )
 from tests.support.labelling import label_bracket, wait_until_prepared
@@ -283,4 +285,27 @@ def test_the_html_report_is_accessible(
     expect(p.locator("h1")).to_contain_text(f"run {finished_run['id']}")
     wait_until_still(p)
     assert_accessible(p, "HTML report")
+    assert errors == []
+
+
+def test_researcher_pages_with_tables_on_a_phone(server: str, finished_run: dict) -> None:
+    """Every researcher page with a table, on a phone, once settled: no serious or critical
+    axe violation. A table wider than the screen scrolls inside a region that the keyboard
+    can reach and that says what it holds."""
+    run, study = finished_run["id"], finished_run["study_id"]
+    paths = ["/studies", f"/studies/{study}", "/runs", f"/runs/{run}", f"/runs/{run}/compare"]
+    paths += [f"/runs/{run}/compare-runs", "/surveys"]
+    with sync_playwright() as playwright:
+        browser = playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+        errors: list[str] = []
+        context, p = new_page(browser, errors, viewport=PHONE, is_mobile=True, has_touch=True)
+        p.goto(f"{server}/login#token={ADMIN_TOKEN}")
+        p.wait_for_url(f"{server}/studies")
+        for path in paths:
+            p.goto(f"{server}{path}")
+            p.wait_for_load_state("networkidle")
+            wait_until_still(p)
+            assert_accessible(p, f"{path} on a phone")
+        context.close()
+        browser.close()
     assert errors == []
