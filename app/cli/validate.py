@@ -48,6 +48,9 @@ def validate(
             "instead of --jobs processes here; this machine must be one of its nodes.",
         ),
     ] = None,
+    status: Annotated[
+        bool, Opt("--status", help="Say what is measured and training so far; train nothing.")
+    ] = False,
 ) -> None:
     """Train every arm (or reuse finished runs), measure, and write summary.json and
     report.md with each pre-registered criterion under each judge."""
@@ -67,8 +70,22 @@ def validate(
         )
         if jobs < 1:
             raise InputError(f"--jobs must be at least 1, got {jobs}")
+        if status:
+            _status(out, plan)
+            return
         _run_with_progress(out, plan, Workers(jobs, ray_address or None))
     typer.echo(f"wrote {out / 'summary.json'} and {out / 'report.md'}")
+
+
+def _status(out: Path, plan: Plan) -> None:
+    from engine.validation.runs import PLAN_FILE, prepare
+    from engine.validation.validate import status
+
+    if not (out / PLAN_FILE).is_file():
+        raise InputError(f"{out} holds no validation yet")
+    prepare(out, plan)  # the folder's plan must be these settings' (it writes nothing new)
+    for line in status(out, plan):
+        typer.echo(line)
 
 
 def _run_with_progress(out: Path, plan: Plan, workers: Workers) -> None:

@@ -92,6 +92,24 @@ def steps_done(out: Path, plan: Plan, task: Task) -> int:
         return 0
 
 
+def status(out: Path, plan: Plan) -> list[str]:
+    """One line per arm, pilots first: how many of its runs are measured (done, with or
+    without their folders), and how far the others have trained here."""
+    tasks = [*pilot_tasks(plan), *arm_tasks(plan)]
+    lines = []
+    for name in dict.fromkeys(arm for arm, _ in tasks):
+        seeds = [seed for arm, seed in tasks if arm == name]
+        done = [seed for seed in seeds if measured(out, (name, seed))]
+        steps = {seed: steps_done(out, plan, (name, seed)) for seed in seeds if seed not in done}
+        line = f"{name}: {len(done)}/{len(seeds)} measured"
+        line += f" (seeds {', '.join(map(str, done))})" if done else ""
+        going = [
+            f"seed {seed} at {n:,} of {plan.timesteps:,} steps" for seed, n in steps.items() if n
+        ]
+        lines.append(line + (f"; training {', '.join(going)}" if going else ""))
+    return lines
+
+
 def report(summary: dict[str, Any], figures: Sequence[Path] = ()) -> str:
     """``report.md``: each criterion under each judge, pass or fail, with its interval, and
     the figures (paths relative to the report)."""

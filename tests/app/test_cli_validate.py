@@ -43,6 +43,12 @@ def test_a_folder_with_another_plan_is_refused(tmp_path: Path) -> None:
     assert result.exit_code == 2 and "other settings (timesteps)" in result.stderr
 
 
+def test_the_status_of_a_folder_with_no_validation_is_refused(tmp_path: Path) -> None:
+    result = acv("validate", "--out", tmp_path / "v", "--status")
+    assert result.exit_code == 2 and "holds no validation yet" in result.stderr
+    assert not (tmp_path / "v").exists()
+
+
 @pytest.mark.slow
 @pytest.mark.training
 def test_the_smallest_real_validation_runs_end_to_end_and_resumes(tmp_path: Path) -> None:
@@ -68,6 +74,11 @@ def test_the_smallest_real_validation_runs_end_to_end_and_resumes(tmp_path: Path
     runs = sorted(p.name for p in (tmp_path / "v" / "runs").iterdir())
     assert runs == ["n1-0", "n1-1", "p1-10-0", "p1-10-1", "pilot-1000"]
     shutil.rmtree(tmp_path / "v" / "runs")
+    assert acv(*args, "--status").output.splitlines() == [
+        "pilot: 1/1 measured (seeds 1000)",
+        "n1: 2/2 measured (seeds 0, 1)",
+        "p1-10: 2/2 measured (seeds 0, 1)",
+    ]
     again = acv(*args)
     assert again.exit_code == 0 and (tmp_path / "v" / "summary.json").read_text() == summary
     assert not (tmp_path / "v" / "runs").exists()

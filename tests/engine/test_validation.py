@@ -33,7 +33,7 @@ from engine.validation.runs import (
     train_tasks,
 )
 from engine.validation.subsets import subset_outcomes, summary_subsets, table
-from engine.validation.validate import report, steps_done
+from engine.validation.validate import report, status, steps_done
 from engine.verdict import advice_scores
 
 SEEDS, PILOTS = 5, 2  # 5: the exact one-sided test of ΔU reaches p = 1/32 < 0.05
@@ -240,6 +240,20 @@ def test_a_measured_run_is_done_without_its_folder(
     assert trained == [("n1", 1)]
     assert steps_done(tmp_path, plan, ("n1", 0)) == plan.timesteps
     assert steps_done(tmp_path, plan, ("n1", 1)) == 0
+
+
+def test_the_status_says_what_is_measured_and_how_far_the_rest_trained(tmp_path: Path) -> None:
+    plan = _plan(("n1", "p1-10"))
+    measures_path(tmp_path, ("n1", 0)).parent.mkdir(parents=True)
+    measures_path(tmp_path, ("n1", 0)).write_text("{}")
+    folder = run_dir(tmp_path, "n1", 1)
+    folder.mkdir(parents=True)
+    (folder / "metrics.jsonl").write_text('{"timesteps": 512}\n')
+    assert status(tmp_path, plan) == [
+        "pilot: 0/2 measured",
+        "n1: 1/5 measured (seeds 0); training seed 1 at 512 of 1,000 steps",
+        "p1-10: 0/5 measured",
+    ]
 
 
 @pytest.mark.parametrize("text", ["not json", '{"env_id": "Hopper-v5"}', '{"timesteps": "x"}'])
