@@ -6,21 +6,19 @@ run directory under ``ACV_RUNS_DIR``, which must be storage every node and the w
 can reach. Tasks are never retried by Ray: a run whose task dies is ``failed`` with Ray's
 error, and can be resumed from its last checkpoint.
 
-``ray.init(address="host:6379")`` connects a driver that runs on a node of the cluster: the
-machine of ``acv worker`` must have joined it first (``ray start --address=host:6379``, as
-the compose ``worker`` service does). Ray Client (``ray://host:10001``) is not used: it
-needs ``ray[client]`` and ends the tasks of a driver whose connection drops for 30 s, while
-runs last hours.
+The worker connects as a driver on a node of the cluster (:func:`engine.ray_cluster.connect`,
+not Ray Client): the machine of ``acv worker`` must have joined it first (``ray start
+--address=host:6379``, as the compose ``worker`` service does).
 """
 
 from __future__ import annotations
 
-import logging
 from pathlib import Path
 from typing import Any, cast
 
 from app.jobs.execute import execute_run
 from app.jobs.local import TAIL_CHARS, Finished
+from engine.ray_cluster import connect
 
 #: CPUs a run's task asks the cluster for.
 TASK_CPUS = 1
@@ -40,17 +38,7 @@ class RayExecutor:
     signals_runs = False  # tasks learn that they must stop from the database
 
     def __init__(self, *, address: str, database_url: str, runs_dir: Path) -> None:
-        import ray  # optional dependency: only the ray executor needs it
-
-        self._ray = ray
-        if not ray.is_initialized():
-            ray.init(
-                address=address,
-                namespace="acv",
-                logging_level=logging.WARNING,
-                log_to_driver=False,
-                configure_logging=False,
-            )
+        self._ray = ray = connect(address)
         # ray's stubs type a decorated function as taking no arguments; ours takes the run's
         self._task: Any = ray.remote(num_cpus=TASK_CPUS, max_retries=0)(cast(Any, execute_run))
         self.database_url = database_url

@@ -16,7 +16,6 @@ machine, resume the validation there without training a measured run again.
 from __future__ import annotations
 
 import json
-import logging
 import shutil
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
@@ -32,6 +31,7 @@ from engine.candidates import sample_candidates
 from engine.errors import InputError
 from engine.pinned import pin_settings
 from engine.pipeline import replay, replay_with_teacher, teacher_bracket
+from engine.ray_cluster import connect
 from engine.rl.checkpoint import list_checkpoints
 from engine.rl.config import TrainConfig
 from engine.rl.runner import train
@@ -173,16 +173,7 @@ class Workers:
 
 
 def _on_ray(work: Callable[[Task], T], tasks: list[Task], address: str) -> list[T]:
-    import ray  # optional dependency (the ``ray`` extra): only a validation on Ray needs it
-
-    if not ray.is_initialized():
-        ray.init(
-            address=address,
-            namespace="acv",
-            logging_level=logging.WARNING,
-            log_to_driver=False,
-            configure_logging=False,
-        )
+    ray = connect(address)
     remote: Any = ray.remote(num_cpus=1, max_retries=0)(_call)
     refs = [remote.remote(work, task) for task in tasks]
     try:
