@@ -19,7 +19,7 @@ from app.cli.serve import service_errors
 from engine.envs import check_env_id
 from engine.errors import InputError
 from engine.validation.design import ARMS, Plan
-from engine.validation.runs import Workers
+from engine.validation.workers import Workers
 
 Opt = typer.Option
 

@@ -29,14 +29,13 @@ from engine.teachers import POSTURE_SCORES
 from engine.treefile import TreeDocument
 from engine.validation.design import TRUTH_RESET_SEED0, Plan
 from engine.validation.runs import (
-    Task,
-    Workers,
     measured,
     measures_path,
     read_json,
     run_dir,
     train_task,
 )
+from engine.validation.workers import Task, Workers
 from engine.verdict_runs import judge_scores
 
 #: The judges validated: the two the verdict offers, and the shaped critic as a reference.

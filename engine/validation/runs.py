@@ -17,13 +17,9 @@ from __future__ import annotations
 
 import json
 import shutil
-from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass
 from functools import partial
-from multiprocessing import get_context
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Any
 
 import numpy as np
 
@@ -31,7 +27,6 @@ from engine.candidates import sample_candidates
 from engine.errors import InputError
 from engine.pinned import pin_settings
 from engine.pipeline import replay, replay_with_teacher, teacher_bracket
-from engine.ray_cluster import connect
 from engine.rl.checkpoint import list_checkpoints
 from engine.rl.config import TrainConfig
 from engine.rl.runner import train
@@ -46,11 +41,11 @@ from engine.validation.design import (
     Arm,
     Plan,
 )
+from engine.validation.workers import Task, Workers
 
 PLAN_FILE = "validate.json"
 #: Checkpoints per run: an interrupted validation loses at most a tenth of a run.
 CHECKPOINTS = 10
-Task = tuple[str, int]  # (arm name, seed)
 #: F + 1 >= 0 wherever the state is nearest a leaf or the best similarity is >= 0 (leaves are
 #: worth -r_b = -1 with the default depth factor): no arm can escape its advice by falling.
 #: Without it ``p1-10`` learned to end Hopper's episodes in 6 steps (F < 0 where it starts);
@@ -137,55 +132,6 @@ def train_tasks(out: Path, plan: Plan, tasks: list[Task], workers: Workers) -> N
     """Train the ``tasks`` neither finished nor measured."""
     todo = [t for t in tasks if not (measured(out, t) or finished(out, plan, t))]
     workers.map(partial(train_task, out, plan), todo)
-
-
-T = TypeVar("T")
-
-
-@dataclass(frozen=True)
-class Workers:
-    """Where runs train and are measured: ``jobs`` processes on this machine (this one
-    process when ``jobs`` is 1), or one Ray task of one CPU per run on the cluster at
-    ``ray_address`` (``host:port``), as many at once as it has CPUs. With Ray, this machine
-    must be a node of the cluster (as for the ``ray`` run executor) and the validation folder
-    on storage that every node reaches."""
-
-    jobs: int = 1
-    ray_address: str | None = None
-
-    def map(self, work: Callable[[Task], T], tasks: list[Task]) -> list[T]:
-        """``work`` of every task, in the order of ``tasks``; the first failure stops the
-        rest. ``work`` must be picklable unless it runs here: a module-level function or a
-        ``partial`` of one."""
-        if self.ray_address is not None:
-            return _on_ray(work, tasks, self.ray_address)
-        if self.jobs <= 1:
-            return [work(task) for task in tasks]
-        # Runs are independent and single-threaded: processes give a near-linear speed-up;
-        # spawn, because torch and MuJoCo are not fork-safe.
-        with ProcessPoolExecutor(max_workers=self.jobs, mp_context=get_context("spawn")) as pool:
-            futures = [pool.submit(work, task) for task in tasks]
-            try:
-                return [future.result() for future in futures]
-            except BaseException:  # report a failed run now, not after every queued run
-                pool.shutdown(cancel_futures=True)
-                raise
-
-
-def _on_ray(work: Callable[[Task], T], tasks: list[Task], address: str) -> list[T]:
-    ray = connect(address)
-    remote: Any = ray.remote(num_cpus=1, max_retries=0)(_call)
-    refs = [remote.remote(work, task) for task in tasks]
-    try:
-        return list(ray.get(refs))
-    except BaseException:  # a failed run stops the rest, as on this machine
-        for ref in refs:
-            ray.cancel(ref)
-        raise
-
-
-def _call(work: Callable[[Task], T], task: Task) -> T:
-    return work(task)
 
 
 def make_brackets(out: Path, plan: Plan) -> list[TreeDocument]:

@@ -16,8 +16,6 @@ from engine.validation.design import Plan
 from engine.validation.figures import draw
 from engine.validation.measure import JUDGES, complete_all
 from engine.validation.runs import (
-    Task,
-    Workers,
     arm_tasks,
     make_brackets,
     measured,
@@ -27,6 +25,7 @@ from engine.validation.runs import (
     train_tasks,
 )
 from engine.validation.subsets import summary_subsets, table
+from engine.validation.workers import Task, Workers
 
 
 def validate(

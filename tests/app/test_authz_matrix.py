@@ -27,10 +27,11 @@ from fastapi.testclient import TestClient
 from sqlalchemy import text
 
 from app.core import auth
-from app.db import make_engine, make_sessions, upgrade
+from app.db import make_engine, make_sessions, upgrade, writing
 from app.http.deps import AJAX_HEADER
 from app.models import Experiment, ExperimentRun
 from app.recruiting import members
+from app.webhooks.outbox import Owner, emit
 from tests.support.postgres import BACKENDS, empty_database
 from tests.support.runs import TINY, create_run, wait_run
 from tests.support.studies import Player
@@ -170,6 +171,9 @@ def world(client: TestClient, study: dict[str, Any], make_study) -> dict[str, An
     webhook = client.post(  # to 127.0.0.1 (the tests' setting); port 9 listens to nothing
         "/api/webhooks", headers=ADMIN, json={"study_id": study["id"], "url": "http://127.0.0.1:9/"}
     ).json()
+    with client.app.state.runtime.sessions() as session, writing(session):
+        emit(session, owner=Owner("study", study["id"]), type_="test", subject=None, data=dict)
+    [event] = client.get(f"/api/webhooks/{webhook['id']}/events", headers=ADMIN).json()
     params = {
         "experiment_id": _experiment(client, study_id=study["id"], run_id=run_id),
         "survey_slug": survey_link["slug"],  # ``slug`` in /q/{slug}
@@ -185,6 +189,7 @@ def world(client: TestClient, study: dict[str, Any], make_study) -> dict[str, An
         "survey_id": survey["id"],
         "position": 1,
         "webhook_id": webhook["id"],
+        "event_id": event["event_id"],
         "item_id": gold_item["id"],
     }
     return {

@@ -124,20 +124,27 @@ def finished_run(server: str) -> dict:
 
 
 @pytest.fixture(scope="module")
-def page(server: str) -> Iterator[tuple[Page, list[str]]]:
-    """A logged-in researcher's page; collects console errors and uncaught script errors."""
+def browser() -> Iterator[Browser]:
+    """One Chromium for the module (Playwright's sync API runs one at a time)."""
     with sync_playwright() as playwright:
-        browser: Browser = playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
-        context = browser.new_context(viewport={"width": 1400, "height": 1000})
-        context.set_default_timeout(60_000)
-        errors: list[str] = []
-        p = context.new_page()
-        p.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
-        p.on("pageerror", lambda exc: errors.append(str(exc)))
-        p.goto(f"{server}/login#token={ADMIN_TOKEN}")
-        p.wait_for_url(f"{server}/studies")
-        yield p, errors
+        browser = playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+        yield browser
         browser.close()
+
+
+@pytest.fixture(scope="module")
+def page(server: str, browser: Browser) -> Iterator[tuple[Page, list[str]]]:
+    """A logged-in researcher's page; collects console errors and uncaught script errors."""
+    context = browser.new_context(viewport={"width": 1400, "height": 1000})
+    context.set_default_timeout(60_000)
+    errors: list[str] = []
+    p = context.new_page()
+    p.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
+    p.on("pageerror", lambda exc: errors.append(str(exc)))
+    p.goto(f"{server}/login#token={ADMIN_TOKEN}")
+    p.wait_for_url(f"{server}/studies")
+    yield p, errors
+    context.close()
 
 
 def test_comparison_page_shows_both_trees_and_the_rejected_advice(
@@ -288,24 +295,23 @@ def test_the_html_report_is_accessible(
     assert errors == []
 
 
-def test_researcher_pages_with_tables_on_a_phone(server: str, finished_run: dict) -> None:
+def test_researcher_pages_with_tables_on_a_phone(
+    server: str, finished_run: dict, browser: Browser
+) -> None:
     """Every researcher page with a table, on a phone, once settled: no serious or critical
     axe violation. A table wider than the screen scrolls inside a region that the keyboard
     can reach and that says what it holds."""
     run, study = finished_run["id"], finished_run["study_id"]
     paths = ["/studies", f"/studies/{study}", "/runs", f"/runs/{run}", f"/runs/{run}/compare"]
     paths += [f"/runs/{run}/compare-runs", "/surveys"]
-    with sync_playwright() as playwright:
-        browser = playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
-        errors: list[str] = []
-        context, p = new_page(browser, errors, viewport=PHONE, is_mobile=True, has_touch=True)
-        p.goto(f"{server}/login#token={ADMIN_TOKEN}")
-        p.wait_for_url(f"{server}/studies")
-        for path in paths:
-            p.goto(f"{server}{path}")
-            p.wait_for_load_state("networkidle")
-            wait_until_still(p)
-            assert_accessible(p, f"{path} on a phone")
-        context.close()
-        browser.close()
+    errors: list[str] = []
+    context, p = new_page(browser, errors, viewport=PHONE, is_mobile=True, has_touch=True)
+    p.goto(f"{server}/login#token={ADMIN_TOKEN}")
+    p.wait_for_url(f"{server}/studies")
+    for path in paths:
+        p.goto(f"{server}{path}")
+        p.wait_for_load_state("networkidle")
+        wait_until_still(p)
+        assert_accessible(p, f"{path} on a phone")
+    context.close()
     assert errors == []

@@ -23,7 +23,6 @@ from engine.validation.design import ARMS, PILOT, Plan
 from engine.validation.figures import draw
 from engine.validation.power import power
 from engine.validation.runs import (
-    Workers,
     arm_tasks,
     finished,
     inverted,
@@ -34,6 +33,7 @@ from engine.validation.runs import (
 )
 from engine.validation.subsets import subset_outcomes, summary_subsets, table
 from engine.validation.validate import report, status, steps_done
+from engine.validation.workers import Workers
 from engine.verdict import advice_scores
 
 SEEDS, PILOTS = 5, 2  # 5: the exact one-sided test of ΔU reaches p = 1/32 < 0.05
