@@ -134,13 +134,16 @@ def train_tasks(out: Path, plan: Plan, tasks: list[Task], workers: Workers) -> N
     workers.map(partial(train_task, out, plan), todo)
 
 
+def bracket_paths(out: Path, plan: Plan) -> list[Path]:
+    return [out / "brackets" / f"bracket_{b}.json" for b in range(plan.brackets)]
+
+
 def make_brackets(out: Path, plan: Plan) -> list[TreeDocument]:
     """The evaluation brackets (made once from the finished pilots, then reloaded) and the
     advice files of bracket 0."""
-    folder = out / "brackets"
-    paths = [folder / f"bracket_{b}.json" for b in range(plan.brackets)]
+    paths = bracket_paths(out, plan)
     if not all(p.is_file() for p in paths):
-        folder.mkdir(parents=True, exist_ok=True)
+        paths[0].parent.mkdir(parents=True, exist_ok=True)
         for b, path in enumerate(paths):
             dump_tree(_bracket(out, plan, b), path)
     trees = [load_tree(p) for p in paths]

@@ -9,23 +9,30 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from engine.provenance import git_commit
 from engine.rl.logger import METRICS_FILE
+from engine.treefile import load_tree
 from engine.validation.analysis import judge_summary
 from engine.validation.design import Plan
 from engine.validation.figures import draw
 from engine.validation.measure import JUDGES, complete_all
 from engine.validation.runs import (
     arm_tasks,
+    bracket_paths,
     make_brackets,
     measured,
+    measures_path,
     pilot_tasks,
     prepare,
+    read_json,
     run_dir,
     train_tasks,
 )
 from engine.validation.subsets import summary_subsets, table
 from engine.validation.workers import Task, Workers
+from engine.verdict import advice_scores, bracket_pairs, split_matches
 
 
 def validate(
@@ -93,7 +100,8 @@ def steps_done(out: Path, plan: Plan, task: Task) -> int:
 
 def status(out: Path, plan: Plan) -> list[str]:
     """One line per arm, pilots first: how many of its runs are measured (done, with or
-    without their folders), and how far the others have trained here."""
+    without their folders), and how far the others have trained here; then, once the pilots
+    are measured, what each judge's verdict can count (:func:`countable`)."""
     tasks = [*pilot_tasks(plan), *arm_tasks(plan)]
     lines = []
     for name in dict.fromkeys(arm for arm, _ in tasks):
@@ -106,6 +114,36 @@ def status(out: Path, plan: Plan) -> list[str]:
             f"seed {seed} at {n:,} of {plan.timesteps:,} steps" for seed, n in steps.items() if n
         ]
         lines.append(line + (f"; training {', '.join(going)}" if going else ""))
+    return lines + countable(out, plan)
+
+
+def countable(out: Path, plan: Plan) -> list[str]:
+    """Per judge, the informative matches of the advice's bracket (0) and of all brackets, and
+    how many of them the pilots contest: what the verdict and the criteria can count (fewer
+    than 8: the bracket cannot tell, docs/method.md §2.11). Empty until the pilots are
+    measured."""
+    pilots, paths = pilot_tasks(plan), bracket_paths(out, plan)
+    if not all(measured(out, t) for t in pilots) or not all(p.is_file() for p in paths):
+        return []
+    brackets = [load_tree(p) for p in paths]
+    found = [read_json(measures_path(out, t)) for t in pilots]
+    lines = []
+    for judge in JUDGES:
+        split = [
+            split_matches(
+                advice_scores(doc),
+                np.mean([m["scores"][judge][b] for m in found], axis=0),
+                bracket_pairs(doc),
+            )
+            for b, doc in enumerate(brackets)
+        ]
+        informative = [len(s.contested) + len(s.agreed) for s in split]
+        contested = [len(s.contested) for s in split]
+        lines.append(
+            f"{judge}: bracket 0 has {informative[0]} informative matches, {contested[0]} "
+            f"contested by the pilots; the {len(split)} brackets {sum(informative)} and "
+            f"{sum(contested)}"
+        )
     return lines
 
 

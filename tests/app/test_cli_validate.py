@@ -74,11 +74,13 @@ def test_the_smallest_real_validation_runs_end_to_end_and_resumes(tmp_path: Path
     runs = sorted(p.name for p in (tmp_path / "v" / "runs").iterdir())
     assert runs == ["n1-0", "n1-1", "p1-10-0", "p1-10-1", "pilot-1000"]
     shutil.rmtree(tmp_path / "v" / "runs")
-    assert acv(*args, "--status").output.splitlines() == [
+    said = acv(*args, "--status").output.splitlines()
+    assert said[:3] == [
         "pilot: 1/1 measured (seeds 1000)",
         "n1: 2/2 measured (seeds 0, 1)",
         "p1-10: 2/2 measured (seeds 0, 1)",
     ]
+    assert [line.split(":")[0] for line in said[3:]] == ["return", "behaviour", "shaped-value"]
     again = acv(*args)
     assert again.exit_code == 0 and (tmp_path / "v" / "summary.json").read_text() == summary
     assert not (tmp_path / "v" / "runs").exists()

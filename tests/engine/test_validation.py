@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -15,18 +16,21 @@ from engine.errors import InputError
 from engine.pipeline import run_tournament
 from engine.rl.agent_judge import CandidateTerms, term_scores
 from engine.rl.behaviour import occupancy_scores
-from engine.treefile import TreeDocument
+from engine.treefile import TreeDocument, dump_tree
 from engine.validation import criteria, runs
 from engine.validation.analysis import arm_table, judge_summary
 from engine.validation.criteria import ArmData
 from engine.validation.design import ARMS, PILOT, Plan
 from engine.validation.figures import draw
+from engine.validation.measure import JUDGES
 from engine.validation.power import power
 from engine.validation.runs import (
     arm_tasks,
+    bracket_paths,
     finished,
     inverted,
     measures_path,
+    pilot_tasks,
     prepare,
     run_dir,
     train_tasks,
@@ -254,6 +258,27 @@ def test_the_status_says_what_is_measured_and_how_far_the_rest_trained(tmp_path:
         "n1: 1/5 measured (seeds 0); training seed 1 at 512 of 1,000 steps",
         "p1-10: 0/5 measured",
     ]
+
+
+def test_the_status_counts_what_each_judge_can_tell_once_the_pilots_are_measured(
+    tmp_path: Path, advice: TreeDocument
+) -> None:
+    """Pilots that reverse every preference of the advice contest every informative match."""
+    plan = _plan(("n1", "p1-10"))
+    path = bracket_paths(tmp_path, plan)[0]
+    path.parent.mkdir(parents=True)
+    dump_tree(advice, path)
+    assert len(status(tmp_path, plan)) == 3  # the arms only: no pilot is measured yet
+    reversed_ = {judge: [(-advice_scores(advice)).tolist()] for judge in JUDGES}
+    for task in pilot_tasks(plan):
+        measures_path(tmp_path, task).parent.mkdir(parents=True, exist_ok=True)
+        measures_path(tmp_path, task).write_text(json.dumps({"scores": reversed_}))
+    counts = status(tmp_path, plan)[3:]
+    assert [line.split(":")[0] for line in counts] == list(JUDGES)
+    for line in counts:  # bracket 0: n informative, n contested; the 1 brackets: n and n
+        numbers = [int(x) for x in re.findall(r"\d+", line)]
+        n = numbers[1]
+        assert numbers == [0, n, n, 1, n, n] and n >= 3, line
 
 
 @pytest.mark.parametrize("text", ["not json", '{"env_id": "Hopper-v5"}', '{"timesteps": "x"}'])
