@@ -4,9 +4,11 @@ stopped, and reuses every finished run."""
 
 from __future__ import annotations
 
+import math
 import shlex
 import sys
 import threading
+import time
 from pathlib import Path
 from typing import Annotated
 
@@ -51,6 +53,20 @@ def validate(
     status: Annotated[
         bool, Opt("--status", help="Say what is measured and training so far; train nothing.")
     ] = False,
+    runs: Annotated[
+        str | None,
+        Opt(
+            help="Train only these runs (arm-seed, comma-separated, e.g. n1-2,p1-10-0) and "
+            "measure nothing: to share a validation's runs between machines."
+        ),
+    ] = None,
+    stop_after: Annotated[
+        float | None,
+        Opt(
+            help="With --runs: stop each run at a checkpoint after this many minutes (a batch "
+            "job's time limit); the next call resumes it exactly where it stopped."
+        ),
+    ] = None,
 ) -> None:
     """Train every arm (or reuse finished runs), measure, and write summary.json and
     report.md with each pre-registered criterion under each judge."""
@@ -73,7 +89,11 @@ def validate(
         if status:
             _status(out, plan)
             return
-        _run_with_progress(out, plan, Workers(jobs, ray_address or None))
+        workers = Workers(jobs, ray_address or None)
+        if runs is not None or stop_after is not None:
+            _train_only(out, plan, workers, runs, stop_after)
+            return
+        _run_with_progress(out, plan, workers)
     typer.echo(f"wrote {out / 'summary.json'} and {out / 'report.md'}")
 
 
@@ -86,6 +106,28 @@ def _status(out: Path, plan: Plan) -> None:
     prepare(out, plan)  # the folder's plan must be these settings' (it writes nothing new)
     for line in status(out, plan):
         typer.echo(line)
+
+
+def _train_only(
+    out: Path, plan: Plan, workers: Workers, runs: str | None, stop_after: float | None
+) -> None:
+    """Train the named runs (to the end, or for ``stop_after`` minutes) and say how far each
+    got; measuring and the summary are left to a call without ``--runs``."""
+    from engine.validation.runs import check_advice, parse_tasks, prepare, train_tasks
+    from engine.validation.validate import steps_done
+
+    if runs is None:
+        raise InputError("--stop-after needs --runs: the runs to train for that long")
+    if stop_after is not None and not (math.isfinite(stop_after) and stop_after > 0):
+        raise InputError(f"--stop-after must be a positive number of minutes, got {stop_after}")
+    tasks = parse_tasks(plan, runs)
+    check_advice(out, tasks)
+    prepare(out, plan)
+    deadline = None if stop_after is None else time.time() + 60 * stop_after
+    train_tasks(out, plan, tasks, workers, deadline=deadline)
+    for arm, seed in tasks:
+        steps = steps_done(out, plan, (arm, seed))
+        typer.echo(f"{arm}-{seed}: {steps:,} of {plan.timesteps:,} steps")
 
 
 def _run_with_progress(out: Path, plan: Plan, workers: Workers) -> None:

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import json
 import shutil
+import time
 from functools import partial
 from pathlib import Path
 from typing import Any
@@ -115,8 +116,9 @@ def train_config(plan: Plan, arm: Arm, seed: int) -> TrainConfig:
     )
 
 
-def train_task(out: Path, plan: Plan, task: Task) -> Task:
-    """Train one run to the end (one torch thread), resuming it where it stopped."""
+def train_task(out: Path, plan: Plan, task: Task, deadline: float | None = None) -> Task:
+    """Train one run (one torch thread), resuming it where it stopped: to the end, or until
+    the wall clock (``time.time()``) passes ``deadline``, when it stops at a checkpoint."""
     if not finished(out, plan, task):
         arm = ARM_BY_NAME[task[0]]
         advice = None if arm.advice is AdviceKind.NONE else load_tree(advice_path(out, arm))
@@ -124,14 +126,53 @@ def train_task(out: Path, plan: Plan, task: Task) -> Task:
         resume = folder.is_dir() and bool(list_checkpoints(folder))
         if folder.is_dir() and not resume:  # stopped before its first checkpoint: start over
             shutil.rmtree(folder)
-        train(train_config(plan, arm, task[1]), advice, folder, resume=resume)
+        stop = None if deadline is None else partial(_past, deadline)
+        train(train_config(plan, arm, task[1]), advice, folder, should_stop=stop, resume=resume)
     return task
 
 
-def train_tasks(out: Path, plan: Plan, tasks: list[Task], workers: Workers) -> None:
-    """Train the ``tasks`` neither finished nor measured."""
+def _past(deadline: float) -> bool:
+    return time.time() > deadline
+
+
+def train_tasks(
+    out: Path, plan: Plan, tasks: list[Task], workers: Workers, deadline: float | None = None
+) -> None:
+    """Train the ``tasks`` neither finished nor measured (until ``deadline``, when given)."""
     todo = [t for t in tasks if not (measured(out, t) or finished(out, plan, t))]
-    workers.map(partial(train_task, out, plan), todo)
+    workers.map(partial(train_task, out, plan, deadline=deadline), todo)
+
+
+def parse_tasks(plan: Plan, names: str) -> list[Task]:
+    """``"n1-2,p1-10-0"`` as the plan's tasks (``arm-seed``; pilots too), in the order given.
+
+    Raises:
+        InputError: a name that is none of the plan's runs.
+    """
+    known = {f"{arm}-{seed}": (arm, seed) for arm, seed in [*pilot_tasks(plan), *arm_tasks(plan)]}
+    wanted = [name.strip() for name in names.split(",") if name.strip()]
+    unknown = [name for name in wanted if name not in known]
+    if unknown or not wanted:
+        raise InputError(
+            f"--runs: {', '.join(unknown) or 'none given'} is not a run of this validation "
+            f"(arm-seed, e.g. {next(iter(known))}); its runs: {', '.join(known)}"
+        )
+    return [known[name] for name in dict.fromkeys(wanted)]
+
+
+def check_advice(out: Path, tasks: list[Task]) -> None:
+    """Refuse to train an advised run before the pilots' brackets have made its advice.
+
+    Raises:
+        InputError: the advice file of one of the tasks' arms is missing.
+    """
+    for name, seed in tasks:
+        arm = ARM_BY_NAME[name]
+        if arm.advice is not AdviceKind.NONE and not advice_path(out, arm).is_file():
+            raise InputError(
+                f"{name}-{seed} trains on advice that is not made yet: the pilots must be "
+                "trained and the brackets made first (run acv validate without --runs)"
+            )
 
 
 def bracket_paths(out: Path, plan: Plan) -> list[Path]:

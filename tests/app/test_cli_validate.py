@@ -25,6 +25,13 @@ from tests.support.ray_cluster import ray_cluster
         (["--arms", "n1,zz"], "unknown zz"),
         (["--env", "Nope-v0"], "Nope-v0"),
         (["--jobs", "0"], "--jobs must be at least 1"),
+        (["--stop-after", "5"], "--stop-after needs --runs"),
+        (["--runs", "n1-0", "--stop-after", "0"], "--stop-after must be a positive number"),
+        (["--runs", "n1-0", "--stop-after", "nan"], "--stop-after must be a positive number"),
+        (["--runs", "n1-0,zz-1"], "zz-1 is not a run of this validation"),
+        (["--runs", "n1-99"], "n1-99 is not a run of this validation"),
+        (["--runs", " , "], "none given is not a run"),
+        (["--runs", "p1-10-0"], "p1-10-0 trains on advice that is not made yet"),
     ],
 )
 def test_bad_settings_exit_2_with_a_message(tmp_path: Path, args: list[str], message: str) -> None:
@@ -47,6 +54,27 @@ def test_the_status_of_a_folder_with_no_validation_is_refused(tmp_path: Path) ->
     result = acv("validate", "--out", tmp_path / "v", "--status")
     assert result.exit_code == 2 and "holds no validation yet" in result.stderr
     assert not (tmp_path / "v").exists()
+
+
+@pytest.mark.training
+def test_runs_trained_for_a_time_limit_resume_to_the_same_run(tmp_path: Path) -> None:
+    """``--runs`` with ``--stop-after`` (a batch job's time limit) stops the run at a
+    checkpoint; a later call finishes it, and its metrics equal an uninterrupted run's."""
+    plan = ("--env", "Hopper-v5", "--timesteps", 2048, "--n-envs", 1, "--num-steps", 256)
+    sliced = acv("validate", "--out", tmp_path / "a", *plan, "--runs", "n1-0", "--stop-after", 1e-6)
+    assert sliced.exit_code == 0, sliced.stderr
+    assert sliced.output == "n1-0: 256 of 2,048 steps\n"  # one update, then the deadline
+    assert acv("validate", "--out", tmp_path / "a", *plan, "--runs", "n1-0").exit_code == 0
+    whole = acv("validate", "--out", tmp_path / "b", *plan, "--runs", "n1-0,n1-0")
+    assert whole.output == "n1-0: 2,048 of 2,048 steps\n"
+    rows = [_rows(tmp_path / v / "runs" / "n1-0" / "metrics.jsonl") for v in ("a", "b")]
+    assert len(rows[0]) == 8 and rows[0] == rows[1]
+
+
+def _rows(path: Path) -> list[dict[str, object]]:
+    """A run's metrics rows without the wall-clock fields."""
+    rows = [json.loads(line) for line in path.read_text().splitlines()]
+    return [{k: v for k, v in row.items() if k not in ("sps", "time")} for row in rows]
 
 
 @pytest.mark.slow
