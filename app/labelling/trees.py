@@ -71,12 +71,16 @@ def ties_of(session: Session, *, participant_id: int) -> frozenset[tuple[int, in
     return frozenset((r, s) for r, s in rows)
 
 
-def study_trees(session: Session, *, study_id: int) -> list[tuple[int, TreeDocument]]:
-    """``(participant id, tree)`` of every participant of the study who has finished."""
+def study_trees(
+    session: Session, *, study_id: int, include_excluded: bool = False
+) -> list[tuple[int, TreeDocument]]:
+    """``(participant id, tree)`` of every participant of the study who has finished;
+    excluded participants' only with ``include_excluded``, as in every export."""
     get_study(session, study_id=study_id)
+    kept = [] if include_excluded else [Participant.excluded.is_(False)]
     finished = session.scalars(
         select(Participant.id)
-        .where(Participant.study_id == study_id, Participant.finished_at.is_not(None))
+        .where(Participant.study_id == study_id, Participant.finished_at.is_not(None), *kept)
         .order_by(Participant.id)
     )
     return [(pid, participant_tree(session, participant_id=pid)) for pid in finished]

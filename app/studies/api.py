@@ -202,9 +202,13 @@ def labels_csv(
 
 
 @router.get("/{study_id}/trees")
-def study_trees(study_id: DbId, session: SessionDep, _: ResearcherDep) -> list[dict[str, Any]]:
-    """Every finished participant's Human Preference Tree (``acv.tree/1`` documents)."""
-    return [
-        {"participant_id": pid, "tree": tree_to_json(doc)}
-        for pid, doc in trees.study_trees(session, study_id=study_id)
-    ]
+def study_trees(
+    study_id: DbId,
+    session: SessionDep,
+    _: ResearcherDep,
+    include_excluded: IncludeExcluded = False,
+) -> list[dict[str, Any]]:
+    """Every finished participant's Human Preference Tree (``acv.tree/1`` documents);
+    excluded participants' only on request."""
+    found = trees.study_trees(session, study_id=study_id, include_excluded=include_excluded)
+    return [{"participant_id": pid, "tree": tree_to_json(doc)} for pid, doc in found]

@@ -15,6 +15,7 @@ from app.http.guards import ResearcherPage
 from app.http.rendering import PageRoute
 from app.labelling import trees
 from app.studies import participants
+from app.studies.schemas import IncludeExcluded
 from engine.treefile import dumps
 
 router = APIRouter(route_class=PageRoute, include_in_schema=False, dependencies=[ResearcherPage])
@@ -35,10 +36,14 @@ def participant_tree(study_id: DbId, participant_id: DbId, session: SessionDep) 
 
 
 @router.get("/studies/{study_id}/trees.zip")
-def all_trees(study_id: DbId, session: SessionDep) -> Response:
-    """Every finished participant's tree, one ``acv.tree/1`` file each, in a zip."""
+def all_trees(
+    study_id: DbId, session: SessionDep, include_excluded: IncludeExcluded = False
+) -> Response:
+    """Every finished participant's tree, one ``acv.tree/1`` file each, in a zip (excluded
+    participants' only on request)."""
+    found = trees.study_trees(session, study_id=study_id, include_excluded=include_excluded)
     buffer = io.BytesIO()
     with zipfile.ZipFile(buffer, "w", zipfile.ZIP_DEFLATED) as archive:
-        for pid, doc in trees.study_trees(session, study_id=study_id):
+        for pid, doc in found:
             archive.writestr(tree_filename(study_id, pid), dumps(doc))
     return attachment(buffer.getvalue(), "application/zip", f"study-{study_id}-trees.zip")

@@ -198,6 +198,7 @@ def _participants(request: Request, session: Session, study_id: int) -> list[dic
             "finished": s.progress.finished,
             "started": s.progress.done > 0,
             "finished_at": s.participant.finished_at,
+            "excluded": s.participant.excluded,
             "invite_url": participants.invite_url(base, s.participant.token),
         }
         for s in participants.list_participants(session, study_id=study_id)

@@ -173,8 +173,9 @@ class ParticipantOut(ParticipantCreated):
 IncludeExcluded = Annotated[
     bool,
     Query(
-        description="Also the labels of participants excluded from pooling and exports "
-        "(their ``excluded`` column is true); by default they are left out."
+        description="Also the labels (or trees) of participants excluded from pooling and "
+        "exports (in label exports their ``excluded`` column is true); by default they are "
+        "left out."
     ),
 ]
 

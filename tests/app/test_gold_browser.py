@@ -1,7 +1,8 @@
 """A real browser through gold items and "can't tell" (issue 28 §1 and §3): the researcher
 adds gold items and a gate on the study page; a participant meets an instructed check (its
 prompt and marker) among the bracket's matches, answers "can't tell" once, and finishes;
-the quality table shows their gold accuracy and tie, and the researcher excludes them.
+the quality table shows their gold accuracy and tie, and the researcher excludes a finished
+participant, whose tree the study page still draws, flagged.
 axe-core audits the labelling page at a gold item and after several decisions, on a desktop
 and on a phone, and the study page with its gold and quality tables."""
 
@@ -23,6 +24,7 @@ from tests.support.browser import (
     wait_until_still,
 )
 from tests.support.labelling import wait_until_prepared
+from tests.support.studies import Player
 
 pytestmark = pytest.mark.browser
 N = 8
@@ -128,6 +130,7 @@ def test_the_researcher_adds_gold_sets_a_gate_and_excludes(
     page.wait_for_url(f"{base}/studies/{sid}#crowd")
     expect(page.locator("#gold_gate")).to_have_value("0.8")
     invited = api.post(f"/api/studies/{sid}/participants").json()
+    Player(api, invited["id"], invited["token"], invited["invite_url"]).play()
     page.reload()
     row = page.locator("#quality-table tr", has_text=f"#{invited['id']}")
     row.get_by_role("button", name=f"Exclude participant #{invited['id']}").click()
@@ -135,6 +138,10 @@ def test_the_researcher_adds_gold_sets_a_gate_and_excludes(
     row = page.locator("#quality-table tr", has_text=f"#{invited['id']}")
     expect(row).to_contain_text("excluded by the researcher")
     assert api.get(f"/api/participants/{invited['id']}").json()["excluded"] is True
+    # Left out of the trees' downloads, still drawn (and flagged) on the study page.
+    heading = page.locator("h3", has_text=f"Participant #{invited['id']}")
+    expect(heading.locator(".flag")).to_have_text("excluded")
+    expect(page.locator(f".tree-box[data-participant-id='{invited['id']}'] svg")).to_be_visible()
     wait_until_still(page)
     assert_accessible(page, "study page with gold items, a gate and an exclusion")
     page.set_viewport_size(PHONE)

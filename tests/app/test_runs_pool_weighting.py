@@ -10,6 +10,7 @@ from __future__ import annotations
 import csv
 import io
 import json
+import zipfile
 from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import Any
@@ -26,6 +27,7 @@ from app.labelling.quality import ParticipantQuality
 from app.models import Label, Match, Participant
 from app.runs import service as runs
 from app.settings import Settings
+from app.studies.downloads import tree_filename
 from engine.pooling import pooled_tree
 from engine.rl.runner import load_run_advice, load_run_config
 from engine.treefile import tree_from_json, tree_to_json
@@ -286,6 +288,26 @@ def _check_exports(client: TestClient, study_id: int, people: list[int], gone: i
     assert parquet.column("reliability").to_pylist() == [r["reliability"] for r in everyone]
     bad = client.get(base + ".jsonl?include_excluded=maybe", headers=ADMIN)
     assert bad.status_code == 422 and "include_excluded" in str(bad.json()["detail"])
+    _check_trees(client, study_id, people, gone)
+
+
+def _check_trees(client: TestClient, study_id: int, people: list[int], gone: int) -> None:
+    """The trees API and zip leave ``gone`` out unless asked; the study page draws and flags
+    them."""
+    url = f"/api/studies/{study_id}/trees"
+    listed = [t["participant_id"] for t in client.get(url, headers=ADMIN).json()]
+    asked = client.get(url + "?include_excluded=true", headers=ADMIN).json()
+    assert listed == people and [t["participant_id"] for t in asked] == sorted([*people, gone])
+    page = logged_in(client)
+    for query, expected in (("", people), ("?include_excluded=true", sorted([*people, gone]))):
+        archive = zipfile.ZipFile(
+            io.BytesIO(page.get(f"/studies/{study_id}/trees.zip{query}").content)
+        )
+        assert sorted(archive.namelist()) == sorted(tree_filename(study_id, p) for p in expected)
+    html = page.get(f"/studies/{study_id}").text
+    assert "trees?include_excluded=true" in html
+    heading = html.split(f"Participant #{gone}", 1)[1].split("</h3>", 1)[0]
+    assert '<span class="flag">excluded</span>' in heading
 
 
 def _jsonl(client: TestClient, path: str) -> list[dict[str, Any]]:
