@@ -237,7 +237,9 @@ def test_a_measured_run_is_done_without_its_folder(
 ) -> None:
     """The small files carry a validation to another machine: measures, not run folders."""
     plan, trained = _plan(), []
-    monkeypatch.setattr(runs, "train_task", lambda out, plan, task: trained.append(task))
+    monkeypatch.setattr(
+        runs, "train_task", lambda out, plan, task, deadline=None: trained.append(task)
+    )
     measures_path(tmp_path, ("n1", 0)).parent.mkdir(parents=True)
     measures_path(tmp_path, ("n1", 0)).write_text("{}")
     train_tasks(tmp_path, plan, [("n1", 0), ("n1", 1)], Workers())

@@ -1,180 +1,20 @@
-"""The ``acv.tree/1`` document: one labelled bracket and its Preference Tree.
-
-The same JSON is the CLI's file format and the REST API's body (README "Tree file format").
-The matches are the source of truth: loading rebuilds the tree from them and rejects a file
-whose stored tree disagrees, so a hand-edited or truncated file cannot pass as valid.
-
-A match the judge could not tell carries ``"tie": true`` (its ``winner`` is the seeded coin's);
-the key is absent on every other match, so documents without ties are unchanged
-(docs/method.md §2.14).
-"""
+"""Reading an ``acv.tree/1`` document: every field validated, the tree rebuilt from the
+matches and compared with the stored one; :class:`~engine.errors.InputError` on anything else."""
 
 from __future__ import annotations
 
 import json
 import math
-from collections.abc import Collection
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from engine.bracket import Bracket, FirstRound, Match
+from engine.bracket import Bracket, Match
 from engine.candidates import Candidate
 from engine.errors import InputError, check_seed
-from engine.preference_tree import PreferenceTree, from_dendrogram
-from engine.tournament import dendrogram, tie_heights
-
-SCHEMA = "acv.tree/1"
-
-
-@dataclass(frozen=True)
-class TreeDocument:
-    """A complete labelled bracket over a candidate set.
-
-    Attributes:
-        env_id: Gymnasium MuJoCo env the states belong to.
-        seed: seed the candidates and bracket were drawn with.
-        p: Braverman-Mossel coin probability used for seeding.
-        judge: who decided the matches (``"standing"``, ``"participant:12"``, ``"agent:..."``).
-        r_b: leaf reward constant of T_r.
-        r_e: edge reward constant of T_r.
-        candidates: the players, ids ``0 .. N-1`` in order.
-        first_round: bracket order, ``(a, None)`` for a bye.
-        results: ``(round, slot) -> winner`` for every match.
-        tree: the Preference Tree built from ``results``.
-        scores: the judge's score per candidate, when it judged by a score.
-        ties: ``(round, slot)`` of the matches the judge could not tell; ``results`` holds
-            the seeded coin's winner there (docs/method.md §2.14).
-    """
-
-    env_id: str
-    seed: int
-    p: float
-    judge: str
-    r_b: float
-    r_e: float
-    candidates: list[Candidate]
-    first_round: FirstRound
-    results: dict[tuple[int, int], int]
-    tree: PreferenceTree
-    scores: dict[int, float] | None = None
-    ties: frozenset[tuple[int, int]] = frozenset()
-
-    @property
-    def bracket(self) -> Bracket:
-        return Bracket(self.first_round)
-
-    @property
-    def matches(self) -> list[tuple[Match, int]]:
-        """Every match with its winner, in (round, slot) order."""
-        return [(m, self.results[(m.round, m.slot)]) for m in self.bracket.matches(self.results)]
-
-    @property
-    def untied_matches(self) -> list[tuple[Match, int]]:
-        """The matches the judge decided, leaving out its ties: the only ones with a
-        preference, so the only ones agreement and contested matches count."""
-        return [(m, w) for m, w in self.matches if not self.tied(m)]
-
-    def tied(self, match: Match) -> bool:
-        """Whether the judge could not tell ``match`` (its winner is the seeded coin's)."""
-        return (match.round, match.slot) in self.ties
-
-    @property
-    def by_id(self) -> dict[int, Candidate]:
-        return {c.id: c for c in self.candidates}
-
-
-def make_document(
-    *,
-    env_id: str,
-    seed: int,
-    p: float,
-    judge: str,
-    candidates: list[Candidate],
-    first_round: FirstRound,
-    results: dict[tuple[int, int], int],
-    r_b: float = 1.0,
-    r_e: float = 1.0,
-    scores: dict[int, float] | None = None,
-    ties: Collection[tuple[int, int]] = frozenset(),
-) -> TreeDocument:
-    """Build the Preference Tree of a complete bracket and wrap everything in a document.
-
-    Raises:
-        InputError: the bracket is incomplete, or a tie names no match of it.
-    """
-    bracket = Bracket(first_round)
-    root = dendrogram(bracket, results)  # first: a tie is checked against complete results
-    raised = tie_heights(bracket, results, ties)
-    tree = from_dendrogram(root, r_b=r_b, r_e=r_e, raised=raised)
-    return TreeDocument(
-        env_id,
-        seed,
-        p,
-        judge,
-        r_b,
-        r_e,
-        candidates,
-        first_round,
-        results,
-        tree,
-        scores,
-        frozenset(ties),
-    )
-
-
-def tree_to_json(doc: TreeDocument) -> dict[str, Any]:
-    """The document as JSON-ready data (floats kept exact: JSON round-trips ``repr``)."""
-    return {
-        "schema": SCHEMA,
-        "env_id": doc.env_id,
-        "seed": doc.seed,
-        "p": doc.p,
-        "judge": doc.judge,
-        "tree_reward": {"r_b": doc.r_b, "r_e": doc.r_e},
-        "candidates": [_candidate_json(c, doc.scores) for c in doc.candidates],
-        "first_round": [[a, b] for a, b in doc.first_round],
-        "matches": [_match_json(doc, m, w) for m, w in doc.matches],
-        "tree": {
-            "root": doc.tree.root,
-            "nodes": [
-                {
-                    "state": n.state,
-                    "parent": n.parent,
-                    "height": n.height,
-                    "depth": n.depth,
-                    "weight": n.weight,
-                    "reward": n.reward,
-                }
-                for n in doc.tree.nodes.values()
-            ],
-        },
-    }
-
-
-def _match_json(doc: TreeDocument, m: Match, winner: int) -> dict[str, Any]:
-    out: dict[str, Any] = {"round": m.round, "a": m.a, "b": m.b, "winner": winner}
-    if doc.tied(m):  # only when tied: documents without ties keep their bytes
-        out["tie"] = True
-    return out
-
-
-def _candidate_json(c: Candidate, scores: dict[int, float] | None) -> dict[str, Any]:
-    out = {"id": c.id, "qpos": c.qpos.tolist(), "qvel": c.qvel.tolist(), "env_reward": c.env_reward}
-    if scores is not None:
-        out["score"] = scores[c.id]
-    return out
-
-
-def dumps(doc: TreeDocument) -> str:
-    """Serialise deterministically: the same document gives the same bytes."""
-    return json.dumps(tree_to_json(doc), indent=1) + "\n"
-
-
-def dump_tree(doc: TreeDocument, path: str | Path) -> None:
-    Path(path).write_text(dumps(doc))
+from engine.preference_tree import PreferenceTree
+from engine.treefile.document import SCHEMA, TreeDocument, make_document
 
 
 def load_tree(path: str | Path) -> TreeDocument:
