@@ -58,7 +58,9 @@ def test_a_run_on_pooled_advice_from_the_form_to_the_comparison(
         assert run["status"] == "succeeded" and run["participant_ids"] == people, run
         assert run["pool_weighting"] == "reliability", run
         advisors = api.get(f"/api/runs/{run_id}/advisors").json()
-    page.reload()  # the run page as it stands after training
+    # run.js reloads the page itself when the run ends; a reload of ours could race with
+    # it. Wait for the page the server rendered for the finished run instead.
+    expect(page.locator("#run")).to_have_attribute("data-status", "succeeded", timeout=30_000)
     weights = page.locator("#pool-weights tbody tr")
     expect(weights).to_have_count(2)
     for i, w in enumerate(run["pool_weights"]):
