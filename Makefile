@@ -42,13 +42,15 @@ setup: system-deps $(STAMP)
 run: setup
 	$(BIN)/acv serve --demo
 
+# --dist loadscope: a module's tests share one worker, so its module fixtures (a database, a
+# served app, a trained run) are built once, not once per worker.
 test: lint test-deps
-	$(BIN)/pytest -n 2 -m "not slow" -q --durations=15
+	$(BIN)/pytest -n 2 --dist loadscope -m "not slow" -q --durations=15
 
 # The unit tiers only: no browser, PostgreSQL, training, Ray or fresh processes (seconds, for
 # the edit-test loop; `make test` runs everything CI runs).
 test-fast: setup
-	$(BIN)/pytest -n 2 -q -m "not slow and not browser and not postgres and not training and not ray and not process"
+	$(BIN)/pytest -n 2 --dist loadscope -q -m "not slow and not browser and not postgres and not training and not ray and not process"
 
 # Style, formatting and types (mypy: strict on engine/, check_untyped_defs on app/; see
 # [tool.mypy] in pyproject.toml).

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import sys
 
 from app.cli.root import cli
@@ -44,18 +43,9 @@ _STARTUP_ERROR = _startup_error()
 
 
 def main() -> None:
-    """Console-script entry point: bad input becomes one stderr line and exit code 2."""
-    try:
-        if _STARTUP_ERROR is not None:
-            raise _STARTUP_ERROR
-        cli()
-    except (
-        InputError,
-        json.JSONDecodeError,
-        FileNotFoundError,
-        IsADirectoryError,
-        PermissionError,
-        UnicodeDecodeError,
-    ) as exc:
-        print(f"acv: error: {exc}", file=sys.stderr)
+    """Console-script entry point. Bad input becomes one stderr line and exit code 2: a bad
+    ``MUJOCO_GL`` here, anything below a command in :class:`app.cli.root._Commands`."""
+    if _STARTUP_ERROR is not None:
+        print(f"acv: error: {_STARTUP_ERROR}", file=sys.stderr)
         sys.exit(2)
+    cli()

@@ -2,17 +2,24 @@
 
 from __future__ import annotations
 
+import json
 import sys
-from typing import NoReturn
+from typing import Any, NoReturn
 
 import typer
+from typer._click.core import Context  # Typer's own click, which TyperGroup.invoke takes
+from typer.core import TyperGroup
 
-cli = typer.Typer(
-    name="acv",
-    help="Advice Conformance Verification: human vs agent preference trees.",
-    no_args_is_help=True,
-    pretty_exceptions_enable=False,
-    add_completion=False,
+from engine.errors import InputError
+
+# What bad input raises below a command (a file that is not there, not JSON, not a tree).
+BAD_INPUT = (
+    InputError,
+    json.JSONDecodeError,
+    FileNotFoundError,
+    IsADirectoryError,
+    PermissionError,
+    UnicodeDecodeError,
 )
 
 
@@ -20,3 +27,24 @@ def fail(message: str) -> NoReturn:
     """Print one clear line on stderr and exit with code 2 (bad input)."""
     print(f"acv: error: {message}", file=sys.stderr)
     raise typer.Exit(code=2)
+
+
+class _Commands(TyperGroup):
+    """The command tree: bad input raised anywhere below a command becomes one line and exit
+    code 2 here, so the console script and an in-process invocation answer alike."""
+
+    def invoke(self, ctx: Context) -> Any:
+        try:
+            return super().invoke(ctx)
+        except BAD_INPUT as exc:
+            fail(str(exc))
+
+
+cli = typer.Typer(
+    name="acv",
+    cls=_Commands,
+    help="Advice Conformance Verification: human vs agent preference trees.",
+    no_args_is_help=True,
+    pretty_exceptions_enable=False,
+    add_completion=False,
+)
