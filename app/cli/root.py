@@ -7,7 +7,6 @@ import sys
 from typing import Any, NoReturn
 
 import typer
-from typer._click.core import Context  # Typer's own click, which TyperGroup.invoke takes
 from typer.core import TyperGroup
 
 from engine.errors import InputError
@@ -33,7 +32,7 @@ class _Commands(TyperGroup):
     """The command tree: bad input raised anywhere below a command becomes one line and exit
     code 2 here, so the console script and an in-process invocation answer alike."""
 
-    def invoke(self, ctx: Context) -> Any:
+    def invoke(self, ctx: Any) -> Any:  # Typer's vendored click.Context (a private module)
         try:
             return super().invoke(ctx)
         except BAD_INPUT as exc:
