@@ -130,11 +130,30 @@ def invite(client: TestClient, study: dict[str, Any]) -> Callable[..., Player]:
 
 
 @pytest.hookimpl(tryfirst=True)  # before `-m` selects by marker
-def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    """A test that drives the browser is a ``browser`` test, whether its module says so or not."""
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """A test that drives the browser is a ``browser`` test, whether its module says so or not.
+
+    A ``postgres_only`` test (training or serving is its subject, not storage: each of its runs
+    costs seconds of a training process) leaves out its ``[sqlite]`` run; PostgreSQL is the
+    stricter backend, and the storage these tests touch runs on both in the API modules.
+    """
     for item in items:
         if "browser" in getattr(item, "fixturenames", ()):
             item.add_marker(pytest.mark.browser)
+    left_out = [item for item in items if _sqlite_run_of_postgres_only(item)]
+    if left_out:
+        config.hook.pytest_deselected(items=left_out)
+        gone = set(left_out)
+        items[:] = [item for item in items if item not in gone]
+
+
+def _sqlite_run_of_postgres_only(item: pytest.Item) -> bool:
+    callspec = getattr(item, "callspec", None)
+    return (
+        item.get_closest_marker("postgres_only") is not None
+        and callspec is not None
+        and callspec.params.get("backend_url") == "sqlite"
+    )
 
 
 # --- browser tests: acv serve in a subprocess, Debian's Chromium -----------------------------

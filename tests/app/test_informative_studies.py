@@ -20,7 +20,7 @@ from tests.support.runs import TINY, create_run, run_app, wait_run
 from tests.support.studies import new_study, wait_ready
 from tests.support.web import ADMIN, ADMIN_TOKEN
 
-pytestmark = pytest.mark.training
+pytestmark = [pytest.mark.training, pytest.mark.postgres_only]
 
 BODY: dict[str, Any] = {
     "name": "informative",

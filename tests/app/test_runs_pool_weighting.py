@@ -2,7 +2,7 @@
 ``/api/runs``, the new-run form, the run page and the label exports: a weighted run records
 each participant's weight and why the pool weighted them down, trains and judges with those
 weights; an excluded participant is left out of pools and exports, and their labels are kept.
-Runs on SQLite and PostgreSQL.
+On PostgreSQL only (``postgres_only``: training, not storage, is the subject).
 """
 
 from __future__ import annotations
@@ -36,7 +36,7 @@ from tests.support.runs import TINY, create_run, finished_participant, run_app, 
 from tests.support.studies import Player, new_study
 from tests.support.web import ADMIN, audit, csrf_token, logged_in
 
-pytestmark = pytest.mark.training
+pytestmark = [pytest.mark.training, pytest.mark.postgres_only]
 
 
 @pytest.fixture(scope="module")

@@ -1,7 +1,7 @@
 """Pooled advice through ``/api/runs``: a run on several finished participants' trees (chosen,
 or all of the study's), its bad requests, its training on the pool, and the agent against each
 participant at every checkpoint (stored by the executor, read by ``/advisors`` and the
-checkpoint report). Runs on SQLite and PostgreSQL.
+checkpoint report). On PostgreSQL only (``postgres_only``: training is the subject).
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ from tests.support.runs import TINY, create_run, finished_participant, run_app, 
 from tests.support.studies import Player, new_study
 from tests.support.web import ADMIN, audit, csrf_token, logged_in
 
-pytestmark = pytest.mark.training
+pytestmark = [pytest.mark.training, pytest.mark.postgres_only]
 
 
 @pytest.fixture(scope="module")

@@ -3,7 +3,8 @@
 ``ray start --head --block`` runs in its own session with its own temp dir; the app, given
 ``ACV_RAY_ADDRESS`` (here ``JobSettings(ray_address=...)``), runs every claimed run as a Ray
 task that reports to the database: a tiny run succeeds with its checkpoints and agent tree,
-and a long one stops with a checkpoint when it is cancelled. Runs on SQLite and PostgreSQL.
+and a long one stops with a checkpoint when it is cancelled. On PostgreSQL only
+(``postgres_only``: training, not storage, is the subject).
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ from tests.support.runs import ENDLESS, TINY, create_run, progressed, run_app, w
 from tests.support.studies import new_study
 from tests.support.web import ADMIN
 
-pytestmark = [pytest.mark.ray, pytest.mark.training]
+pytestmark = [pytest.mark.ray, pytest.mark.training, pytest.mark.postgres_only]
 
 
 @pytest.fixture(scope="module")

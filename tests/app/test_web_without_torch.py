@@ -5,6 +5,7 @@ A run trains first (in-process app, its own worker: torch is there), so that its
 artefacts are stored. Then ``acv serve`` starts in a subprocess on the same database and data
 dir, without a run worker, with a ``sitecustomize`` that makes ``import torch`` and
 ``import mujoco`` raise ImportError. Every answer must be a 200 with the stored numbers.
+On PostgreSQL only.
 """
 
 from __future__ import annotations
@@ -25,6 +26,8 @@ from app.settings import Settings
 from tests.support.runs import TINY, create_run, finished_participant, run_app, wait_run
 from tests.support.studies import new_study
 from tests.support.web import ADMIN, ADMIN_TOKEN
+
+pytestmark = pytest.mark.postgres_only  # serving without torch is the subject, not storage
 
 REPO = Path(__file__).resolve().parents[2]
 BLOCKER = '''
