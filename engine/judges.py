@@ -1,7 +1,7 @@
 """The agent's judges by name (no torch: the web tier lists and validates them).
 
-- ``return`` and ``behaviour`` lead a verdict. They are *provisional* until ``acv validate``
-  has checked them on known answers.
+- ``return`` and ``behaviour`` lead a verdict. Neither passed ``acv validate`` on known answers
+  (docs/validation.md §5: no judge passes on Hopper-v5 or Humanoid-v5), and the pages say so.
 - ``shaped``, ``shaping`` and ``shaped-value`` read the agent's shaped reward or critic: a
   diagnostic ("is your advice still in its reward?") that restates the advice and never leads a
   verdict. ``shaped-value`` was called ``value``; stored reports and callers may still say so.
@@ -19,7 +19,7 @@ T = TypeVar("T")
 
 #: Every judge, the verdict's first.
 JUDGES: tuple[str, ...] = ("return", "behaviour", "shaped", "shaping", "shaped-value")
-#: The judges a verdict reads (provisional until validated on known answers).
+#: The judges a verdict reads (neither passed the validation on known answers).
 VERDICT_JUDGES: tuple[str, ...] = ("return", "behaviour")
 #: The judges that read the agent's shaped reward or critic: a diagnostic, never a verdict.
 DIAGNOSTIC_JUDGES: tuple[str, ...] = ("shaped", "shaping", "shaped-value")

@@ -168,9 +168,10 @@ def agent_tree_cmd(
     """Replay the advice tree's bracket judged by the agent; `acv compare` reads the result.
 
     Judges: return (the env return its policy earns from each state) and behaviour (a
-    revealed-preference tree: which candidates its own rollouts stay near), both provisional;
-    diagnostics, "is your advice still in its reward?": shaped (R + z F), shaping (z F) and
-    shaped-value (the shaped critic V; formerly value)."""
+    revealed-preference tree: which candidates its own rollouts stay near), neither of which
+    passed the validation on known answers; diagnostics, "is your advice still in its
+    reward?": shaped (R + z F), shaping (z F) and shaped-value (the shaped critic V; formerly
+    value)."""
     from engine.rl.agent_judge import agent_tree
     from engine.rl.behaviour import RolloutOptions
     from engine.rl.returns import ReturnOptions

@@ -3,9 +3,10 @@ compare page's report, curves, CSV, tree images and the self-contained HTML repo
 
 ``checkpoint`` query parameters default to the latest checkpoint; ``judge`` picks how the
 agent scores states: ``return`` what its policy earns from each state and ``behaviour`` how
-near its own rollouts come to each state (a revealed-preference tree), both provisional; the
-diagnostics ``shaped`` R + z F, ``shaping`` z F and ``shaped-value`` the shaped critic
-(``value``, its old name, is still accepted). What is shown of a checkpoint is read from its
+near its own rollouts come to each state (a revealed-preference tree), neither of which passed
+the validation on known answers (docs/validation.md); the diagnostics ``shaped`` R + z F,
+``shaping`` z F and ``shaped-value`` the shaped critic (``value``, its old name, is still
+accepted). What is shown of a checkpoint is read from its
 artefact, which the run's executor stores; until then these endpoints answer 202
 ``{"status": "pending"}``.
 """

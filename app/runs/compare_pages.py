@@ -27,11 +27,11 @@ from engine.judges import DEFAULT_JUDGE, judge_name
 
 router = APIRouter(route_class=PageRoute, include_in_schema=False, dependencies=[ResearcherPage])
 JUDGE_LABELS = (
-    ("return", "the return it earns from each state (provisional)"),
+    ("return", "the return it earns from each state (failed validation)"),
     (
         "behaviour",
         "its behaviour: a revealed-preference tree of the postures it actually adopts "
-        "(provisional)",
+        "(failed validation)",
     ),
     ("shaped", "diagnostic, is your advice still in its reward? R + z F"),
     ("shaping", "diagnostic, is your advice still in its reward? the advice part z F"),

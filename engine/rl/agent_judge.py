@@ -4,11 +4,11 @@
 Tree's bracket gets a score from the agent, and the same bracket (same candidates, same first
 round) is played again with the higher score winning each match. Judges:
 
-- ``return`` (a default verdict judge, provisional until validated on known answers): the
+- ``return`` (a default verdict judge; it failed the validation on known answers): the
   environment return the agent's deterministic policy earns from s (:mod:`engine.rl.returns`);
-- ``behaviour`` (the other default, provisional): what the agent does: its mean occupancy near
-  s over deterministic rollouts after a burn-in (:mod:`engine.rl.behaviour`), a
-  *revealed-preference* tree;
+- ``behaviour`` (the other default; it failed the validation too): what the agent does: its
+  mean occupancy near s over deterministic rollouts after a burn-in
+  (:mod:`engine.rl.behaviour`), a *revealed-preference* tree;
 - ``shaped``: g(s) = R(s) + z_phi(s) F(s), the agent's shaped reward, and ``shaping``:
   z_phi(s) F(s), the part of it that comes from the advice. Diagnostics ("is your advice
   still in its reward?"): they restate the advice and never lead a verdict;

@@ -78,6 +78,8 @@ def test_the_verdict_arrives_on_the_experiment_page(server, browser: Browser) ->
     # The page polls and shows the verdict by itself.
     expect(page.locator("#verdict")).to_have_attribute("data-outcome", "used", timeout=30_000)
     expect(page.locator("#verdict")).to_contain_text("used your advice")
+    # With what the validation on known answers found of the judges (docs/validation.md).
+    expect(page.locator("#judge-validation")).to_contain_text("no judge passed")
     assert_accessible(page, "experiment page with its verdict")
     # An advised run's comparison page gives the same verdict, for its judge.
     page.goto(f"{base}/runs/{experiment['runs'][0]['id']}/compare?judge=behaviour")

@@ -203,6 +203,7 @@ def test_the_report_gives_the_verdict_of_the_runs_experiments(
     report = api(client, f"/api/runs/{em}/report.html?judge=behaviour").text
     assert "Did the advice change the agent?" in report
     assert f"Experiment #{experiment_id}: No verdict yet" in report
+    assert "no judge passed ACV's validation" in report  # what the validation found
 
 
 def test_a_corrupt_thumbnail_is_drawn_without_its_picture(

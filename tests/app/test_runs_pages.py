@@ -154,7 +154,7 @@ def test_the_compare_page_offers_every_judge_and_its_tables(
     judges = re.findall(r'<option value="([\w-]+)" ?(selected)?>([^<]*)</option>', box)
     assert [j for j, _, _ in judges] == list(JUDGES)
     assert judges[1][1] == "selected" and "revealed-preference" in judges[1][2]
-    assert all("provisional" in label for j, _, label in judges if j in VERDICT_JUDGES)
+    assert all("failed validation" in label for j, _, label in judges if j in VERDICT_JUDGES)
     assert all("diagnostic" in label for j, _, label in judges if j in DIAGNOSTIC_JUDGES)
     assert 'id="judges-body"' in html and 'id="candidates"' in html
     sortable = re.findall(r'<th scope="col" data-sort="(\w+)">', html)
