@@ -74,13 +74,13 @@ def _reproduce(out: Path, config: ReproduceConfig, jobs: int) -> None:
     from app.reproduce.plan import prepare, train_all
     from app.reproduce.report import write_report
 
-    trees = prepare(out, config, _participant_tree(config))
+    trees = prepare(out, config, participant_advice(config))
     train_all(out, config, trees, jobs=jobs)
     typer.echo("training done; extracting agent trees and drawing figures")
     write_report(out, config, trees, command=shlex.join(["acv", *sys.argv[1:]]), jobs=jobs)
 
 
-def _participant_tree(config: ReproduceConfig) -> TreeDocument | None:
+def participant_advice(config: ReproduceConfig) -> TreeDocument | None:
     """The participant's Human Preference Tree from the database, when one is named."""
     if config.participant_id is None:
         return None

@@ -6,9 +6,8 @@ agent scores states: ``return`` what its policy earns from each state and ``beha
 near its own rollouts come to each state (a revealed-preference tree), neither of which passed
 the validation on known answers (docs/validation.md); the diagnostics ``shaped`` R + z F,
 ``shaping`` z F and ``shaped-value`` the shaped critic (``value``, its old name, is still
-accepted). What is shown of a checkpoint is read from its
-artefact, which the run's executor stores; until then these endpoints answer 202
-``{"status": "pending"}``.
+accepted). What is shown of a checkpoint is read from its artefact, which the run's executor
+stores; until then these endpoints answer 202 ``{"status": "pending"}``.
 """
 
 from __future__ import annotations

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 from PIL import Image
 
-from app.cli.reproduce import _participant_tree
+from app.cli.reproduce import participant_advice
 from app.reproduce.analysis import recent_episode_length
 from app.reproduce.arms import ARMS
 from app.reproduce.checkpoints import AGENT_BRACKET_FILE
@@ -196,7 +196,7 @@ def test_a_participants_tree_is_the_case_2_advice(monkeypatch, tmp_path: Path) -
     config = ReproduceConfig(
         env_id="Hopper-v5", candidates=6, study_id=int(study), participant_id=int(participant)
     )
-    tree = _participant_tree(config)
+    tree = participant_advice(config)
     trees = prepare(tmp_path / "results", config, tree)
     stored = load_tree(tmp_path / "results" / "advice" / "standing.json")
     assert stored.judge == f"participant:{participant}" and stored.results == tree.results
