@@ -24,6 +24,8 @@ import numpy as np
 import pytest
 from playwright.sync_api import Browser, Page, expect, sync_playwright
 
+from app.db import make_engine, make_sessions
+from app.models import Experiment, ExperimentRun
 from engine.envs import env_model
 from engine.judges import JUDGES
 from engine.teachers import standing_score
@@ -61,9 +63,14 @@ BASELINE = RUN | {"algo": "ppo", "timesteps": 512, "checkpoint_every": 256}
 
 
 @pytest.fixture(scope="module")
-def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
+def data_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The served app's data dir (its SQLite database is ``acv.sqlite3`` there)."""
+    return tmp_path_factory.mktemp("acv-compare-data")
+
+
+@pytest.fixture(scope="module")
+def server(data_dir: Path) -> Iterator[str]:
     """``acv serve`` (with its run worker) on a free port; yields the base URL."""
-    data_dir = tmp_path_factory.mktemp("acv-compare-data")
     env = clean_env(ACV_DATA_DIR=str(data_dir), ACV_ADMIN_TOKEN=ADMIN_TOKEN)
     with acv_serve(env, data_dir.parent / "server.log", "--no-access-log") as base:
         yield base
@@ -314,4 +321,33 @@ def test_researcher_pages_with_tables_on_a_phone(
         wait_until_still(p)
         assert_accessible(p, f"{path} on a phone")
     context.close()
+    assert errors == []
+
+
+def test_the_html_report_of_a_run_in_an_experiment_is_accessible(
+    server: str, data_dir: Path, finished_run: dict, page: tuple[Page, list[str]]
+) -> None:
+    """With its experiment's verdict and what the validation found of the judges. Last in the
+    module: the run joins an experiment (as advised, its ppo run as baseline) for good."""
+    engine = make_engine(f"sqlite:///{data_dir / 'acv.sqlite3'}")
+    try:
+        with make_sessions(engine)() as session, session.begin():
+            experiment = Experiment(
+                study_id=finished_run["study_id"], spec={}, seeds=[0], pilot_seeds=[]
+            )
+            session.add(experiment)
+            session.flush()
+            for run_id, role in (
+                (finished_run["id"], "advised"),
+                (finished_run["baseline"], "baseline"),
+            ):
+                session.add(ExperimentRun(experiment_id=experiment.id, run_id=run_id, role=role))
+    finally:
+        engine.dispose()
+    p, errors = page
+    p.goto(f"{server}/api/runs/{finished_run['id']}/report.html?judge=return&checkpoint=1024")
+    expect(p.locator("body")).to_contain_text("Did the advice change the agent?")
+    expect(p.locator("body")).to_contain_text("no judge passed ACV's validation")
+    wait_until_still(p)
+    assert_accessible(p, "HTML report of a run in an experiment")
     assert errors == []
