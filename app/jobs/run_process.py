@@ -1,76 +1,96 @@
-"""``python -m app.jobs.run_process RUN_ID --worker NAME --parent PID``: one run, one process.
+"""One run, one process: what the ``local`` executor's run processes execute.
 
-The ``local`` executor starts this for every run, with ``DATABASE_URL`` and ``ACV_RUNS_DIR``
-in the environment and its output going to the run's ``process.log``. SIGTERM (the worker
-stopping) or the death of the worker process stops the run after the current update, with a
-checkpoint, as ``interrupted``; on Linux the kernel sends SIGTERM when the worker dies
-(``PR_SET_PDEATHSIG``), elsewhere the parent pid is polled.
+:class:`app.jobs.local.LocalExecutor` forks each run from a fork server that has imported
+torch and the training code once (:data:`PRELOAD`), then calls :func:`run_child` with the
+worker's environment and the run's ``process.log``. SIGTERM (the worker stopping) or the
+death of the worker stops the run after the current update, with a checkpoint, as
+``interrupted``: the worker's death is seen on the pipe that multiprocessing keeps to the
+process that started the child, and the fork server's death (it exits with the worker) by
+``PR_SET_PDEATHSIG`` on Linux.
 """
 
 from __future__ import annotations
 
-import argparse
 import ctypes
 import logging
+import multiprocessing
 import os
 import signal
 import sys
 from types import FrameType
 
-from app.jobs.execute import execute_run
 from app.jobs.settings import JobSettings
 from app.settings import Settings
 
 _PR_SET_PDEATHSIG = 1
+#: What the fork server imports once for every run process it forks: ``import torch`` takes
+#: seconds, and the optimizer's first use imports ``torch._dynamo``, seconds more. ``app.cli``
+#: too: under ``acv serve`` or ``acv worker`` (its console script is ``__main__``),
+#: multiprocessing runs the script again in every child, and CPython 3.11's fork server
+#: ignores a ``"__main__"`` preload.
+PRELOAD = ("app.jobs.execute", "app.cli", "torch", "torch._dynamo")
 
 
 class StopFlag:
-    """Set by SIGTERM/SIGINT, or when the parent process is gone."""
+    """Set by SIGTERM/SIGINT, or once the worker that started the run is gone."""
 
-    def __init__(self, parent: int | None) -> None:
-        self.parent = parent
+    def __init__(self) -> None:
         self.signalled = False
+        self.worker = multiprocessing.parent_process()
 
     def on_signal(self, _signum: int, _frame: FrameType | None) -> None:
         self.signalled = True
 
     def __call__(self) -> bool:
-        return self.signalled or (self.parent is not None and os.getppid() != self.parent)
+        return self.signalled or (self.worker is not None and not self.worker.is_alive())
 
 
 def die_with_parent() -> None:
-    """Ask Linux to send SIGTERM when the parent dies (a no-op elsewhere)."""
+    """Ask Linux to send SIGTERM when the parent (the fork server) dies; a no-op elsewhere."""
     if sys.platform.startswith("linux"):
         libc = ctypes.CDLL(None, use_errno=True)
         libc.prctl(_PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0)
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(
-        prog="python -m app.jobs.run_process", description="Execute one claimed training run."
+def run_child(run_id: int, worker: str, environ: dict[str, str], log_file: str) -> None:
+    """The body of a run process: its own session, output and environment, then the run.
+
+    Args:
+        run_id: the run ``worker`` has claimed.
+        worker: the claiming worker's name.
+        environ: the whole environment, as a spawned process would have inherited it.
+        log_file: where stdout and stderr go (appended).
+    """
+    server = os.getppid()  # the fork server, until it dies
+    os.setsid()  # terminal signals reach the worker, which stops its runs in order
+    fd = os.open(log_file, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+    os.dup2(fd, 1)
+    os.dup2(fd, 2)
+    os.close(fd)
+    os.environ.clear()
+    os.environ.update(environ)
+    sys.exit(_run(run_id, worker, server))
+
+
+def _run(run_id: int, worker: str, server: int) -> int:
+    from app.jobs.execute import execute_run  # preloaded by the fork server; heavy for the web
+
+    logging.basicConfig(
+        level=logging.INFO, format="%(asctime)s %(levelname)s %(message)s", force=True
     )
-    parser.add_argument("run_id", type=int)
-    parser.add_argument("--worker", required=True, help="the claiming worker's name")
-    parser.add_argument("--parent", type=int, default=None, help="the worker's pid")
-    args = parser.parse_args(argv)
-    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(levelname)s %(message)s")
-    stop = StopFlag(args.parent)
+    stop = StopFlag()
     signal.signal(signal.SIGTERM, stop.on_signal)
     signal.signal(signal.SIGINT, stop.on_signal)
     die_with_parent()
-    if stop():  # the worker died before we could ask to be told
+    if stop() or os.getppid() != server:  # the worker or the fork server died before we asked
         return 3
     settings = Settings()
     status = execute_run(
-        args.run_id,
+        run_id,
         database_url=settings.sqlalchemy_url,
         runs_dir=JobSettings().runs_root(settings),
-        worker=args.worker,
+        worker=worker,
         interrupted=stop,
     )
-    logging.info("run %d: %s", args.run_id, status)
+    logging.info("run %d: %s", run_id, status)
     return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())
