@@ -1,7 +1,7 @@
 """The ``local`` executor: each run in its own process on this machine.
 
 Run processes are forked by multiprocessing's fork server, which imports torch and the
-training code once (:data:`app.jobs.run_process.PRELOAD`), so that a run starts in a fraction
+training code once (:func:`app.jobs.run_process.preload`), so that a run starts in a fraction
 of a second instead of the seconds those imports take (the server itself starts with the
 first run). A run process (:func:`app.jobs.run_process.run_child`) gets its own session
 (terminal signals reach the worker, which then stops its runs in order), writes its output to
@@ -22,7 +22,7 @@ from multiprocessing.process import BaseProcess
 from pathlib import Path
 
 from app.db import ROOT
-from app.jobs.run_process import PRELOAD, run_child
+from app.jobs.run_process import preload, run_child
 from app.jobs.settings import run_dir
 
 LOG_FILE = "process.log"
@@ -121,5 +121,5 @@ class LocalExecutor:
 def fork_server() -> ForkServerContext:
     """multiprocessing's fork server context, preloading what every run imports."""
     context = multiprocessing.get_context("forkserver")
-    context.set_forkserver_preload(list(PRELOAD))
+    context.set_forkserver_preload(preload())
     return context

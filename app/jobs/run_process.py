@@ -24,11 +24,17 @@ from app.settings import Settings
 
 _PR_SET_PDEATHSIG = 1
 #: What the fork server imports once for every run process it forks: ``import torch`` takes
-#: seconds, and the optimizer's first use imports ``torch._dynamo``, seconds more. ``app.cli``
-#: too: under ``acv serve`` or ``acv worker`` (its console script is ``__main__``),
-#: multiprocessing runs the script again in every child, and CPython 3.11's fork server
-#: ignores a ``"__main__"`` preload.
-PRELOAD = ("app.jobs.execute", "app.cli", "torch", "torch._dynamo")
+#: seconds, and the optimizer's first use imports ``torch._dynamo``, seconds more.
+PRELOAD = ("app.jobs.execute", "torch", "torch._dynamo")
+
+
+def preload() -> list[str]:
+    """:data:`PRELOAD`, and ``app.cli`` when ``__main__`` is a script or a module (``acv``'s
+    console script, ``python -m app.cli``): multiprocessing runs it again in every child, and
+    CPython 3.11's fork server ignores a ``"__main__"`` preload."""
+    main = sys.modules["__main__"]
+    started_as_a_program = getattr(main, "__file__", None) or getattr(main.__spec__, "name", None)
+    return [*PRELOAD, *(["app.cli"] if started_as_a_program else [])]
 
 
 class StopFlag:

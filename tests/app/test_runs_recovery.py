@@ -3,8 +3,9 @@
 - a queued run survives a restart; stopping the server leaves a running run ``interrupted``
   with a checkpoint, and resuming it continues from there;
 - a run process that dies (SIGKILL) makes its run ``failed`` with the reason;
-- a worker that dies (SIGKILL of ``acv worker``) stops its run processes, whose runs become
-  ``interrupted``; at startup, running runs of vanished workers become ``interrupted``;
+- a worker that dies (SIGKILL of ``acv worker``, started by its console script as a user
+  would) stops its run processes, whose runs become ``interrupted``; at startup, running runs
+  of vanished workers become ``interrupted``;
 - two workers never take the same run; a run that fails reports its error.
 
 Runs on SQLite and PostgreSQL.
@@ -20,6 +21,7 @@ import sys
 import threading
 from collections import Counter
 from datetime import timedelta
+from pathlib import Path
 
 import pytest
 
@@ -109,7 +111,7 @@ def test_a_killed_worker_stops_its_runs(settings, study_id: int) -> None:
             "ACV_POLL_S": "0.1",
         }
         worker = subprocess.Popen(
-            [sys.executable, "-c", "from app.cli import main; main()", "worker"],
+            [str(Path(sys.executable).with_name("acv")), "worker"],
             env=env,
             stdout=subprocess.DEVNULL,
             stderr=subprocess.DEVNULL,
