@@ -22,7 +22,7 @@ from types import FrameType
 from app.jobs.settings import JobSettings
 from app.settings import Settings
 
-_PR_SET_PDEATHSIG = 1
+_PR_SET_PDEATHSIG, _PR_SET_NAME = 1, 15
 #: What the fork server imports once for every run process it forks: ``import torch`` takes
 #: seconds, and the optimizer's first use imports ``torch._dynamo``, seconds more.
 PRELOAD = ("app.jobs.execute", "torch", "torch._dynamo")
@@ -51,11 +51,20 @@ class StopFlag:
         return self.signalled or (self.worker is not None and not self.worker.is_alive())
 
 
+def _prctl(option: int, value: int | bytes) -> None:
+    if sys.platform.startswith("linux"):  # a no-op elsewhere
+        ctypes.CDLL(None, use_errno=True).prctl(option, value, 0, 0, 0)
+
+
 def die_with_parent() -> None:
-    """Ask Linux to send SIGTERM when the parent (the fork server) dies; a no-op elsewhere."""
-    if sys.platform.startswith("linux"):
-        libc = ctypes.CDLL(None, use_errno=True)
-        libc.prctl(_PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0)
+    """Ask Linux to send SIGTERM when the parent (the fork server) dies."""
+    _prctl(_PR_SET_PDEATHSIG, signal.SIGTERM)
+
+
+def name_process(run_id: int) -> None:
+    """Name the process ``acv-run-<id>`` for ``ps -o comm``, ``top`` and ``pgrep`` (a forked
+    process keeps the fork server's command line)."""
+    _prctl(_PR_SET_NAME, f"acv-run-{run_id}".encode()[:15])
 
 
 def run_child(run_id: int, worker: str, environ: dict[str, str], log_file: str) -> None:
@@ -69,6 +78,7 @@ def run_child(run_id: int, worker: str, environ: dict[str, str], log_file: str) 
     """
     server = os.getppid()  # the fork server, until it dies
     os.setsid()  # terminal signals reach the worker, which stops its runs in order
+    name_process(run_id)
     fd = os.open(log_file, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
     os.dup2(fd, 1)
     os.dup2(fd, 2)

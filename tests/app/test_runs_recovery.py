@@ -2,7 +2,8 @@
 
 - a queued run survives a restart; stopping the server leaves a running run ``interrupted``
   with a checkpoint, and resuming it continues from there;
-- a run process that dies (SIGKILL) makes its run ``failed`` with the reason;
+- a run process (named ``acv-run-<id>``) that dies (SIGKILL) makes its run ``failed`` with
+  the reason;
 - a worker that dies (SIGKILL of ``acv worker``, started by its console script as a user
   would) stops its run processes, whose runs become ``interrupted``; at startup, running runs
   of vanished workers become ``interrupted``;
@@ -92,7 +93,9 @@ def test_a_killed_run_process_fails_the_run(settings, study_id: int) -> None:
     with run_app(settings) as client:
         run_id = teacher_run(client, study_id)
         wait_run(client, run_id, progressed)
-        os.kill(client.app.state.run_worker.executor.pid(run_id), signal.SIGKILL)
+        pid = client.app.state.run_worker.executor.pid(run_id)
+        assert Path(f"/proc/{pid}/comm").read_text() == f"acv-run-{run_id}\n"  # for pgrep, top
+        os.kill(pid, signal.SIGKILL)
         run = wait_run(client, run_id)
         assert run["status"] == "failed" and "killed by SIGKILL" in run["error"], run
         resumed = client.post(f"/api/runs/{run_id}/resume", headers=ADMIN)
