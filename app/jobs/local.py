@@ -12,6 +12,7 @@ setting its run's final state (killed, out of memory, a crash in native code) is
 
 from __future__ import annotations
 
+import functools
 import multiprocessing
 import os
 import signal
@@ -118,8 +119,10 @@ class LocalExecutor:
                 proc.join()
 
 
+@functools.cache
 def fork_server() -> ForkServerContext:
-    """multiprocessing's fork server context, preloading what every run imports."""
+    """multiprocessing's fork server context, preloading what every run imports (decided once:
+    the server starts with the first run and keeps its preload)."""
     context = multiprocessing.get_context("forkserver")
     context.set_forkserver_preload(preload())
     return context
