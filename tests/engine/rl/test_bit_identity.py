@@ -1,0 +1,168 @@
+"""Bit-identity: the two regression tests that class every change to training and judging.
+
+Values committed in ``data/bit_identity/`` before a change are its reference:
+
+- ``training.json``: per algorithm, the metrics rows of a 3-update Humanoid-v5 run with the
+  product's hyper-parameters (4 envs x 512 steps, 10 epochs of 32 minibatches of 64, 2x64 tanh
+  networks, observation and reward normalisation, float32, one torch thread), and a SHA-256 of
+  each part of its final checkpoint's content;
+- ``judging.json``: the ``behaviour`` and ``return`` measures of the committed checkpoint
+  ``judged.pt`` (that bipars-em run's networks and normaliser) over the committed bracket
+  ``advice.json``, computed as :func:`engine.validation.measure.measure` computes them
+  (:func:`engine.verdict_runs.judge_scores` at the default rollouts).
+
+Classification rule: a change is **bit-identical** when these tests pass unchanged, and
+**number-altering** when the committed values must be regenerated (``regenerate.py`` in that
+folder; its docstring says how, and that the commit must say so). Equality is exact: JSON
+round-trips float64 exactly. That a stopped-and-resumed run equals an uninterrupted one is
+``test_rl_runner.py::test_resume_after_a_stop_matches_an_uninterrupted_run``.
+
+The values hold on one platform: torch and OpenBLAS pick kernels by CPU, and other versions of
+torch, numpy, MuJoCo or Gymnasium may change the last bits. The committed files record the
+platform they were made on (:func:`environment`), and a failure prints it beside this one's.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import platform
+import shutil
+from pathlib import Path
+from typing import Any
+
+import gymnasium
+import mujoco
+import numpy as np
+import pytest
+import torch
+
+from engine.rl.behaviour import RolloutOptions
+from engine.rl.checkpoint import checkpoint_path, find_checkpoint, load_checkpoint
+from engine.rl.config import ALGOS, TrainConfig
+from engine.rl.judge_cache import file_digest
+from engine.rl.logger import read_metrics
+from engine.rl.runner import train
+from engine.treefile import TreeDocument, load_tree
+from engine.verdict_runs import judge_scores
+
+DATA = Path(__file__).parent / "data" / "bit_identity"
+TRAINING = DATA / "training.json"
+JUDGING = DATA / "judging.json"
+ADVICE = DATA / "advice.json"
+JUDGED = DATA / "judged.pt"
+UPDATES = 3
+#: Metrics row fields left out of the comparison: they measure the clock, not training.
+WALL_CLOCK = {
+    "time": "time.time() when the update ended",
+    "sps": "env steps per wall-clock second",
+}
+#: The judges measured (engine.validation.measure.JUDGES less the critic's reference).
+JUDGES = ("behaviour", "return")
+
+
+def bit_identity_config(algo: str) -> TrainConfig:
+    """The product's defaults, cut to :data:`UPDATES` updates (one checkpoint, at the end)."""
+    return TrainConfig(algo=algo, total_timesteps=UPDATES * TrainConfig().batch_size)
+
+
+def advice_tree() -> TreeDocument:
+    """The committed Humanoid-v5 bracket: every run's advice (``ppo`` only logs its F)."""
+    return load_tree(ADVICE)
+
+
+def environment() -> dict[str, str]:
+    """What decides the last bits besides the code: versions and the CPU's kernels."""
+    return {
+        "python": platform.python_version(),
+        "machine": platform.machine(),
+        "torch": torch.__version__,
+        "torch_cpu_capability": torch.backends.cpu.get_cpu_capability(),
+        "numpy": np.__version__,
+        "mujoco": mujoco.__version__,
+        "gymnasium": gymnasium.__version__,
+    }
+
+
+def _feed(h: Any, value: Any) -> None:
+    """Add ``value`` to the hash ``h`` exactly: dtypes, shapes and bytes, not reprs."""
+    if isinstance(value, dict):
+        h.update(b"{%d" % len(value))
+        for key, item in value.items():
+            _feed(h, key)
+            _feed(h, item)
+    elif isinstance(value, list | tuple):
+        h.update(b"[%d" % len(value))
+        for item in value:
+            _feed(h, item)
+    elif isinstance(value, torch.Tensor):
+        _feed(h, value.detach().cpu().numpy())
+    elif isinstance(value, np.ndarray | np.generic):
+        array = np.ascontiguousarray(value)
+        h.update(f"{array.dtype.str}{array.shape}".encode())
+        h.update(array.tobytes())
+    elif isinstance(value, float):
+        h.update(f"float:{value.hex()};".encode())
+    else:  # str, int, bool, None
+        text = str(value)
+        h.update(f"{type(value).__name__}:{len(text)}:{text}".encode())
+
+
+def state_digests(state: dict[str, Any]) -> dict[str, str]:
+    """SHA-256 of each top-level part of a checkpoint (agent, optimiser, envs, ...).
+
+    The content is hashed, not the file: a checkpoint file is byte-stable today, but a
+    serialisation change would alter its bytes without altering a number.
+    """
+    digests = {}
+    for key, value in state.items():
+        h = hashlib.sha256()
+        _feed(h, value)
+        digests[key] = h.hexdigest()
+    return digests
+
+
+def training_numbers(algo: str, out: Path) -> dict[str, Any]:
+    """Train the 3-update run of ``algo`` in ``out``: its metrics rows without the
+    :data:`WALL_CLOCK` fields, and the digests of its final checkpoint."""
+    train(bit_identity_config(algo), advice_tree(), out)
+    rows = [{k: v for k, v in row.items() if k not in WALL_CLOCK} for row in read_metrics(out)]
+    return {"rows": rows, "checkpoint": state_digests(load_checkpoint(find_checkpoint(out)))}
+
+
+def judge_measures(checkpoint: Path, run: Path, judge: str) -> list[float]:
+    """``judge``'s scores of every candidate of the bracket, in id order, for ``checkpoint``
+    placed as the last one of the fresh run folder ``run`` (which takes the judges' cache)."""
+    path = checkpoint_path(run, int(load_checkpoint(checkpoint)["timesteps"]))
+    path.parent.mkdir(parents=True)
+    shutil.copyfile(checkpoint, path)
+    scores: list[float] = judge_scores([run], advice_tree(), judge, RolloutOptions())[0].tolist()
+    return scores
+
+
+def committed(path: Path) -> dict[str, Any]:
+    """A committed file of expected values."""
+    expected: dict[str, Any] = json.loads(path.read_text())
+    return expected
+
+
+def platforms(expected: dict[str, Any]) -> str:
+    """Where the expected values were made, and where this test runs (for failures)."""
+    return f"committed on {expected['environment']}; this is {environment()}"
+
+
+@pytest.mark.training
+@pytest.mark.parametrize("algo", ALGOS)
+def test_training_is_bit_identical(algo: str, tmp_path: Path) -> None:
+    expected = committed(TRAINING)
+    got = training_numbers(algo, tmp_path / algo)
+    assert got["rows"] == expected["runs"][algo]["rows"], platforms(expected)
+    assert got["checkpoint"] == expected["runs"][algo]["checkpoint"], platforms(expected)
+
+
+@pytest.mark.parametrize("judge", JUDGES)
+def test_judging_is_bit_identical(judge: str, tmp_path: Path) -> None:
+    expected = committed(JUDGING)
+    assert file_digest(JUDGED) == expected["checkpoint_sha256"], "judged.pt is not the one measured"
+    got = judge_measures(JUDGED, tmp_path / "run", judge)
+    assert got == expected["measures"][judge], platforms(expected)
