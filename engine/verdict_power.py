@@ -9,6 +9,7 @@ contested matches it keeps. Seeds are the unit of replication; matches are cross
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from functools import lru_cache
 
 import numpy as np
@@ -178,10 +179,64 @@ def _mde(
         p = permutation_p(ca_a, ca_b, np.random.default_rng(seed), n_resamples=999)
         return bool(np.mean(p <= alpha) >= power)
 
-    if not detected(1.0):
+    return smallest_detected(detected, 1.0)
+
+
+def smallest_detected(detected: Callable[[float], bool], largest: float) -> float | None:
+    """The smallest Δ in ``(0, largest]`` that ``detected`` accepts, by bisection (power
+    rises with Δ), rounded up to 0.01; None when even ``largest`` is not detected."""
+    if not detected(largest):
         return None
-    low, high = 0.0, 1.0
+    low, high = 0.0, largest
     while high - low > 0.005:
         mid = (low + high) / 2
         low, high = (low, mid) if detected(mid) else (mid, high)
-    return min(1.0, math.ceil(high * 100) / 100)
+    return min(largest, math.ceil(high * 100) / 100)
+
+
+def min_detectable_shift(
+    k_advised: int,
+    k_baseline: int,
+    *,
+    alpha: float = 0.05,
+    power: float = 0.8,
+    seed_sd: float = 0.2,
+    largest: float = 2.0,
+    seed: int = 0,
+) -> float | None:
+    """The smallest difference of per-seed means that the exact permutation test detects
+    with probability ``power``, when each seed's value is its arm's mean plus
+    ``Normal(0, seed_sd)``: the whole-bracket verdict's (:mod:`engine.verdict_bracket`),
+    whose per-seed value is already an average over the bracket's candidates.
+
+    Args:
+        k_advised: advised seeds.
+        k_baseline: baseline seeds.
+        alpha: the test's two-sided level.
+        power: the probability of rejecting that the difference must reach.
+        seed_sd: between-seed spread of the per-seed value.
+        largest: the largest difference the statistic can take (2 for a correlation).
+        seed: seeds the simulation, so every caller prints the same number.
+
+    Returns:
+        The difference, or None when the exact test can never reach ``alpha`` or even
+        ``largest`` is detected less often than ``power``.
+    """
+    if smallest_p(k_advised, k_baseline) > alpha:
+        return None
+    return _mds(k_advised, k_baseline, alpha, power, seed_sd, largest, seed)
+
+
+@lru_cache(maxsize=256)
+def _mds(
+    k_a: int, k_b: int, alpha: float, power: float, seed_sd: float, largest: float, seed: int
+) -> float | None:
+    rng = np.random.default_rng(seed)
+    noise_a = rng.normal(0, seed_sd, (N_POWER_SIMULATIONS, k_a))
+    noise_b = rng.normal(0, seed_sd, (N_POWER_SIMULATIONS, k_b))
+
+    def detected(delta: float) -> bool:
+        p = permutation_p(noise_a + delta, noise_b, np.random.default_rng(seed), n_resamples=999)
+        return bool(np.mean(p <= alpha) >= power)
+
+    return smallest_detected(detected, largest)

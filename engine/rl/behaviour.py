@@ -114,3 +114,20 @@ def occupancy_scores(visited_qpos: np.ndarray, doc: TreeDocument) -> dict[int, f
     kernel = AdviceReward.from_tree(doc)  # standardised over the bracket's candidates
     mean_sim = kernel.similarity(visited_qpos).mean(axis=0)  # (N,)
     return {c.id: float(s) for c, s in zip(doc.candidates, mean_sim, strict=True)}
+
+
+def nearest_shares(similarity: np.ndarray) -> np.ndarray:
+    """Occupancy in the strict sense: the share of visited states whose most similar
+    candidate is each one, shape ``(N,)`` (a tie goes to the lower id, as ``argmax``);
+    all 0 when nothing was visited. Validation round 2's secondary score beside the mean
+    similarity of :func:`occupancy_scores` (docs/validation.md §6).
+
+    Args:
+        similarity: each visited state's cosine similarity to each candidate, shape
+            ``(T, N)`` (:meth:`engine.advice.AdviceReward.similarity`).
+    """
+    n = similarity.shape[1]
+    if not len(similarity):
+        return np.zeros(n)
+    shares: np.ndarray = np.bincount(similarity.argmax(axis=1), minlength=n) / len(similarity)
+    return shares
