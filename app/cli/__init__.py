@@ -23,6 +23,7 @@ def _register_commands() -> None:
         tournament,
         train,
         validate,
+        validate_round2,
         verdict,
         webhook,
         worker,

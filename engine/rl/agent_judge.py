@@ -195,12 +195,19 @@ def behaviour_scores(
     """The behaviour judge's scores: occupancy of the policy's rollouts near each candidate
     (cached by the checkpoint's content hash)."""
     _check_env(trained, doc)
-    visited = cached_array(
+    return occupancy_scores(behaviour_visited(trained, run_dir=run_dir, rollouts=rollouts), doc)
+
+
+def behaviour_visited(
+    trained: TrainedAgent, *, run_dir: Path | None = None, rollouts: RolloutOptions
+) -> np.ndarray:
+    """``qpos`` of the states the behaviour judge's rollouts visit, shape ``(T, nq)``, cached
+    in ``run_dir`` by the checkpoint's content hash and the rollout options."""
+    return cached_array(
         run_dir if trained.digest else None,
         f"behaviour.{trained.digest[:16]}.{rollouts.key}",
-        lambda: visited_states(deterministic_policy(trained), doc.env_id, rollouts),
+        lambda: visited_states(deterministic_policy(trained), trained.config.env_id, rollouts),
     )
-    return occupancy_scores(visited, doc)
 
 
 @torch.no_grad()

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, fields
 from enum import StrEnum
-from typing import Any
+from typing import Any, Protocol
 
 from engine.errors import InputError
 from engine.teachers import POSTURE_SCORES
@@ -37,6 +37,8 @@ class AdviceKind(StrEnum):
     ADVICE = "advice"
     SHUFFLED = "shuffled"
     INVERTED = "inverted"
+    NOISY = "noisy"
+    STANDING_SHUFFLED = "standing-shuffled"
 
 
 class Role(StrEnum):
@@ -73,6 +75,32 @@ ARMS: tuple[Arm, ...] = (
 BASELINE = "n1"
 PILOT = Arm("pilot", "ppo", AdviceKind.NONE, 0.0, Role.NEGATIVE)
 ARM_BY_NAME = {arm.name: arm for arm in (*ARMS, PILOT)}
+
+
+class TrainingPlan(Protocol):
+    """What a validation's runs train with (round 1's :class:`Plan` and round 2's)."""
+
+    @property
+    def env_id(self) -> str: ...
+    @property
+    def timesteps(self) -> int: ...
+    @property
+    def n_envs(self) -> int: ...
+    @property
+    def num_steps(self) -> int: ...
+
+
+class BracketPlan(Protocol):
+    """What a validation's brackets are drawn with."""
+
+    @property
+    def env_id(self) -> str: ...
+    @property
+    def teacher(self) -> str: ...
+    @property
+    def candidates(self) -> int: ...
+    @property
+    def p(self) -> float: ...
 
 
 @dataclass(frozen=True)

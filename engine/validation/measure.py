@@ -10,6 +10,7 @@ never resets from, so that ``behaviour`` and U do not average over the same stat
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from functools import partial
 from pathlib import Path
 from typing import Any
@@ -41,6 +42,38 @@ from engine.verdict_runs import judge_scores
 #: The judges validated: the two the verdict offers, and the shaped critic as a reference.
 JUDGES = ("return", "behaviour", "shaped-value")
 MAX_EPISODE_STEPS = 1000  # the MuJoCo envs' own time limit
+#: A teacher's latent score: states ``(T, nq)`` and the env's model -> scores ``(T,)``.
+PostureScore = Callable[[np.ndarray, Any], np.ndarray]
+
+
+def truth_states(run: Path, env_id: str, episodes: int) -> np.ndarray:
+    """``qpos`` of every state of ``episodes`` deterministic episodes of the run's last
+    checkpoint, reset from :data:`TRUTH_RESET_SEED0` on (no burn-in), shape ``(T, nq)``:
+    the states U averages over, and the evaluation states round 2 keeps."""
+    policy = deterministic_policy(load_agent(find_checkpoint(run)))
+    options = RolloutOptions(
+        episodes=episodes,
+        max_steps=episodes * MAX_EPISODE_STEPS,
+        seed=TRUTH_RESET_SEED0,
+        burn_in=0,
+    )
+    return visited_states(policy, env_id, options)
+
+
+def posture_truth(qpos: np.ndarray, env_id: str, teacher: str) -> float:
+    """U over the given states, shape ``(T, nq)``: the teacher's mean latent score."""
+    return float(np.mean(posture_score(teacher)(qpos, env_model(env_id))))
+
+
+def posture_score(teacher: str) -> PostureScore:
+    """The teacher's latent score of states.
+
+    Raises:
+        InputError: the teacher has none (``good``, ``random``).
+    """
+    if teacher not in POSTURE_SCORES:
+        raise InputError(f"validation needs a posture teacher: {', '.join(POSTURE_SCORES)}")
+    return POSTURE_SCORES[teacher]
 
 
 def teacher_truth(run: Path, env_id: str, teacher: str, episodes: int) -> float:
@@ -50,17 +83,8 @@ def teacher_truth(run: Path, env_id: str, teacher: str, episodes: int) -> float:
     Raises:
         InputError: the teacher has no latent posture score (``good``, ``random``).
     """
-    if teacher not in POSTURE_SCORES:
-        raise InputError(f"validation needs a posture teacher: {', '.join(POSTURE_SCORES)}")
-    policy = deterministic_policy(load_agent(find_checkpoint(run)))
-    options = RolloutOptions(
-        episodes=episodes,
-        max_steps=episodes * MAX_EPISODE_STEPS,
-        seed=TRUTH_RESET_SEED0,
-        burn_in=0,
-    )
-    qpos = visited_states(policy, env_id, options)
-    return float(np.mean(POSTURE_SCORES[teacher](qpos, env_model(env_id))))
+    posture_score(teacher)  # refuse before rolling out
+    return posture_truth(truth_states(run, env_id, episodes), env_id, teacher)
 
 
 def measure(out: Path, plan: Plan, task: Task, brackets: list[TreeDocument]) -> dict[str, Any]:

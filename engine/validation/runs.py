@@ -40,7 +40,9 @@ from engine.validation.design import (
     PILOT,
     AdviceKind,
     Arm,
+    BracketPlan,
     Plan,
+    TrainingPlan,
 )
 from engine.validation.workers import Task, Workers
 
@@ -94,7 +96,7 @@ def measured(out: Path, task: Task) -> bool:
     return measures_path(out, task).is_file()
 
 
-def finished(out: Path, plan: Plan, task: Task) -> bool:
+def finished(out: Path, plan: TrainingPlan, task: Task) -> bool:
     """Whether the run has its last checkpoint (at the last whole rollout, which may pass
     ``plan.timesteps``: 501,760 for 500k steps of 2,048)."""
     folder = run_dir(out, *task)
@@ -102,7 +104,7 @@ def finished(out: Path, plan: Plan, task: Task) -> bool:
     return bool(steps) and max(steps) >= plan.timesteps
 
 
-def train_config(plan: Plan, arm: Arm, seed: int) -> TrainConfig:
+def train_config(plan: TrainingPlan, arm: Arm, seed: int) -> TrainConfig:
     return TrainConfig(
         algo=arm.algo,
         env_id=plan.env_id,
@@ -126,12 +128,12 @@ def train_task(out: Path, plan: Plan, task: Task, deadline: float | None = None)
         resume = folder.is_dir() and bool(list_checkpoints(folder))
         if folder.is_dir() and not resume:  # stopped before its first checkpoint: start over
             shutil.rmtree(folder)
-        stop = None if deadline is None else partial(_past, deadline)
+        stop = None if deadline is None else partial(past_deadline, deadline)
         train(train_config(plan, arm, task[1]), advice, folder, should_stop=stop, resume=resume)
     return task
 
 
-def _past(deadline: float) -> bool:
+def past_deadline(deadline: float) -> bool:
     return time.time() > deadline
 
 
@@ -195,19 +197,23 @@ def make_brackets(out: Path, plan: Plan) -> list[TreeDocument]:
 def _bracket(out: Path, plan: Plan, b: int) -> TreeDocument:
     """The teacher's tree over candidates sampled (``informative``) from pilot ``b mod k``'s
     deterministic policy, all draws from ``BRACKET_SEED0 + b``."""
+    seeds = plan.pilot_seed_list()
+    pilot = run_dir(out, PILOT.name, seeds[b % len(seeds)])
+    return pilot_bracket(pilot, plan, BRACKET_SEED0 + b)
+
+
+def pilot_bracket(pilot: Path, plan: BracketPlan, seed: int) -> TreeDocument:
+    """The teacher's tree over ``plan.candidates`` candidates sampled (``informative``) from
+    the pilot run's deterministic policy, every draw from ``seed``."""
     from engine.rl.checkpoint import find_checkpoint
     from engine.rl.trained import deterministic_policy, load_agent
 
-    seeds = plan.pilot_seed_list()
-    pilot = run_dir(out, PILOT.name, seeds[b % len(seeds)])
     policy = deterministic_policy(load_agent(find_checkpoint(pilot)))
-    rng = np.random.default_rng(BRACKET_SEED0 + b)
+    rng = np.random.default_rng(seed)
     candidates = sample_candidates(
         plan.env_id, plan.candidates, rng=rng, mode="informative", policy=policy
     )
-    return teacher_bracket(
-        plan.env_id, candidates, rng, p=plan.p, seed=BRACKET_SEED0 + b, teacher=plan.teacher
-    )
+    return teacher_bracket(plan.env_id, candidates, rng, p=plan.p, seed=seed, teacher=plan.teacher)
 
 
 def advice_path(out: Path, arm: Arm) -> Path:

@@ -11,6 +11,7 @@ from scipy.stats import spearmanr
 
 from engine.advice import AdviceReward
 from engine.treefile import load_tree
+from engine.validation.design import AdviceKind
 from engine.validation.round2 import (
     HOPPER,
     HUMANOID,
@@ -23,6 +24,7 @@ from engine.validation.round2 import (
     semifinalists,
     unrelated_tree,
 )
+from engine.validation.round2_runs import Round2Plan, _control, arm_of, tasks
 from engine.verdict_bracket import alignment, tree_values
 
 BRACKETS = Path(__file__).parents[2] / "docs/validation/humanoid-orthogonal/brackets"
@@ -57,3 +59,31 @@ def test_the_ground_truth_is_the_exact_one_sided_test_against_ten_seeds() -> Non
 
 def test_the_budget_is_the_declared_one() -> None:
     assert runs(HUMANOID) == 65 and runs(HOPPER) == 50
+
+
+def test_every_declared_run_is_a_task_once_pilots_and_baseline_first() -> None:
+    plan = Round2Plan(env_id="Humanoid-v5", timesteps=1_000_000)
+    found = tasks(plan)
+    assert len(found) == runs(HUMANOID) + 2 and len(set(found)) == len(found)
+    assert found[:2] == [("pilot", 2000), ("pilot", 2001)]
+    assert found[2:12] == [("n1", 100 + k) for k in range(10)]
+    assert ("bipars-em.b1", 104) in found and ("bipars-em.b2", 100) not in found
+    assert ("n3.b0", 100) in found and ("n3.b1", 100) not in found
+    assert plan.brackets == 3
+    arm, bracket = arm_of("n2-10.b2")
+    assert (arm.advice, arm.scale, bracket) == (AdviceKind.SHUFFLED, 10.0, 2)
+    assert arm_of("n1") == (arm_of("n1")[0], None)
+
+
+@pytest.mark.parametrize("kind", [AdviceKind.SHUFFLED, AdviceKind.INVERTED, AdviceKind.NOISY])
+def test_each_control_is_a_tree_over_the_advice_bracket_without_scores(kind: AdviceKind) -> None:
+    teacher_tree = load_tree(BRACKETS / "bracket_0.json")
+    plan = Round2Plan(env_id="Humanoid-v5", timesteps=1_000_000)
+    control = _control(kind, teacher_tree, plan, 0)
+    assert control.scores is None and control.first_round == teacher_tree.first_round
+    assert control.results != teacher_tree.results
+    own, other = tree_values(teacher_tree), tree_values(control)
+    if kind is AdviceKind.INVERTED:  # the advice's champion is the inverted tree's first loser
+        assert other[int(np.argmax(own))] == other.min()
+    if kind is AdviceKind.NOISY:  # 20% of the matches flipped: still close to the advice
+        assert spearmanr(own, other).statistic > 0.3
