@@ -1,39 +1,89 @@
-"""Strict JSON types of request and response bodies, for every feature's schemas."""
+"""The one integer rule of request input: strict types of JSON bodies, and of path and query
+integers, for every feature's schemas.
+
+Bounds go *inside* these types' number schemas, so the OpenAPI document states them as JSON
+Schema's ``minimum``/``maximum``/``exclusiveMinimum``/``exclusiveMaximum``. (A validator
+function wrapped around ``int`` would leave pydantic nowhere to put a later ``Field(ge=...)``
+but a function of its own, which it documents as the non-keywords ``ge``/``le``/``gt``.)
+``tests/app/test_strict_integers.py`` walks the OpenAPI document for every rule here.
+"""
 
 from __future__ import annotations
 
+import re
+from dataclasses import dataclass
 from datetime import datetime
-from typing import Annotated, Any
+from typing import Annotated, Any, TypeVar
 
-from pydantic import AfterValidator, BeforeValidator, ValidationInfo
+from pydantic import (
+    AfterValidator,
+    AllowInfNan,
+    BaseModel,
+    GetCoreSchemaHandler,
+    Strict,
+)
+from pydantic_core import CoreSchema, PydanticCustomError, core_schema
 
 from app.models import as_utc
 
-#: Validation context of HTML forms, whose every field is text: there ``"3"`` is an integer.
-FORM_INPUT = {"form": True}
-
-
-def _json_number(kind: str) -> Any:
-    def check(value: Any, info: ValidationInfo) -> Any:
-        from_form = isinstance(value, str) and bool(info.context and info.context.get("form"))
-        if (
-            isinstance(value, bool)
-            or (isinstance(value, str) and not from_form)
-            or (kind == "integer" and isinstance(value, float))
-        ):
-            # lax pydantic reads true as 1, "3" as 3 and 3.0 as 3
-            raise ValueError(f"must be a JSON {kind}")
-        return value
-
-    return check
-
+M = TypeVar("M", bound=BaseModel)
 
 #: The one rule for an integer of a request body: a JSON integer literal (``3``), never
-#: ``3.0``, ``true`` (a JSON ``false`` is not 0) or ``"3"``; an HTML form's text ``"3"`` is
-#: read with :data:`FORM_INPUT`. Every integer field of a request body is one
-#: (``tests/app/test_strict_integers.py`` checks them all, from the OpenAPI document).
-JsonInt = Annotated[int, BeforeValidator(_json_number("integer"))]
-#: A JSON number (an integer too), never ``true`` or ``"0.5"``.
-JsonFloat = Annotated[float, BeforeValidator(_json_number("number"))]
+#: ``3.0``, ``true`` (a JSON ``false`` is not 0), ``"3"`` or ``NaN``. Pydantic's own strict
+#: ``int``: its bounds (``Field(ge=...)`` beside it) are JSON Schema's. An HTML form's text
+#: ``"3"`` is read by :func:`from_form`. Every integer field of a request body is one.
+JsonInt = Annotated[int, Strict()]
+#: A JSON number (an integer too), never ``true``, ``"0.5"``, ``NaN`` or ``Infinity``.
+JsonFloat = Annotated[float, Strict(), AllowInfNan(False)]
 #: Stored times are UTC; SQLite hands them back naive.
 UtcDatetime = Annotated[datetime, AfterValidator(as_utc)]
+
+_DIGITS = re.compile(r"0|[1-9][0-9]*")
+_SIGNED = re.compile(r"0|-?[1-9][0-9]*")
+
+
+@dataclass(frozen=True)
+class IntParam:
+    """The rule for an integer path or query parameter, and its bounds (``Annotated[int,
+    IntParam(ge=1, le=9)]``): plain decimal digits, with a leading ``-`` only where ``ge``
+    allows negatives. ``1_0``, ``1.0``, ``01``, ``+1``, `` 1``, ``-0`` and ``0x1`` are
+    refused (lax parsing reads ``1_0`` as 10 and ``01`` as 1), as a body's integer refuses
+    ``"1"``. The bounds belong here, not in ``Path()``/``Query()``, which would put them
+    outside the check where OpenAPI cannot state them.
+
+    Attributes:
+        ge: the smallest value accepted.
+        le: the largest value accepted (every parameter has one: ids and steps are stored in
+            64-bit columns at most).
+    """
+
+    ge: int
+    le: int
+
+    def __get_pydantic_core_schema__(
+        self, source: Any, handler: GetCoreSchemaHandler
+    ) -> CoreSchema:
+        """An ``int`` schema holding the bounds, behind the check of the text."""
+        if source is not int:
+            raise TypeError(f"IntParam annotates int, not {source!r}")
+        return core_schema.no_info_before_validator_function(
+            self._check, core_schema.int_schema(ge=self.ge, le=self.le)
+        )
+
+    def _check(self, value: Any) -> Any:
+        """``value`` if it is decimal text (or an ``int``, a default); else a 422's error."""
+        pattern = _SIGNED if self.ge < 0 else _DIGITS
+        if type(value) is int or (isinstance(value, str) and pattern.fullmatch(value)):
+            return value
+        example = "12 or -1" if self.ge < 0 else "12"
+        raise PydanticCustomError(
+            "int_digits",
+            f"Input should be an integer in plain decimal digits, such as {example} (no '+', "
+            "leading zero, space, '_' or '.')",
+        )
+
+
+def from_form(model: type[M], data: dict[str, Any]) -> M:
+    """An HTML form's fields (``data``, all text) validated as ``model``'s JSON body: there
+    ``"3"`` is the integer 3 (a form has no other way to send one); bounds still hold."""
+    return model.model_validate(data, strict=False)

@@ -16,12 +16,13 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Annotated
 
 import anyio.to_thread
-from fastapi import Cookie, Depends, Path, Request
+from fastapi import Cookie, Depends, Request
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 from sqlalchemy.orm import Session
 
 from app.core import auth
 from app.core.errors import AuthError, ForbiddenError, TooManyAttemptsError
+from app.core.json_types import IntParam
 from app.db import POOL_CAPACITY
 from app.models import Participant
 from app.recruiting import members
@@ -55,10 +56,14 @@ ResearcherCookie = Annotated[str | None, Cookie(alias=auth.RESEARCHER_COOKIE)]
 MAX_SESSIONS = POOL_CAPACITY - 8
 #: Largest database id: ids are positive 32-bit integers (larger ones cannot exist).
 MAX_DB_ID = 2**31 - 1
-#: Database ids in paths.
-DbId = Annotated[int, Path(ge=1, le=MAX_DB_ID)]
+#: Database ids in paths and queries (:class:`~app.core.json_types.IntParam`: decimal digits).
+DbId = Annotated[int, IntParam(ge=1, le=MAX_DB_ID)]
 #: Candidate ids in paths: ``0 .. N-1`` with ``N <= 128``.
-CandidateId = Annotated[int, Path(ge=0, le=127)]
+CandidateId = Annotated[int, IntParam(ge=0, le=127)]
+#: Largest checkpoint step a query names (steps are 64-bit integers in the database).
+MAX_STEP = 2**62
+#: A checkpoint step in a query: the run's timesteps when it was saved.
+StepParam = Annotated[int, IntParam(ge=0, le=MAX_STEP)]
 #: Header the pages' scripts send on every JSON call (``static/js/api.js``). A cross-site
 #: form cannot set it, so a cookie-authenticated write without it may be forged (CSRF).
 AJAX_HEADER = ("X-Requested-With", "acv")

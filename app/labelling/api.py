@@ -4,10 +4,11 @@ from __future__ import annotations
 
 from typing import Annotated, Any
 
-from fastapi import APIRouter, Path, Request, Response
+from fastapi import APIRouter, Request, Response
 from fastapi.responses import JSONResponse
 
 from app.core.errors import ForbiddenError
+from app.core.json_types import IntParam
 from app.http.deps import DbId, ResearcherDep, RuntimeDep, SessionDep, ViewerDep
 from app.http.member_auth import InviteTokenDep, ParticipantDep
 from app.http.urls import image_url
@@ -141,7 +142,7 @@ def disagreement_pairs(person: ParticipantDep, session: SessionDep) -> list[Pair
     },
 )
 def label_pair(
-    position: Annotated[int, Path(ge=0, le=MAX_PAIRS)],
+    position: Annotated[int, IntParam(ge=0, le=MAX_PAIRS)],
     body: LabelIn,
     person: ParticipantDep,
     session: SessionDep,
@@ -177,7 +178,7 @@ def pair_out(study_id: int, pair: disagreement.PairView) -> PairOut:
             "model": GoldLabelOut,
         },
         404: {"description": "No such gold item for this participant."},
-        409: {"description": "The item is already answered the other way."},
+        409: {"description": "The item is already answered the other way, or not due yet."},
         422: {"description": "The winner is not one of the pair."},
     },
 )

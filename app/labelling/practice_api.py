@@ -5,9 +5,10 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import APIRouter, Path
+from fastapi import APIRouter
 from fastapi.responses import FileResponse
 
+from app.core.json_types import IntParam
 from app.http.deps import SessionDep, SettingsDep
 from app.http.member_auth import ParticipantDep
 from app.labelling import practice
@@ -17,7 +18,7 @@ from engine.practice import MAX_PRACTICE_PAIRS, PracticePair, Side
 
 router = APIRouter(prefix="/participants/me/practice", tags=["participants"])
 PATH = "/api" + router.prefix
-Position = Annotated[int, Path(ge=0, le=MAX_PRACTICE_PAIRS - 1)]
+Position = Annotated[int, IntParam(ge=0, le=MAX_PRACTICE_PAIRS - 1)]
 
 
 def practice_image_url(position: int, side: Side) -> str:

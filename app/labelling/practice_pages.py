@@ -11,8 +11,9 @@ from __future__ import annotations
 
 from typing import Annotated, Any
 
-from fastapi import APIRouter, Query, Request, Response
+from fastapi import APIRouter, Request, Response
 
+from app.core.json_types import IntParam
 from app.http.deps import SessionDep, SettingsDep
 from app.http.guards import PageParticipant
 from app.http.rendering import PageRoute, RedirectTo, render
@@ -31,7 +32,7 @@ def practice_page(
     session: SessionDep,
     person: PageParticipant,
     settings: SettingsDep,
-    pair: Annotated[int, Query(ge=0, le=MAX_PRACTICE_PAIRS - 1)] = 0,
+    pair: Annotated[int, IntParam(ge=0, le=MAX_PRACTICE_PAIRS - 1)] = 0,
     chose: Side | None = None,
 ) -> Response:
     """Practice pair ``pair``, or the feedback on choosing ``chose`` in it; the bracket once

@@ -13,6 +13,7 @@ from fastapi import APIRouter, Path, Request
 from pydantic import BaseModel
 from sqlalchemy.orm import Session
 
+from app.core.json_types import IntParam
 from app.core.rows import from_row
 from app.http.deps import MAX_DB_ID, ResearcherDep, SessionDep
 from app.recruiting import service as recruiting
@@ -47,7 +48,7 @@ def open_link_api_router(api: LinkApi) -> APIRouter:
     """``PUT`` and ``GET /<collections>/{<noun>_id}/crowd`` for ``api``'s kind of collection."""
     noun, link = api.kind.members.noun, api.kind.prefix
     id_name = f"{noun}_id"
-    CollectionId = Annotated[int, Path(ge=1, le=MAX_DB_ID, alias=id_name)]
+    CollectionId = Annotated[int, IntParam(ge=1, le=MAX_DB_ID), Path(alias=id_name)]
     router = APIRouter(prefix=f"/{api.collections}", tags=[api.tag])
     path = f"/{{{id_name}}}/crowd"
 

@@ -9,9 +9,10 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import APIRouter, Query
+from fastapi import APIRouter
 
-from app.http.deps import DbId, ResearcherDep, SessionDep
+from app.core.json_types import IntParam
+from app.http.deps import MAX_STEP, DbId, ResearcherDep, SessionDep
 from app.models import RunStatus
 from app.runs import run_state
 from app.runs import service as runs
@@ -37,7 +38,7 @@ def create_run(body: RunCreate, session: SessionDep, _: ResearcherDep) -> RunCre
 def list_runs(
     session: SessionDep,
     _: ResearcherDep,
-    study_id: Annotated[int | None, Query(ge=1, le=2**31 - 1)] = None,
+    study_id: DbId | None = None,
 ) -> list[RunOut]:
     """All runs, or one study's, newest first."""
     return [RunOut.of(r) for r in runs.list_runs(session, study_id=study_id)]
@@ -68,7 +69,7 @@ def run_metrics(
     run_id: DbId,
     session: SessionDep,
     _: ResearcherDep,
-    after: Annotated[int, Query(ge=-1)] = -1,
+    after: Annotated[int, IntParam(ge=-1, le=MAX_STEP)] = -1,
 ) -> list[MetricsRowOut]:
     """The run's metrics rows (one per update) with ``timesteps`` above ``after``."""
     runs.get_run(session, run_id=run_id)

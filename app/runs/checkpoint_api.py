@@ -20,7 +20,7 @@ from fastapi.responses import HTMLResponse
 from sqlalchemy.orm import Session
 
 from app.core.figures import FORMATS
-from app.http.deps import DbId, ResearcherDep, SessionDep, SettingsDep
+from app.http.deps import DbId, ResearcherDep, SessionDep, SettingsDep, StepParam
 from app.http.errors import RESPONSES
 from app.http.files import attachment
 from app.models import Run
@@ -34,7 +34,7 @@ from engine.judges import DEFAULT_JUDGE
 from engine.treefile import tree_to_json
 
 router = APIRouter(prefix="/runs", tags=["runs"])
-Step = Annotated[int | None, Query(ge=0, description="Checkpoint timesteps (default: latest).")]
+Step = Annotated[StepParam | None, Query(description="Checkpoint timesteps (default: latest).")]
 JudgeQuery = Annotated[Judge, Query(description="How the agent scores states.")]
 #: The answers of an operation on a run's checkpoint, besides those of every operation.
 NO_CHECKPOINT: dict[int | str, dict[str, Any]] = {
@@ -161,10 +161,10 @@ def tree_image(
     return attachment(data, FORMATS[fmt], f"run-{at.run_id}-{which}-tree-{view.step}.{fmt}")
 
 
-@router.get("/{run_id}/report.html", response_class=HTMLResponse, responses=NO_CHECKPOINT)
+@router.get("/{run_id}/report.html", response_class=HTMLResponse, responses=PENDING)
 def report(at: AtCheckpointDep, settings: SettingsDep, download: bool = False) -> HTMLResponse:
     """A self-contained HTML report (both trees, the rejected advice as image pairs, the
-    metrics and curves; images inline, no scripts)."""
+    metrics and curves; images inline, no scripts); 202 while the checkpoint is judged."""
     session, run_id = at.session, at.run_id
     run = runs.get_run(session, run_id=run_id)
     study = studies.get_study(session, study_id=run.study_id)

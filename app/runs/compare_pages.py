@@ -6,14 +6,14 @@ Their script (``static/js/compare.js``) polls and draws from ``/api/runs``.
 
 from __future__ import annotations
 
-from typing import Annotated, Any
+from typing import Any
 
-from fastapi import APIRouter, Query, Request
+from fastapi import APIRouter, Request
 from fastapi.responses import HTMLResponse
 from sqlalchemy.orm import Session
 
 from app.core.errors import PendingError
-from app.http.deps import DbId, SessionDep
+from app.http.deps import DbId, SessionDep, StepParam
 from app.http.guards import ResearcherPage
 from app.http.rendering import PageRoute, render, thumb_template
 from app.models import Run
@@ -44,7 +44,7 @@ def compare_page(
     run_id: DbId,
     request: Request,
     session: SessionDep,
-    checkpoint: Annotated[int | None, Query(ge=0)] = None,
+    checkpoint: StepParam | None = None,
     judge: Judge | None = None,
 ) -> HTMLResponse:
     """Human and Agent Preference Tree side by side, the rejected advice, the metrics with a

@@ -23,7 +23,15 @@ from sqlalchemy.orm import Session
 from app.core.errors import NotFoundError
 from app.db import writing
 from app.labelling import disagreement
-from app.models import Experiment, ExperimentRole, ExperimentRun, Run, RunStatus
+from app.models import (
+    CheckpointArtefact,
+    Experiment,
+    ExperimentRole,
+    ExperimentRun,
+    Run,
+    RunCheckpoint,
+    RunStatus,
+)
 from app.runs import artefacts
 from app.runs import service as runs
 from app.runs.spec import RunSpec
@@ -176,11 +184,14 @@ def experiment_verdict(
     of every role, :data:`MIN_JUDGED`); None while no such step exists yet.
 
     Raises:
-        NotFoundError: no such experiment.
+        NotFoundError: no such experiment, or ``step`` is no checkpoint of its runs.
         InputError: a judge the runs' artefacts do not score.
     """
     experiment = get_experiment(session, experiment_id=experiment_id)
-    judged = _judged_tables(session, members(session, experiment_id=experiment_id))
+    runs_ = members(session, experiment_id=experiment_id)
+    if step is not None:
+        _check_step(session, experiment_id, [run.id for _, run in runs_], step)
+    judged = _judged_tables(session, runs_)
     step = _verdict_step(judged) if step is None else step
     if step is None:
         return None
@@ -203,6 +214,19 @@ def experiment_verdict(
     result = verdict(inputs, np.random.default_rng([experiment.id, step]))
     used = {role: list(rows) for role, rows in table.items()}  # in the arrays' order
     return ExperimentVerdict(judge=judge, step=step, verdict=result, runs=used)
+
+
+def _check_step(session: Session, experiment_id: int, run_ids: list[int], step: int) -> None:
+    """:class:`NotFoundError` unless a run of the experiment saved a checkpoint at ``step``
+    (judged or not yet); compared here, not in SQL, where any int may be asked."""
+    saved = select(RunCheckpoint.step).where(RunCheckpoint.run_id.in_(run_ids))
+    stored = select(CheckpointArtefact.step).where(CheckpointArtefact.run_id.in_(run_ids))
+    steps = set(session.scalars(saved.union(stored)))
+    if step not in steps:
+        latest = f"; the latest is step {max(steps)}" if steps else "; they have none yet"
+        raise NotFoundError(
+            f"experiment {experiment_id}'s runs have no checkpoint at step {step}{latest}"
+        )
 
 
 def _judged_tables(session: Session, members_: list[tuple[ExperimentRole, Run]]) -> JudgedTables:

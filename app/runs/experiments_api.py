@@ -2,7 +2,8 @@
 verdict that compares them (docs/method.md §2.11).
 
 ``POST`` queues the runs (202); the verdict answers 202 ``{"status": "pending"}`` until enough
-runs of every role have a judged checkpoint, then the verdict at the latest such step.
+runs of every role have a judged checkpoint, then the verdict at the latest such step. A
+``step`` asked for that no run of the experiment has saved is a 404.
 """
 
 from __future__ import annotations
@@ -17,7 +18,8 @@ from pydantic import BaseModel, ConfigDict, Field
 from app.core.csv_export import csv_text
 from app.core.json_types import JsonInt, UtcDatetime
 from app.core.rows import from_row
-from app.http.deps import DbId, ResearcherDep, SessionDep
+from app.http.deps import DbId, ResearcherDep, SessionDep, StepParam
+from app.http.errors import RESPONSES
 from app.http.files import attachment
 from app.models import Experiment, ExperimentRole, RunStatus
 from app.runs import experiment_notes, experiments
@@ -38,7 +40,11 @@ from engine.rl.config import Algo
 
 router = APIRouter(prefix="/experiments", tags=["experiments"])
 PENDING: dict[int | str, dict[str, Any]] = {
-    202: {"description": 'Not enough runs judged yet: {"status": "pending"}; ask again.'}
+    202: {"description": 'Not enough runs judged yet: {"status": "pending"}; ask again.'},
+    404: {
+        **RESPONSES[404],
+        "description": "No such experiment, or ``step`` is no checkpoint of its runs.",
+    },
 }
 
 
@@ -120,7 +126,7 @@ def create_experiment(
 def list_experiments(
     session: SessionDep,
     _: ResearcherDep,
-    study_id: Annotated[int | None, Query(ge=1, le=2**31 - 1)] = None,
+    study_id: DbId | None = None,
 ) -> list[ExperimentOut]:
     return [_out(session, e) for e in experiments.list_experiments(session, study_id=study_id)]
 
@@ -131,7 +137,7 @@ def get_experiment(experiment_id: DbId, session: SessionDep, _: ResearcherDep) -
 
 
 JudgeQuery = Annotated[Judge, Query(description="How the runs score states.")]
-StepQuery = Annotated[int | None, Query(ge=0, description="Checkpoint (default: latest).")]
+StepQuery = Annotated[StepParam | None, Query(description="Checkpoint (default: latest).")]
 
 
 @router.get("/{experiment_id}/verdict", responses=PENDING)

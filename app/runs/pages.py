@@ -9,16 +9,16 @@ with the CSRF token.
 from __future__ import annotations
 
 import re
-from typing import Annotated, Any
+from typing import Any
 
-from fastapi import APIRouter, Query, Request, Response
+from fastapi import APIRouter, Request, Response
 from fastapi.responses import HTMLResponse
 from pydantic import TypeAdapter, ValidationError
 from sqlalchemy.orm import Session
 
-from app.core.json_types import FORM_INPUT
+from app.core.json_types import from_form
 from app.http.csrf import CsrfChecked, FormFields
-from app.http.deps import MAX_DB_ID, DbId, SessionDep
+from app.http.deps import DbId, SessionDep
 from app.http.guards import ResearcherPage
 from app.http.rendering import PageRoute, redirect, render
 from app.models import Participant, StudyStatus
@@ -59,7 +59,7 @@ _DB_ID = TypeAdapter(DbId)
 def run_list(
     request: Request,
     session: SessionDep,
-    study_id: Annotated[int | None, Query(ge=1, le=MAX_DB_ID)] = None,
+    study_id: DbId | None = None,
 ) -> HTMLResponse:
     """Every run (or one study's), newest first, with a link to launch one."""
     study = studies.get_study(session, study_id=study_id) if study_id else None
@@ -143,7 +143,7 @@ def _form_page(
 def new_run_form(
     request: Request,
     session: SessionDep,
-    study_id: Annotated[int | None, Query(ge=1, le=MAX_DB_ID)] = None,
+    study_id: DbId | None = None,
 ) -> HTMLResponse:
     """The launch form for a run of ``study_id``; without one, the study picker (a bookmarked
     or typed ``/runs/new``)."""
@@ -198,15 +198,13 @@ def create_run(request: Request, session: SessionDep, fields: FormFields) -> Res
     body = _body(study_id, values, chosen)
     try:
         if values["experiment"]:  # seeds checked even where ppo (its own baseline) ignores them
-            spec = ExperimentCreate.model_validate(
-                body | {"seeds": values["seeds"].strip()}, context=FORM_INPUT
+            spec = from_form(
+                ExperimentCreate, body | {"seeds": values["seeds"].strip()}
             ).experiment_spec()
             if values["algo"] != "ppo":
                 experiment = experiments.create_experiment(session, spec=spec)
                 return redirect(f"/experiments/{experiment.id}")
-        run = runs.create_run(
-            session, spec=RunCreate.model_validate(body, context=FORM_INPUT).spec()
-        )
+        run = runs.create_run(session, spec=from_form(RunCreate, body).spec())
     except ValidationError as exc:
         errors = {str(e["loc"][0]) if e["loc"] else "form": e["msg"] for e in exc.errors()}
         return _form_page(request, session, study_id, values, errors, 422, chosen)

@@ -5,10 +5,11 @@ from __future__ import annotations
 from dataclasses import asdict
 from typing import Annotated, Any
 
-from fastapi import APIRouter, Query, Request, Response
+from fastapi import APIRouter, Request, Response
 from fastapi.responses import FileResponse
 
 from app.core.errors import NotFoundError
+from app.core.json_types import IntParam
 from app.core.rows import from_row
 from app.http.deps import (
     CandidateId,
@@ -72,7 +73,7 @@ def study_power(
     study_id: DbId,
     session: SessionDep,
     _: ResearcherDep,
-    seeds: Annotated[int, Query(ge=MIN_SEEDS, le=MAX_SEEDS)] = DEFAULT_SEEDS,
+    seeds: Annotated[int, IntParam(ge=MIN_SEEDS, le=MAX_SEEDS)] = DEFAULT_SEEDS,
 ) -> list[AdvicePowerOut]:
     """Can this bracket tell? Per finished participant: the matches that can tell whether an
     agent used their advice, estimated with R standing in for an agent without it, and the

@@ -28,7 +28,7 @@ from sqlalchemy.orm import Session
 
 from app.core.errors import ConflictError, NotFoundError
 from app.db import writing
-from app.models import Candidate, GoldAnswer, GoldItem, Participant, Study, as_utc, utcnow
+from app.models import Candidate, GoldAnswer, GoldItem, Label, Participant, Study, as_utc, utcnow
 from app.studies.service import get_ready_study, get_study
 from app.studies.sides import a_on_left
 from engine.errors import InputError
@@ -221,7 +221,8 @@ def answer(
     Raises:
         NotFoundError: the participant has no such gold item.
         InputError: ``winner`` is not one of the pair.
-        ConflictError: already answered the other way.
+        ConflictError: already answered the other way, or not due yet (fewer bracket
+            matches decided than its position).
     """
     row = session.get(GoldAnswer, (participant_id, item_id))
     if row is None:
@@ -233,6 +234,16 @@ def answer(
         if row.winner != winner:
             raise ConflictError(f"gold item {item_id} is already answered")
         return row, False
+    done = session.scalar(
+        select(func.count(Label.id)).where(Label.participant_id == participant_id)
+    )
+    if row.position > (
+        done or 0
+    ):  # shown only once that many matches are decided: no answering ahead
+        raise ConflictError(
+            f"gold item {item_id} is not due yet: it comes after {row.position} decided "
+            f"matches, and {done} are decided"
+        )
     now, participant = utcnow(), session.get_one(Participant, participant_id)
     if response_ms is None:
         opened = participant.last_active_at or participant.created_at

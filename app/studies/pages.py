@@ -8,12 +8,12 @@ from __future__ import annotations
 
 from typing import Annotated, Any
 
-from fastapi import APIRouter, Query, Request, Response
+from fastapi import APIRouter, Request, Response
 from fastapi.responses import HTMLResponse
 from pydantic import ValidationError
 from sqlalchemy.orm import Session
 
-from app.core.json_types import FORM_INPUT
+from app.core.json_types import IntParam, from_form
 from app.http.csrf import CsrfChecked, FormFields
 from app.http.deps import DbId, RuntimeDep, SessionDep, SettingsDep
 from app.http.guards import ResearcherPage
@@ -109,7 +109,7 @@ def create_study(
     """Validate like ``POST /api/studies``; errors are shown next to the form's fields."""
     values = {k: fields.get(k, OPTIONAL_FIELDS.get(k, "")) for k in FORM_DEFAULTS}
     try:
-        body = StudyCreate.model_validate(_form_body(values), context=FORM_INPUT)
+        body = from_form(StudyCreate, _form_body(values))
         study = studies.create_study(session, spec=body.spec())
     except ValidationError as exc:
         errors = {str(e["loc"][0]) if e["loc"] else "form": e["msg"] for e in exc.errors()}
@@ -134,7 +134,7 @@ def study_page(
     request: Request,
     session: SessionDep,
     settings: SettingsDep,
-    invited: Annotated[int, Query(ge=0, le=MAX_BATCH)] = 0,
+    invited: Annotated[int, IntParam(ge=0, le=MAX_BATCH)] = 0,
 ) -> HTMLResponse:
     """Candidates, participants with progress and invite links, finished trees, and
     webhooks."""

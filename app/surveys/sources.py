@@ -8,6 +8,7 @@ executor), and a checkpoint whose artefact is not stored yet is a 409 conflict.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -106,6 +107,7 @@ def _run(session: Session, run_id: int | None, step: int | None, judge: str | No
 def _upload(session: Session, obj: dict[str, Any] | None, study_id: int | None) -> ResolvedTree:
     if obj is None:
         raise InputError("an uploaded tree needs doc (an acv.tree/1 document)")
+    _check_numbers(obj)
     doc = tree_from_json(obj)
     if study_id is not None:
         study = session.get(Study, study_id)
@@ -117,6 +119,29 @@ def _upload(session: Session, obj: dict[str, Any] | None, study_id: int | None) 
                 f"candidates) is not over study {study_id}'s candidates"
             )
     return ResolvedTree(doc, study_id, {"kind": "upload", "judge": doc.judge})
+
+
+def _check_numbers(obj: dict[str, Any]) -> None:
+    """Refuse an uploaded document's booleans and non-finite numbers, as a request body's
+    number fields refuse them: the tree reader would take ``env_reward: true`` for 1.0. Its
+    one flag, a match's ``tie``, may be true or false.
+
+    Raises:
+        InputError: names the first such value's place (``candidates[0].env_reward``).
+    """
+    stack: list[tuple[str, str, Any]] = [("", "", obj)]  # (place, key, value), iteratively
+    while stack:
+        place, key, value = stack.pop()
+        if isinstance(value, bool) and key != "tie":
+            flag = str(value).lower()
+            raise InputError(f"'{place}' is {flag}: only a match's 'tie' may be a boolean")
+        if isinstance(value, float) and not math.isfinite(value):
+            raise InputError(f"'{place}' must be a finite number, got {value!r}")
+        if isinstance(value, dict):
+            dotted = f"{place}." if place else ""
+            stack += [(f"{dotted}{k}", str(k), v) for k, v in reversed(value.items())]
+        elif isinstance(value, list):
+            stack += [(f"{place}[{i}]", "", v) for i, v in reversed(list(enumerate(value)))]
 
 
 def highlights(tree1: TreeDocument, tree2: TreeDocument) -> tuple[list[int], list[int]]:

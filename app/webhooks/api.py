@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import APIRouter, Path, Query, Response
+from fastapi import APIRouter, Path, Response
 from sqlalchemy.orm import Session
 
 from app.core.rows import from_row
@@ -18,7 +18,7 @@ from app.webhooks.schemas import AttemptOut, EventOut, WebhookIn, WebhookOut
 from engine.errors import InputError
 
 router = APIRouter(prefix="/webhooks", tags=["webhooks"])
-OwnerId = Annotated[int | None, Query(ge=1, le=2**31 - 1)]
+OwnerId = DbId | None
 
 
 def webhook_outs(session: Session, hooks: list[Webhook], *, max_attempts: int) -> list[WebhookOut]:

@@ -20,7 +20,7 @@ from sqlalchemy import func, select
 from typer.testing import CliRunner
 
 from app.cli.root import cli
-from app.models import Run
+from app.models import Run, RunCheckpoint
 from app.runs import artefacts, comparison
 from tests.support.artefacts import report_body
 from tests.support.labelling import label_bracket
@@ -220,6 +220,33 @@ def test_unknown_experiments_and_judges(client, study) -> None:
     )
     assert response.status_code == 422
     assert client.get("/api/experiments", headers={}).status_code == 401
+
+
+def test_a_step_that_is_no_checkpoint_of_the_runs_is_404(client, study) -> None:
+    """A verdict at a step no run of the experiment saved is not pending (issue 45 §6): it is
+    a 404 naming the step; past the documented maximum, the query is a 422."""
+    experiment = _create(client, study_id=study["id"], teacher="good", seeds=2, **BODY)
+    path = f"/api/experiments/{experiment['id']}/verdict"
+    advised = experiment["runs"][0]["id"]
+    _write_artefact(client, advised, STEP, np.zeros(8))  # judged, in too few runs
+    with client.app.state.runtime.sessions() as session:  # saved, not judged yet
+        session.add(RunCheckpoint(run_id=advised, step=2 * STEP))
+        session.commit()
+    for url in (path, f"{path}.csv"):
+        for step in (STEP, 2 * STEP):
+            response = client.get(url, params={"step": step}, headers=ADMIN)
+            assert response.status_code == 202 and response.json() == {"status": "pending"}
+        for step in (STEP + 1, 2**62):
+            response = client.get(url, params={"step": step}, headers=ADMIN)
+            assert response.status_code == 404, response.text
+            assert f"no checkpoint at step {step};" in response.json()["detail"]
+        response = client.get(url, params={"step": 2**63}, headers=ADMIN)
+        assert response.status_code == 422 and response.json()["detail"][0]["loc"] == [
+            "query",
+            "step",
+        ]
+    documented = client.app.openapi()["paths"]["/api/experiments/{experiment_id}/verdict"]
+    assert "no checkpoint of its runs" in documented["get"]["responses"]["404"]["description"]
 
 
 def test_the_cli_queues_lists_and_gives_the_verdict(client, study, settings, monkeypatch) -> None:

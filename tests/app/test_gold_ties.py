@@ -110,6 +110,23 @@ def test_a_due_gold_item_cannot_be_skipped(
     assert answered.status_code == 201 and answered.json()["next"]["match_id"] == match["match_id"]
 
 
+def test_a_gold_item_cannot_be_answered_before_it_is_due(
+    client: TestClient, gold_study: dict[str, Any], gold_items: list[dict[str, Any]], invite
+) -> None:
+    """Answering ahead would take the check out of its place among the matches (issue 45
+    §6): a 409 that stores nothing; once shown, the item is answered as usual."""
+    player = invite(gold_study["id"])
+    first = player.next_match()
+    for item in gold_items:
+        early = player.answer_gold(item["id"], item["answer"])
+        assert early.status_code == 409, early.text
+        assert f"gold item {item['id']} is not due yet" in early.json()["detail"]
+    assert player.next_match() == first
+    assert _quality_of(client, gold_study["id"], player.id)["gold_asked"] == 0
+    seen = _walk(player, lambda match: match["a"]["candidate_id"])
+    assert sorted(m["gold"]["item_id"] for m in seen) == sorted(g["id"] for g in gold_items)
+
+
 def test_the_marker_is_drawn_on_the_image(client: TestClient, gold_study: dict[str, Any]) -> None:
     url = f"/api/studies/{gold_study['id']}/candidates/2/image"
     plain, marked = client.get(url, headers=ADMIN), client.get(url + "?marker=true", headers=ADMIN)

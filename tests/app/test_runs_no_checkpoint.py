@@ -1,5 +1,7 @@
 """A run with no checkpoint yet is a state, not bad input: every operation on its checkpoint
-answers 409, as the OpenAPI document says (issue 24), on SQLite and PostgreSQL."""
+answers 409, as the OpenAPI document says (issue 24); while a saved checkpoint is being
+judged, each answers 202, documented too (issue 45 §6: ``report.html`` did not say so). On
+SQLite and PostgreSQL."""
 
 from __future__ import annotations
 
@@ -8,6 +10,7 @@ from collections.abc import Iterator
 import pytest
 from fastapi.testclient import TestClient
 
+from app.models import RunCheckpoint
 from tests.support.runs import TINY, create_run, finished_participant, run_app
 from tests.support.studies import new_study
 from tests.support.web import ADMIN
@@ -52,3 +55,29 @@ def test_the_schema_documents_the_409(client: TestClient, path: str) -> None:
     template = path.split("?")[0].replace("agent.svg", "{which}.{fmt}")
     operation = client.app.openapi()["paths"][template]["get"]
     assert "no checkpoint yet" in operation["responses"]["409"]["description"]
+
+
+@pytest.fixture(scope="module")
+def judging_run(client: TestClient) -> int:
+    """A run whose checkpoint 256 is saved and not judged yet (no artefact stored)."""
+    study = new_study(client)
+    participant = finished_participant(client, study["id"])
+    run_id = create_run(
+        client, study_id=study["id"], participant_id=participant, timesteps=1024, **TINY
+    )
+    with client.app.state.runtime.sessions() as session:  # as the executor records it
+        session.add(RunCheckpoint(run_id=run_id, step=256))
+        session.commit()
+    return run_id
+
+
+@pytest.mark.parametrize("path", ON_A_CHECKPOINT)
+def test_a_checkpoint_being_judged_is_a_documented_202(
+    client: TestClient, judging_run: int, path: str
+) -> None:
+    response = client.get(path.format(run_id=judging_run), headers=ADMIN)
+    assert response.status_code == 202, response.text
+    assert response.json()["status"] == "pending"
+    template = path.split("?")[0].replace("agent.svg", "{which}.{fmt}")
+    operation = client.app.openapi()["paths"][template]["get"]
+    assert "pending" in operation["responses"]["202"]["description"]

@@ -170,6 +170,43 @@ def test_uploads_with_non_finite_numbers_are_422(client, trees, where: str, toke
     assert "must be a finite number" in response.json()["detail"]
 
 
+#: Places of numbers in an uploaded tree, as the refusal names them, and their keys.
+NUMBER_PLACES = {
+    "candidates[0].env_reward": ("candidates", 0, "env_reward"),
+    "candidates[1].score": ("candidates", 1, "score"),
+    "candidates[0].qpos[0]": ("candidates", 0, "qpos", 0),
+    "tree_reward.r_b": ("tree_reward", "r_b"),
+    "seed": ("seed",),
+    "p": ("p",),
+    "matches[0].winner": ("matches", 0, "winner"),
+}
+
+
+@pytest.mark.parametrize("flag", [True, False])
+@pytest.mark.parametrize("place", sorted(NUMBER_PLACES))
+def test_uploads_with_booleans_for_numbers_are_422(client, trees, place: str, flag) -> None:
+    """``env_reward: true`` is not a reward of 1 (the tree reader would take it for one): a
+    boolean where a number belongs is refused, as in every request body (issue 45 §6)."""
+    doc = copy.deepcopy(trees["bent_doc"])
+    for c in doc["candidates"]:
+        c["score"] = 1.0
+    *parents, last = NUMBER_PLACES[place]
+    holder = doc
+    for key in parents:
+        holder = holder[key]
+    holder[last] = flag
+    body = paper_body(trees["human"], {"kind": "upload", "doc": doc})
+    response = client.post("/api/surveys", json=body, headers=ADMIN)
+    assert response.status_code == 422, response.text
+    assert f"'{place}' is {str(flag).lower()}" in response.json()["detail"]
+
+
+def test_a_matchs_tie_flag_is_the_one_boolean_of_an_upload(client, trees) -> None:
+    doc = copy.deepcopy(trees["bent_doc"])
+    doc["matches"][0]["tie"] = False  # absent means false: the same tree
+    create(client, paper_body(trees["human"], {"kind": "upload", "doc": doc}))
+
+
 def test_semantic_errors_name_the_problem(client, trees, invite) -> None:
     unknown_judge = trees["agent"] | {"judge": "value"}
     response = client.post(
