@@ -13,7 +13,7 @@ from collections.abc import Callable
 from functools import lru_cache
 
 import numpy as np
-from scipy.stats import mannwhitneyu, permutation_test
+from scipy.stats import permutation_test
 
 #: Permutations for a Monte Carlo test when the exact one has more arrangements than this.
 N_PERMUTATIONS = 9999
@@ -76,8 +76,21 @@ def smallest_p(k_advised: int, k_baseline: int, n_resamples: int = N_PERMUTATION
 def auc(advised: np.ndarray, baseline: np.ndarray) -> float:
     """P(an advised seed's CA > a baseline seed's CA), ties counted half: Mann-Whitney U over
     ``k_advised * k_baseline``."""
-    u = mannwhitneyu(advised, baseline, alternative="two-sided").statistic
-    return float(u) / (len(advised) * len(baseline))
+    return float(auc_rows(np.asarray(advised), np.asarray(baseline)))
+
+
+def auc_rows(advised: np.ndarray, baseline: np.ndarray) -> np.ndarray:
+    """:func:`auc` along the last axis of every row at once, shape ``(...)``: Mann-Whitney's
+    U statistic counted directly (scipy's ``mannwhitneyu`` costs milliseconds a call, and a
+    bootstrap calls it thousands of times).
+
+    Args:
+        advised: shape ``(..., k_a)``.
+        baseline: shape ``(..., k_b)``, leading axes broadcast against ``advised``'s.
+    """
+    a, b = advised[..., :, None], baseline[..., None, :]
+    found: np.ndarray = ((a > b) + 0.5 * (a == b)).mean(axis=(-2, -1))
+    return found
 
 
 def crossed_bootstrap(

@@ -67,7 +67,7 @@ def validate_round2(
             from engine.validation.round2_measure import run_round
 
             done = run_round(out, plan, workers)
-            typer.echo(f"{len(done)} runs measured in {out / 'measures'}")
+            typer.echo(f"{len(done)} runs measured; wrote {out / 'summary.json'} and report.md")
             return
         _train_only(out, plan, workers, runs, stop_after)
 

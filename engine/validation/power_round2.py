@@ -19,10 +19,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.stats import binomtest, spearmanr
 
-from engine.validation.round2 import known_direction
-from engine.verdict_power import auc, permutation_p
+from engine.validation.round2_criteria import Round, criteria
 
 ARMS = {"p1-10": 1.0, "n2-10": 0.0, "bipars-em": 1.0, "n3": -0.5}
 #: The arms on each of round 2's three Humanoid brackets (``n1`` is on all).
@@ -74,71 +72,15 @@ def _runs(
     return np.stack([own, shuffled, truth])
 
 
-def simulate(effect: float, model: Model, rng: np.random.Generator) -> list[dict[str, np.ndarray]]:
+def simulate(effect: float, model: Model, rng: np.random.Generator) -> Round:
     """One simulated round: per bracket, per arm, ``(3, seeds)``; ``n1``'s 10 seeds shared."""
     n1 = rng.normal(0, model.seed_sd, 10)
     return [_bracket(effect, arms, n1, model, rng) for arms in ON_BRACKET]
 
 
-def _call(arm: np.ndarray, n1: np.ndarray, rng: np.random.Generator) -> str:
-    """The product's verdict: the arm's 5 seeds against ``n1``'s first 5, exact test."""
-    p = float(permutation_p(arm[0], n1[0, :5], rng))
-    delta = arm[0].mean() - n1[0, :5].mean()
-    return "no-different" if p > 0.05 else ("used" if delta > 0 else "against")
-
-
-def criteria(round_: list[dict[str, np.ndarray]], rng: np.random.Generator) -> dict[str, bool]:
-    """Whether C1, C3, C4, C5, C7 and C8 pass (the C1 interval left to the bootstrap of
-    :func:`separation_low`)."""
-    aucs = [auc(b["p1-10"][0], np.concatenate([b["n1"][0], b["n2-10"][0]])) for b in round_]
-    rhos = [_rho(b) for b in round_]
-    shuffled_calls = [_call(b["n2-10"], b["n1"], rng) for b in round_]
-    against = sum(c == "against" for c in shuffled_calls)
-    c7 = all(
-        _call(b["bipars-em"], b["n1"], rng) == "used"
-        for b in round_
-        if "bipars-em" in b and known_direction(b["bipars-em"][2], b["n1"][2]) == "follows"
-    )
-    return {
-        "C1": bool(np.mean(aucs) >= 0.9 and separation_low(round_, rng) >= 0.75),
-        "C3": bool(np.mean(rhos) >= 0.7),
-        "C4": _call(round_[0]["n3"], round_[0]["n1"], rng) == "against",
-        "C5": "used" not in shuffled_calls
-        and binomtest(against, len(round_), 0.05, alternative="greater").pvalue > 0.05,
-        "C7": c7,
-        "C8": _sign(round_, "p1-10", 1) and _sign(round_, "n2-10", -1),
-    }
-
-
-def _rho(b: dict[str, np.ndarray]) -> float:
-    n1 = b["n1"]
-    runs = [b[a] for a in b if a != "n1"]
-    delta = np.concatenate([r[0] - n1[0].mean() for r in runs])
-    delta_u = np.concatenate([r[2] - n1[2].mean() for r in runs])
-    return float(spearmanr(delta, delta_u).statistic)
-
-
-def _sign(round_: list[dict[str, np.ndarray]], arm: str, side: int) -> bool:
-    diffs = np.concatenate([side * (b[arm][0] - b[arm][1]) for b in round_])
-    test = binomtest(int((diffs > 0).sum()), len(diffs), 0.5, alternative="greater")
-    return bool(test.pvalue <= 0.05)
-
-
-def separation_low(
-    round_: list[dict[str, np.ndarray]], rng: np.random.Generator, n_boot: int = 200
-) -> float:
-    """C1's interval's lower bound: seeds resampled within each arm and bracket (``n1`` once
-    per draw, shared), the brackets kept (stratified), AUC averaged over brackets."""
-    draws = []
-    for _ in range(n_boot):
-        n1 = rng.integers(0, 10, 10)
-        found = []
-        for b in round_:
-            pos = b["p1-10"][0][rng.integers(0, 5, 5)]
-            neg = np.concatenate([b["n1"][0][n1], b["n2-10"][0][rng.integers(0, 5, 5)]])
-            found.append(auc(pos, neg))
-        draws.append(np.mean(found))
-    return float(np.percentile(draws, 2.5))
+def _passes(round_: Round, rng: np.random.Generator) -> dict[str, bool]:
+    """Whether each criterion passes on one simulated round (C1's bootstrap: 200 draws)."""
+    return {c.name.split()[0]: bool(c.passed) for c in criteria(round_, rng, n_boot=200)}
 
 
 def power_table(
@@ -148,7 +90,7 @@ def power_table(
     rng = np.random.default_rng(seed)
     table = {}
     for effect in effects:
-        passes = [criteria(simulate(effect, Model(), rng), rng) for _ in range(simulations)]
+        passes = [_passes(simulate(effect, Model(), rng), rng) for _ in range(simulations)]
         table[f"{effect:.2f}"] = {c: float(np.mean([p[c] for p in passes])) for c in passes[0]}
     return table
 

@@ -27,6 +27,7 @@ from engine.rl.checkpoint import find_checkpoint
 from engine.rl.trained import load_agent
 from engine.treefile import TreeDocument
 from engine.validation.measure import JUDGES, posture_truth, training_end, truth_states
+from engine.validation.round2_analysis import write
 from engine.validation.round2_runs import (
     Round2Plan,
     make_advice,
@@ -98,10 +99,11 @@ def complete(
 
 def run_round(out: Path, plan: Round2Plan, workers: Workers) -> dict[Task, dict[str, Any]]:
     """Round 2 on one env end to end, resumable: the pilots, the brackets and their trees,
-    then every run trained and measured (each as soon as it is trained)."""
+    then every run trained and measured (each as soon as it is trained), then the analysis."""
     prepare(out, plan)
     every = tasks(plan)
     train_all(out, plan, every[:2], workers, deadline=None)  # the pilots make the brackets
     brackets = make_advice(out, plan)
     found = workers.map(partial(complete, out, plan, brackets=brackets), every)
+    write(out, plan, np.random.default_rng(0))  # summary.json and report.md
     return dict(zip(every, found, strict=True))

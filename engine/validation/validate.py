@@ -49,7 +49,7 @@ def validate(
     brackets = make_brackets(out, plan)
     tasks = [*pilot_tasks(plan), *arm_tasks(plan)]
     measures = complete_all(out, plan, tasks, brackets, workers)
-    summary: dict[str, Any] = _json_safe(
+    summary: dict[str, Any] = json_safe(
         {
             "schema": "acv.validation/1",
             "command": command,
@@ -65,15 +65,15 @@ def validate(
     return summary
 
 
-def _json_safe(value: Any) -> Any:
+def json_safe(value: Any) -> Any:
     """``value`` with NaN and infinities as null (None; ``np.array(..., dtype=float)`` reads
     them back as NaN): ``summary.json`` stays standard JSON."""
     if isinstance(value, float):
         return value if math.isfinite(value) else None
     if isinstance(value, dict):
-        return {k: _json_safe(v) for k, v in value.items()}
+        return {k: json_safe(v) for k, v in value.items()}
     if isinstance(value, list | tuple):
-        return [_json_safe(v) for v in value]
+        return [json_safe(v) for v in value]
     return value  # str, int, bool, None
 
 
