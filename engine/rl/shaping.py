@@ -10,16 +10,25 @@ Timing: the shaped reward of step t is ``R_t + z_phi(s_t) F(s_{t+1})``. F judges
 the action reached, as MuJoCo's own rewards do (they are computed after the step); z_phi
 weighs it at the state where the action was chosen, as in Hu et al.'s f(s, a) weighted by
 z_phi(s, a). The agent preference tree evaluates both at the candidate state.
+
+:class:`AdviceWrapper` is the public face of the same terms for training loops outside ACV:
+one env, the shaped reward returned, R and F in ``info``.
 """
 
 from __future__ import annotations
 
+import json
+from collections.abc import Mapping
+from pathlib import Path
 from typing import Any, Protocol, SupportsFloat
 
 import gymnasium as gym
 import numpy as np
 
+from engine.advice import AdviceMode, AdviceReward
+from engine.errors import InputError
 from engine.gym_types import mujoco_base
+from engine.treefile import TreeDocument, load_tree, tree_from_json
 
 
 class AdviceFn(Protocol):
@@ -113,3 +122,81 @@ def scaled_advice(raw: np.ndarray, scale: float, offset: float) -> np.ndarray:
     """The shaping term's F: ``scale * (F + offset)``, the one place both are applied."""
     scaled: np.ndarray = scale * (np.asarray(raw, dtype=np.float64) + offset)
     return scaled
+
+
+TreeSource = TreeDocument | str | Path | Mapping[str, Any]
+
+
+def advice_tree(source: TreeSource) -> TreeDocument:
+    """A person's tree from wherever ACV hands it out, validated: a :class:`TreeDocument`;
+    the path of an ``acv.tree/1`` file (``acv tournament``, a study's ``tree.json``
+    download); the JSON of ``GET /api/participants/{id}/tree``, parsed (a mapping) or as
+    text (the ``document`` column of a study's exported ``trees``).
+
+    Raises:
+        InputError: it is no valid ``acv.tree/1`` document.
+    """
+    if isinstance(source, TreeDocument):
+        return source
+    if isinstance(source, Mapping):
+        return tree_from_json(dict(source))
+    if isinstance(source, str) and source.lstrip().startswith("{"):
+        try:
+            return tree_from_json(json.loads(source))
+        except json.JSONDecodeError as exc:
+            raise InputError(f"not an acv.tree/1 document: invalid JSON ({exc})") from exc
+    return load_tree(source)
+
+
+class AdviceWrapper(gym.Wrapper):
+    """A person's advice as a reward term in any training loop (Stable-Baselines3, CleanRL,
+    your own PPO or SAC): the step's reward becomes ``R + scale * (F(s') + offset)``, exactly
+    what ACV's ``ppo-shaped`` arm optimises (z = 1), with F of the reached state s' from the
+    person's Preference Tree (:class:`engine.advice.AdviceReward`). ``info["R"]`` holds the
+    env's reward and ``info["F"]`` the added term ``scale * (F + offset)``, apart.
+
+    A per-env wrapper: put it inside SB3's ``DummyVecEnv``/``SubprocVecEnv`` or Gymnasium's
+    vector envs (``make_vec(..., wrappers=[...])``). BiPaRS (``bipars-em``, ``bipars-mgl``)
+    cannot be a wrapper: its weight z_phi(s) is learned together with the policy, so it lives
+    in ACV's trainer.
+
+    Args:
+        env: a Gymnasium MuJoCo env of the tree's env id.
+        tree: the person's tree (:func:`advice_tree` says where from).
+        scale: multiplies the advice (ACV's ``--advice-scale``, λ).
+        offset: added to F before ``scale`` (``+1`` keeps F + 1 >= 0, so that no agent
+            escapes the advice by ending its episodes: docs/validation.md §2).
+        mode: ``nearest`` (default), ``softmax`` or ``paper-min``.
+        depth_factor: ``none`` (default) or ``paper``.
+        kappa: the softmax mode's inverse temperature.
+
+    Raises:
+        InputError: the tree is invalid or for another env.
+    """
+
+    def __init__(
+        self,
+        env: gym.Env[Any, Any],
+        tree: TreeSource,
+        *,
+        scale: float = 1.0,
+        offset: float = 0.0,
+        mode: AdviceMode = "nearest",
+        depth_factor: str = "none",
+        kappa: float = 10.0,
+    ):
+        super().__init__(env)
+        doc = advice_tree(tree)
+        env_id = env.spec.id if env.spec is not None else None
+        if env_id != doc.env_id:
+            raise InputError(f"the tree is for {doc.env_id}, the env is {env_id}")
+        self.advice = AdviceReward.from_tree(doc, mode, depth_factor, kappa)
+        self.scale, self.offset = scale, offset
+
+    def step(
+        self, action: np.ndarray
+    ) -> tuple[np.ndarray, SupportsFloat, bool, bool, dict[str, Any]]:
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        reached = mujoco_base(self.env).data.qpos[None]  # (1, nq)
+        advice = float(scaled_advice(self.advice(reached), self.scale, self.offset)[0])
+        return obs, float(reward) + advice, terminated, truncated, info | {"R": reward, "F": advice}
