@@ -85,6 +85,10 @@ class ExperimentOut(BaseModel):
     pilot_seeds: list[int]
     created_at: UtcDatetime
     runs: list[ExperimentRunOut]
+    verdict_url: str = Field(
+        description="Its verdict (GET; 202 until enough runs of every role are judged); "
+        "`verdict.csv` beside it gives the same as CSV."
+    )
 
 
 class VerdictOut(BaseModel):
@@ -109,7 +113,8 @@ def _out(session: SessionDep, experiment: Experiment) -> ExperimentOut:
         for role, run in experiments.members(session, experiment_id=experiment.id)
     ]
     created: datetime = experiment.created_at
-    return from_row(ExperimentOut, experiment, created_at=created, runs=runs)
+    url = f"/api/experiments/{experiment.id}/verdict"
+    return from_row(ExperimentOut, experiment, created_at=created, runs=runs, verdict_url=url)
 
 
 @router.post("", status_code=202)

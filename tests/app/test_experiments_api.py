@@ -75,6 +75,9 @@ def test_an_experiment_queues_advised_baseline_and_pilot_runs(client, study) -> 
     ]
     assert all(r["status"] == "queued" for r in created["runs"])
     assert created["seeds"] == [0, 1, 2] and created["pilot_seeds"] == [1_000_000, 1_000_001]
+    # The resource links its verdict (pending until runs are judged).
+    assert created["verdict_url"] == f"/api/experiments/{created['id']}/verdict"
+    assert client.get(created["verdict_url"], headers=ADMIN).status_code == 202
     # Another advice source with the same settings reuses the baseline and pilot runs.
     before = _n_runs(client)
     other = _create(
