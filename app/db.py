@@ -25,11 +25,9 @@ from alembic.config import Config
 from sqlalchemy import Connection, Engine, create_engine, event, text
 from sqlalchemy.orm import Session, sessionmaker
 
+from app.core.resources import MIGRATIONS_DIR
 from app.settings import normalise_url
 
-ROOT = Path(__file__).resolve().parents[1]
-ALEMBIC_INI = ROOT / "alembic.ini"
-MIGRATIONS = ROOT / "migrations"
 #: Seconds a writer of another process waits for SQLite's lock before failing.
 SQLITE_BUSY_TIMEOUT_S = 30.0
 #: Connections per engine: a pool of 10 that may grow to this many.
@@ -145,9 +143,12 @@ def engine_of(db: Session | Connection) -> Engine:
 
 
 def alembic_config(url: str) -> Config:
-    """Alembic's configuration for ``url`` (``alembic.ini`` at the repository root)."""
-    config = Config(str(ALEMBIC_INI))
-    config.set_main_option("script_location", str(MIGRATIONS))
+    """Alembic's configuration for ``url``: the migrations wherever the package keeps them
+    (:mod:`app.core.resources`). ``alembic.ini`` at the repository root is for the plain
+    ``alembic`` command in a checkout; a wheel has none and needs none."""
+    config = Config()
+    config.set_main_option("script_location", str(MIGRATIONS_DIR))
+    config.set_main_option("path_separator", "os")
     config.attributes["url"] = normalise_url(url)
     return config
 

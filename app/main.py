@@ -10,7 +10,6 @@ from __future__ import annotations
 
 from collections.abc import AsyncIterator, Callable
 from contextlib import AbstractAsyncContextManager, asynccontextmanager
-from pathlib import Path
 
 import anyio.to_thread
 from fastapi import FastAPI
@@ -18,6 +17,7 @@ from fastapi.staticfiles import StaticFiles
 from starlette.middleware.gzip import GZipMiddleware
 from uvicorn.middleware.proxy_headers import ProxyHeadersMiddleware
 
+from app.core.resources import STATIC_DIR
 from app.http import errors, health
 from app.http.access_log import install_access_log_filter
 from app.http.credentials_first import CredentialsFirst
@@ -29,8 +29,8 @@ from app.routes import api_router, pages_router
 from app.runtime import Runtime
 from app.settings import Settings
 from app.webhooks.delivery import start_delivery
+from engine import __version__
 
-STATIC_DIR = Path(__file__).resolve().parents[1] / "static"
 #: Where the OpenAPI document is served (``/docs`` reads it).
 OPENAPI_URL = "/openapi.json"
 
@@ -50,7 +50,7 @@ def create_app(
     # The docs page is ours (self-hosted Swagger UI, strict policy); no ReDoc.
     app = FastAPI(
         title="ACV",
-        version="0.1.0",
+        version=__version__,
         lifespan=_lifespan(runtime, background=background),
         docs_url=None,
         redoc_url=None,
@@ -125,11 +125,10 @@ def _mount_routes(app: FastAPI) -> None:
     app.include_router(docs_router(openapi_url=OPENAPI_URL, title=f"{app.title} API"))
     app.include_router(api_router)
     app.include_router(pages_router)
-    if STATIC_DIR.is_dir():
-        # gzip for the static files only (the vendored d3 and Plot builds shrink about 3x);
-        # the API's small JSON answers stay uncompressed on the hot path
-        app.mount(
-            "/static",
-            GZipMiddleware(StaticFiles(directory=STATIC_DIR), minimum_size=1024),
-            name="static",
-        )
+    # gzip for the static files only (the vendored d3 and Plot builds shrink about 3x);
+    # the API's small JSON answers stay uncompressed on the hot path
+    app.mount(
+        "/static",
+        GZipMiddleware(StaticFiles(directory=STATIC_DIR), minimum_size=1024),
+        name="static",
+    )

@@ -3,3 +3,7 @@
 The engine never imports :mod:`app`. Algorithms that draw random numbers take an explicit
 ``rng: np.random.Generator``.
 """
+
+#: ACV's version: the one source (``pyproject.toml`` reads it; ``acv --version``, the web
+#: app, every run's ``provenance.json`` and the shared dataset's card show it).
+__version__ = "0.2.0"

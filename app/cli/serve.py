@@ -11,7 +11,6 @@ researcher and participant cookies are signed or looked up, never kept in a proc
 
 from __future__ import annotations
 
-import copy
 import gc
 import logging.config
 import os
@@ -28,6 +27,7 @@ from sqlalchemy.exc import ArgumentError, SQLAlchemyError
 from app.cli.root import cli, fail
 from app.core.auth import ADMIN_TOKEN_FILE
 from app.core.errors import ServiceError
+from app.core.logs import log_config
 from app.db import upgrade
 from app.demo import ensure_demo
 from app.jobs.settings import JobSettings
@@ -115,6 +115,8 @@ def serve(
 ) -> None:
     """Apply database migrations, print the researcher login URL, and serve the app."""
     settings = migrated_settings()
+    logs = log_config(settings.log_format, workers)
+    logging.config.dictConfig(logs)  # the app's lines from here on, uvicorn's too
     with service_errors():
         app = create_app(settings) if workers == 1 else None
         runtime: Runtime = app.state.runtime if app is not None else Runtime(settings)
@@ -130,7 +132,7 @@ def serve(
         # The app trusts forwarded headers itself, from ACV_FORWARDED_ALLOW_IPS only
         # (app.main); uvicorn's own handling would believe any local client.
         "proxy_headers": False,
-        "log_config": log_config(workers),
+        "log_config": logs,
     }
     if app is not None:
         tune_gc()
@@ -156,7 +158,6 @@ def _print_welcome(
 def _serve_workers(runtime: Runtime, workers: int, options: dict[str, Any]) -> None:
     """N spawned server processes under uvicorn's supervisor; the background work runs here,
     once."""
-    logging.config.dictConfig(options["log_config"])
     os.environ[WORKERS_ENV] = str(workers)
     runtime.resume()
     jobs = JobSettings()
@@ -187,19 +188,6 @@ def worker_app() -> FastAPI:
     environment, the database already migrated, no background work (the supervisor's)."""
     tune_gc()
     return create_app(Settings(), background=False, processes=int(os.environ.get(WORKERS_ENV, "1")))
-
-
-def log_config(workers: int) -> dict[str, Any]:
-    """uvicorn's logging, plus the app's own INFO lines (e.g. the run worker starting);
-    with several processes every line names its process id."""
-    config = copy.deepcopy(uvicorn.config.LOGGING_CONFIG)
-    config["loggers"]["app"] = {"handlers": ["default"], "level": "INFO", "propagate": False}
-    if workers > 1:
-        for formatter in config["formatters"].values():
-            formatter["fmt"] = formatter["fmt"].replace(
-                "%(levelprefix)s", "%(levelprefix)s [%(process)d]"
-            )
-    return config
 
 
 def tune_gc() -> None:

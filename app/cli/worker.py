@@ -11,6 +11,7 @@ import typer
 
 from app.cli.root import cli
 from app.cli.serve import migrated_settings, service_errors
+from app.core.logs import configure_logging
 from app.db import make_engine, make_sessions
 from app.jobs.backfill import backfill_all
 from app.jobs.settings import JobSettings
@@ -41,6 +42,7 @@ def worker(
     if backfill:
         _backfill(settings.sqlalchemy_url, jobs.runs_root(settings))
         return
+    configure_logging(settings.log_format)  # the worker's own lines: runs claimed, ended
     with service_errors():
         engine = make_engine(settings.sqlalchemy_url)
         sessions = make_sessions(engine)

@@ -11,7 +11,6 @@ from __future__ import annotations
 from collections.abc import Callable, Coroutine
 from datetime import datetime
 from http import HTTPStatus
-from pathlib import Path
 from typing import Any
 from urllib.parse import quote
 
@@ -22,12 +21,11 @@ from fastapi.routing import APIRoute
 from fastapi.templating import Jinja2Templates
 
 from app.core.errors import ServiceError
+from app.core.resources import TEMPLATES_DIR
 from app.http import csrf
 from app.http.urls import image_url
 from app.models import as_utc
 from engine.errors import InputError
-
-TEMPLATES_DIR = Path(__file__).resolve().parents[2] / "templates"
 
 CSP = "; ".join(
     (

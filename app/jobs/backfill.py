@@ -19,8 +19,11 @@ from pathlib import Path
 
 from sqlalchemy.orm import Session, sessionmaker
 
-from app.db import ROOT, make_engine, make_sessions
+from app.core.logs import configure_logging
+from app.core.resources import child_pythonpath
+from app.db import make_engine, make_sessions
 from app.runs import artefacts, run_state
+from app.settings import Settings
 
 log = logging.getLogger(__name__)
 
@@ -60,7 +63,7 @@ class Backfiller:
         env = os.environ | {
             "DATABASE_URL": self.database_url,
             "ACV_RUNS_DIR": str(self.runs_dir),
-            "PYTHONPATH": os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")])),
+            "PYTHONPATH": child_pythonpath(),
         }
         self.proc = subprocess.Popen(
             [sys.executable, "-m", "app.jobs.backfill"], stdin=subprocess.DEVNULL, env=env
@@ -82,13 +85,13 @@ def backfill_all(sessions: sessionmaker[Session], *, runs_root: Path) -> int:
 
 def main() -> None:
     """Judge every unjudged checkpoint of ended runs (``DATABASE_URL``, ``ACV_RUNS_DIR``)."""
-    logging.basicConfig(level=logging.INFO, format="acv backfill: %(message)s")
+    configure_logging(Settings().log_format)  # its lines join the server's, alike
     engine = make_engine(os.environ["DATABASE_URL"])
     try:
         done = backfill_all(make_sessions(engine), runs_root=Path(os.environ["ACV_RUNS_DIR"]))
     finally:
         engine.dispose()
-    log.info("%d checkpoint artefact(s) stored", done)
+    log.info("backfill: %d checkpoint artefact(s) stored", done)
 
 
 if __name__ == "__main__":

@@ -22,7 +22,7 @@ from multiprocessing.context import ForkServerContext
 from multiprocessing.process import BaseProcess
 from pathlib import Path
 
-from app.db import ROOT
+from app.core.resources import child_pythonpath
 from app.jobs.run_process import preload, run_child
 from app.jobs.settings import run_dir
 
@@ -62,7 +62,7 @@ class LocalExecutor:
         env = os.environ | {
             "DATABASE_URL": self.database_url,
             "ACV_RUNS_DIR": str(self.runs_dir),
-            "PYTHONPATH": os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")])),
+            "PYTHONPATH": child_pythonpath(),
         }
         proc = fork_server().Process(
             target=run_child,

@@ -23,6 +23,7 @@ import re
 from dataclasses import dataclass
 from typing import Any
 
+from engine import __version__
 from engine.errors import InputError
 
 SHARD = "train-00000-of-00001.parquet"
@@ -229,8 +230,8 @@ def _body(f: Facts) -> str:
     return f"""# ACV preference labels: {f.name}
 
 Pairwise preferences over robot states in `{f.env_id}`, collected with ACV (Advice
-Conformance Verification). Participants: {f.participants}; labels: {f.labels}; Human
-Preference Trees: {f.trees}.
+Conformance Verification) and exported by ACV {__version__}. Participants: {f.participants};
+labels: {f.labels}; Human Preference Trees: {f.trees}.
 
 ## How it was collected
 

@@ -17,6 +17,7 @@ from jinja2 import Environment, FileSystemLoader, select_autoescape
 from sqlalchemy.orm import Session
 
 from app.core import figures
+from app.core.resources import TEMPLATES_DIR
 from app.models import Run
 from app.runs import comparison, run_state
 from app.runs.experiment_notes import notes_of_runs
@@ -28,7 +29,7 @@ from engine.treefile import TreeDocument
 
 REPORT_TEMPLATE = "compare_report.html"
 _templates = Environment(
-    loader=FileSystemLoader(Path(__file__).resolve().parents[2] / "templates"),
+    loader=FileSystemLoader(TEMPLATES_DIR),
     autoescape=select_autoescape(),
     trim_blocks=True,
     lstrip_blocks=True,

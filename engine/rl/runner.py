@@ -1,6 +1,7 @@
 """A training run as a library call: ``train(config, advice, out_dir, ...)``.
 
-The run directory holds ``config.json``, ``metrics.jsonl`` (one row per update), TensorBoard
+The run directory holds ``config.json``, ``provenance.json`` (the ACV version, commit and
+library versions that started it), ``metrics.jsonl`` (one row per update), TensorBoard
 event files, ``advice.json`` (the advice tree, when the run has one) and
 ``checkpoints/step_<timesteps>.pt``. The web app's worker calls :func:`train` directly:
 ``progress`` receives each metrics row, ``should_stop`` cancels cleanly (a checkpoint is
@@ -28,6 +29,7 @@ import torch
 
 from engine.advice import AdviceMode, AdviceReward
 from engine.errors import InputError
+from engine.provenance import PROVENANCE_FILE, provenance
 from engine.rl.checkpoint import find_checkpoint, list_checkpoints, load_checkpoint, save_checkpoint
 from engine.rl.config import REWARD_ADVICE, TrainConfig
 from engine.rl.logger import METRICS_FILE, RunLogger
@@ -164,8 +166,8 @@ def _check_new_dir(out_dir: Path) -> None:
 
 
 def _write_new_run(config: TrainConfig, advice: Advice, out_dir: Path) -> None:
-    """Create the run directory with ``config.json`` (and ``advice.json`` for a tree; the
-    pool and its pooled verdict for several)."""
+    """Create the run directory with ``config.json`` and ``provenance.json`` (and
+    ``advice.json`` for a tree; the pool and its pooled verdict for several)."""
     from engine.pooling import pooled_tree
 
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -178,6 +180,7 @@ def _write_new_run(config: TrainConfig, advice: Advice, out_dir: Path) -> None:
         verdict = pooled_tree(advice, **config.tree_options(), weights=config.pool_weights)
         dump_tree(verdict, out_dir / ADVICE_FILE)
     (out_dir / CONFIG_FILE).write_text(json.dumps(config.to_json(), indent=1) + "\n")
+    (out_dir / PROVENANCE_FILE).write_text(json.dumps(provenance(), indent=1) + "\n")
 
 
 def _undo_new_run(out_dir: Path, existed: bool) -> None:
@@ -185,7 +188,8 @@ def _undo_new_run(out_dir: Path, existed: bool) -> None:
     if not existed:
         shutil.rmtree(out_dir, ignore_errors=True)
         return
-    for name in (CONFIG_FILE, ADVICE_FILE, METRICS_FILE):  # never what the caller made
+    # never what the caller made
+    for name in (CONFIG_FILE, PROVENANCE_FILE, ADVICE_FILE, METRICS_FILE):
         (out_dir / name).unlink(missing_ok=True)
     shutil.rmtree(out_dir / POOL_DIR, ignore_errors=True)
 

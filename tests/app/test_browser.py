@@ -35,7 +35,8 @@ from tests.support.browser import (
 
 pytestmark = pytest.mark.browser
 
-LOG_LINE = re.compile(r"^(DEBUG|INFO|WARNING|ERROR|CRITICAL)\b")
+#: A log line (app.core.logs): a UTC timestamp, then the level.
+LOG_LINE = re.compile(r"^\S+Z (DEBUG|INFO|WARNING|ERROR|CRITICAL)\b")
 
 
 def decide(page: Page, match: str, how: str, side: str, chosen: dict[int, int]) -> None:

@@ -45,14 +45,15 @@ def wait_healthy(base: str, proc: subprocess.Popen, timeout_s: float = 120.0) ->
 
 
 @contextmanager
-def acv_serve(env: dict[str, str], log: Path, *args: str) -> Iterator[str]:
-    """``acv serve --host 127.0.0.1`` on a free port with ``env`` (and further ``args``),
-    output and logs to ``log``; yields the base URL once healthy, terminates it after."""
+def acv_serve(env: dict[str, str], log: Path, *args: str, cwd: Path = REPO) -> Iterator[str]:
+    """``acv serve --host 127.0.0.1`` on a free port with ``env`` (and further ``args``), in
+    ``cwd``, output and logs to ``log``; yields the base URL once healthy, terminates it
+    after."""
     port = free_port()
     with log.open("w") as output:
         proc = subprocess.Popen(
             [*ACV, "serve", "--host", "127.0.0.1", "--port", str(port), *args],
-            cwd=REPO,
+            cwd=cwd,
             env=env,
             stdout=output,
             stderr=subprocess.STDOUT,

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from engine import __version__
 from engine.errors import InputError
 from engine.rl.checkpoint import list_checkpoints, load_checkpoint
 from engine.rl.config import TrainConfig
@@ -68,6 +69,7 @@ def run(tmp_path_factory) -> Path:
 
 def test_a_run_writes_all_artefacts(run: Path) -> None:
     assert TrainConfig.from_json(json.loads((run / "config.json").read_text())) == tiny()
+    assert json.loads((run / "provenance.json").read_text())["acv"] == __version__
     rows = read_metrics(run)
     assert len(rows) == 8 and all(set(r) >= ROW_KEYS for r in rows)
     assert any(r["episodic_return"] is not None for r in rows)
