@@ -10,7 +10,6 @@ import itertools
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-import krippendorff
 import numpy as np
 from scipy.stats import binomtest
 
@@ -82,10 +81,10 @@ def shared_units(choices: Choices) -> list[Pair]:
 
 
 def alpha_nominal(choices: Choices) -> float | None:
-    """Krippendorff's alpha (nominal) over the shared pairs, with the ``krippendorff``
-    package. A unit's value is which of its two candidates won (0: the lower id, 1: the
-    higher), so that every unit has the same two categories. ``None`` when no pair is
-    shared or there is no variation at all (alpha is undefined then)."""
+    """Krippendorff's alpha (nominal) over the shared pairs. A unit's value is which of its
+    two candidates won (0: the lower id, 1: the higher), so that every unit has the same two
+    categories. ``None`` when no pair is
+    shared or the shared pairs' values do not vary (alpha is undefined then)."""
     units = shared_units(choices)
     if not units:
         return None
@@ -97,4 +96,25 @@ def alpha_nominal(choices: Choices) -> float | None:
     values = data[~np.isnan(data)]
     if np.all(values == values[0]):
         return None
-    return float(krippendorff.alpha(reliability_data=data, level_of_measurement="nominal"))
+    return _nominal_alpha(data)
+
+
+def _nominal_alpha(data: np.ndarray) -> float | None:
+    """Krippendorff's alpha, nominal, of ``data`` (labellers x units, NaN where missing),
+    from the coincidence matrix (Krippendorff 2011, "Computing Krippendorff's alpha-
+    reliability"). Written here, not taken from the ``krippendorff`` package, because that
+    package is GPL-3.0-or-later and ACV is MIT; the tests check it by hand.
+    """
+    categories = np.unique(data[~np.isnan(data)])
+    counts = np.stack([(data == c).sum(axis=0) for c in categories])  # (categories, units)
+    pairable = counts.sum(axis=0)
+    counts, pairable = counts[:, pairable >= 2], pairable[pairable >= 2]
+    # o[c, k] = sum over units of n_uc (n_uk - [c == k]) / (m_u - 1)
+    coincidences = np.einsum("cu,ku,u->ck", counts, counts, 1 / (pairable - 1))
+    coincidences -= np.diag((counts / (pairable - 1)).sum(axis=1))
+    n_c = coincidences.sum(axis=1)
+    n = n_c.sum()
+    observed = (n - np.trace(coincidences)) / n
+    expected = (n * n - (n_c * n_c).sum()) / (n * (n - 1)) if n > 1 else 0.0
+    # no variation among the pairable values: alpha is undefined
+    return None if expected == 0 else float(1 - observed / expected)

@@ -52,3 +52,8 @@ def test_alpha_is_undefined_without_shared_pairs_or_variation() -> None:
     assert alpha_nominal({1: {(0, 1): 0}, 2: {(2, 3): 2}}) is None
     assert alpha_nominal({1: {(0, 1): 0}, 2: {(0, 1): 0}}) is None
     assert pair_key(5, 2) == (2, 5)
+
+
+def test_alpha_is_undefined_when_only_unpaired_values_vary() -> None:
+    # labeller 3 alone decides (2, 3) the other way: no shared pair varies
+    assert alpha_nominal({1: {(0, 1): 0}, 2: {(0, 1): 0}, 3: {(2, 3): 3}}) is None
