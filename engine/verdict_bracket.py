@@ -31,7 +31,13 @@ from scipy.stats import bootstrap
 from engine.errors import InputError
 from engine.treefile import TreeDocument
 from engine.verdict_outcome import LABELS
-from engine.verdict_power import auc, min_detectable_shift, permutation_p, smallest_p
+from engine.verdict_power import (
+    auc,
+    mean_difference,
+    min_detectable_shift,
+    permutation_p,
+    smallest_p,
+)
 
 Stage = Literal["primary", "interim", "diagnostic"]
 
@@ -45,7 +51,7 @@ class AlignmentOptions:
         power: the power at which the smallest detectable Δ is computed.
         seed_sd: the between-seed spread of ``r`` assumed by the smallest detectable Δ:
             round 1's ``n1`` seeds under ``behaviour`` on Humanoid-v5 (0.196, rounded up).
-        min_candidates: fewer candidates than this is "cannot tell" (§6.2's power table).
+        min_candidates: fewer candidates than this is "cannot tell" (a rule of thumb, §6.2).
         min_seeds: fewer seeds than this in either arm is "cannot tell".
         n_boot: bootstrap draws of the interval.
     """
@@ -135,18 +141,13 @@ def seed_interval(
     fixed: the verdict is about the person's own bracket, as the permutation test is."""
     found = bootstrap(
         (r_advised, r_baseline),
-        _mean_difference,
+        mean_difference,
         n_resamples=n_boot,
         method="percentile",
         vectorized=True,
         rng=rng,
     )
     return float(found.confidence_interval.low), float(found.confidence_interval.high)
-
-
-def _mean_difference(x: np.ndarray, y: np.ndarray, axis: int = -1) -> np.ndarray:
-    diff: np.ndarray = np.mean(x, axis=axis) - np.mean(y, axis=axis)
-    return diff
 
 
 def alignment_verdict(

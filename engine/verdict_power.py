@@ -22,7 +22,8 @@ N_PERMUTATIONS = 9999
 N_POWER_SIMULATIONS = 400
 
 
-def _mean_difference(x: np.ndarray, y: np.ndarray, axis: int = -1) -> np.ndarray:
+def mean_difference(x: np.ndarray, y: np.ndarray, axis: int = -1) -> np.ndarray:
+    """The difference of the two samples' means along ``axis`` (scipy's vectorised form)."""
     diff: np.ndarray = np.mean(x, axis=axis) - np.mean(y, axis=axis)
     return diff
 
@@ -49,7 +50,7 @@ def permutation_p(
     """
     result = permutation_test(
         (advised, baseline),
-        _mean_difference,
+        mean_difference,
         permutation_type="independent",
         alternative="two-sided",
         vectorized=True,
