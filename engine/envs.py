@@ -15,7 +15,7 @@ import gymnasium as gym
 import numpy as np
 
 from engine.errors import InputError
-from engine.gym_types import mujoco_base
+from engine.gym_types import box, mujoco_base
 from engine.rewards import reward_terms, total_reward
 
 if TYPE_CHECKING:  # mujoco loads where an env is built, not in web processes
@@ -137,3 +137,16 @@ def env_model(env_id: str) -> mujoco.MjModel:
         return mujoco_base(env).model
     finally:
         env.close()
+
+
+@lru_cache(maxsize=64)
+def env_dims(env_id: str) -> tuple[int, int]:
+    """The observation and action sizes of ``env_id``: what a policy from elsewhere must read
+    and write (:mod:`engine.policies`). Shapes alone do not tell envs apart (Humanoid-v5 and
+    HumanoidStandup-v5 share both), so the env id is checked as well."""
+    env = make_env(env_id)
+    try:
+        obs, act = box(env.observation_space).shape, box(env.action_space).shape
+    finally:
+        env.close()
+    return int(np.prod(obs)), int(np.prod(act))

@@ -40,7 +40,12 @@ from engine.gym_types import box
 from engine.judges import judge_name
 from engine.pipeline import replay
 from engine.rewards import control_cost
-from engine.rl.behaviour import RolloutOptions, occupancy_scores, visited_states
+from engine.rl.behaviour import (
+    RolloutOptions,
+    behaviour_cache_name,
+    occupancy_scores,
+    visited_states,
+)
 from engine.rl.checkpoint import find_checkpoint
 from engine.rl.config import TrainConfig
 from engine.rl.judge_cache import cached_array
@@ -205,7 +210,7 @@ def behaviour_visited(
     in ``run_dir`` by the checkpoint's content hash and the rollout options."""
     return cached_array(
         run_dir if trained.digest else None,
-        f"behaviour.{trained.digest[:16]}.{rollouts.key}",
+        behaviour_cache_name(trained.digest, rollouts),
         lambda: visited_states(deterministic_policy(trained), trained.config.env_id, rollouts),
     )
 

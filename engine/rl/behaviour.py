@@ -68,6 +68,13 @@ class RolloutOptions:
         return f"e{self.episodes}.s{self.max_steps}.seed{self.seed}.b{self.burn_in}"
 
 
+def behaviour_cache_name(digest: str, options: RolloutOptions) -> str:
+    """The judges' cache name (:mod:`engine.rl.judge_cache`) of the states a policy visits:
+    by the content hash of what decides its actions (an ACV checkpoint, an imported ONNX
+    model and its normalisation) and the rollout options."""
+    return f"behaviour.{digest[:16]}.{options.key}"
+
+
 def visited_states(
     policy: Callable[[np.ndarray], np.ndarray], env_id: str, options: RolloutOptions
 ) -> np.ndarray:

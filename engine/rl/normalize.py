@@ -12,6 +12,10 @@ from typing import SupportsFloat, cast
 import numpy as np
 from gymnasium.wrappers.utils import RunningMeanStd
 
+#: Added to the variance before its square root (SB3's ``VecNormalize`` default): an imported
+#: policy's normalisation (:mod:`engine.policies.normalisation`) names it, ACV's is this one.
+OBS_EPSILON = 1e-8
+
 
 class ObsNormalizer:
     """``clip((obs - mean) / std, -clip, clip)`` with running mean and std over all seen obs.
@@ -36,7 +40,7 @@ class ObsNormalizer:
         """Normalised float32 observations, same shape as ``obs``."""
         if not self.enabled:
             return np.asarray(obs, dtype=np.float32)
-        out = (obs - self.rms.mean) / np.sqrt(self.rms.var + 1e-8)
+        out = (obs - self.rms.mean) / np.sqrt(self.rms.var + OBS_EPSILON)
         return np.clip(out, -self.clip, self.clip).astype(np.float32)
 
     def state_dict(self) -> dict[str, object]:

@@ -78,13 +78,13 @@ def candidate_returns(
         doc: the bracket whose candidates are the start states.
         options: rollouts, horizon, perturbation and seed.
     """
-    return state_returns(
-        policy,
-        doc.env_id,
-        np.stack([c.qpos for c in doc.candidates]),
-        np.stack([c.qvel for c in doc.candidates]),
-        options,
-    )
+    return state_returns(policy, doc.env_id, *candidate_states(doc), options)
+
+
+def candidate_states(doc: TreeDocument) -> tuple[np.ndarray, np.ndarray]:
+    """The candidates' ``qpos`` and ``qvel``, shapes ``(N, nq)`` and ``(N, nv)``, in id order:
+    the start states of the return judge's rollouts."""
+    return np.stack([c.qpos for c in doc.candidates]), np.stack([c.qvel for c in doc.candidates])
 
 
 def state_returns(
@@ -148,12 +148,24 @@ def return_scores(
         run_dir: where the scores are cached (no cache when None or without a digest).
         checkpoint_digest: the checkpoint's content hash, the cache key.
     """
-    states = [np.concatenate([c.qpos, c.qvel]) for c in doc.candidates]
-    name = f"return.{checkpoint_digest[:16]}.{array_digest(*states)}.{options.key}"
     returns = cached_array(
         run_dir if checkpoint_digest else None,
-        name,
+        return_cache_name(checkpoint_digest, doc, options),
         lambda: candidate_returns(policy, doc, options),
     )
+    return mean_returns(doc, returns)
+
+
+def return_cache_name(digest: str, doc: TreeDocument, options: ReturnOptions) -> str:
+    """The judges' cache name (:mod:`engine.rl.judge_cache`) of a policy's returns from the
+    candidates: by the content hash of what decides its actions, the candidates' states and
+    the options."""
+    states = [np.concatenate([c.qpos, c.qvel]) for c in doc.candidates]
+    return f"return.{digest[:16]}.{array_digest(*states)}.{options.key}"
+
+
+def mean_returns(doc: TreeDocument, returns: np.ndarray) -> dict[int, float]:
+    """The return judge's score of each candidate id: its mean over the rollouts of
+    ``returns``, shape ``(N, rollouts)`` in id order (:func:`candidate_returns`)."""
     means = returns.mean(axis=1)
     return {c.id: float(v) for c, v in zip(doc.candidates, means, strict=True)}
