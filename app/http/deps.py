@@ -154,6 +154,19 @@ def _is_invite_token(runtime: Runtime, token: str) -> bool:
         return members.is_member_token(session, token=token)
 
 
+def _refusal(limiter: LoginLimiter, address: str) -> TooManyAttemptsError | None:
+    """The 429 of an address past the failed-login limit, else ``None`` (the counts are in
+    the database: called on a worker thread)."""
+    return _too_many(limiter, address) if limiter.blocked(address) else None
+
+
+def _guessed(runtime: Runtime, limiter: LoginLimiter, address: str, token: str) -> None:
+    """Count a wrong bearer token as a failed login, unless it is a participant's own invite
+    token (a credential of another role, not a guess). On a worker thread."""
+    if not _is_invite_token(runtime, token):
+        _failed(limiter, address)
+
+
 async def require_researcher(
     request: Request,
     runtime: RuntimeDep,
@@ -164,13 +177,12 @@ async def require_researcher(
     403 for a cookie write without :data:`AJAX_HEADER`). A bearer token, when sent, decides."""
     if (token := bearer_value(credentials)) is not None:
         limiter, address = _limiter(request)
-        if limiter.blocked(address):  # refused before comparing, or guessing would go on
-            raise _too_many(limiter, address)
+        # refused before comparing, or guessing would go on
+        if (refused := await anyio.to_thread.run_sync(_refusal, limiter, address)) is not None:
+            raise refused
         if auth.is_researcher(admin_token=runtime.admin_token, bearer=token):
             return Viewer(researcher=True)
-        # A participant's own invite token is a credential of another role, not a guess.
-        if not await anyio.to_thread.run_sync(_is_invite_token, runtime, token):
-            _failed(limiter, address)
+        await anyio.to_thread.run_sync(_guessed, runtime, limiter, address, token)
         raise AuthError(_RESEARCHER_REQUIRED)
     if not auth.is_researcher(
         admin_token=runtime.admin_token, cookie=cookie, max_age_s=runtime.settings.session_max_age_s

@@ -6,9 +6,10 @@ admin token nor an invite token (:mod:`app.http.deps`). An address may fail
 researcher bearer tokens get 429 without the token being compared, until the oldest failure
 is a minute old. Successful logins are not counted.
 
-The counts live in this process's memory, or, with several web workers (``acv serve
---workers N``), in a small SQLite file in the data dir that all of them share
-(:class:`SharedFailures`), so the limit holds for the server as a whole. Behind a reverse
+The app's failed-login counts live in its database (:mod:`app.http.lockouts`), shared by
+every process and host. Other counts (new people per address through open links) live in
+this process's memory, or, with several web workers (``acv serve --workers N``), in a small
+SQLite file in the data dir that all of them share (:class:`SharedFailures`). Behind a reverse
 proxy every client shares the proxy's address unless the proxy is named in
 ``ACV_FORWARDED_ALLOW_IPS`` (:mod:`app.settings`): only then is its ``X-Forwarded-For``
 believed.
@@ -21,6 +22,7 @@ import math
 import sqlite3
 import time
 from pathlib import Path
+from typing import Protocol
 
 from fastapi import Request
 from limits import RateLimitItemPerMinute
@@ -29,12 +31,18 @@ from limits.strategies import MovingWindowRateLimiter
 
 FAILED_LOGINS_PER_MINUTE = 10
 _NAMESPACE = "acv-login"
-#: The shared counts' file in the data dir (several web workers).
-LOGIN_FAILURES = "login-failures.sqlite3"
 #: New participants one address may create through open links (``/s/<slug>``) per minute,
 #: and their shared counts' file.
 JOINS_PER_MINUTE = 30
 OPEN_LINK_JOINS = "open-link-joins.sqlite3"
+
+
+class Failures(Protocol):
+    """Where counts that several processes share are kept."""
+
+    def blocked(self, address: str) -> bool: ...
+    def failed(self, address: str) -> None: ...
+    def retry_after_s(self, address: str) -> int: ...
 
 
 class LoginLimiter:
@@ -43,15 +51,23 @@ class LoginLimiter:
     Args:
         per_minute: failures an address may make in any minute.
         shared: a SQLite file holding the counts for several processes; ``None`` keeps them
-            in this process's memory.
+            in this process's memory (unless ``store`` is given).
+        store: where the counts are kept instead, counted to its own ``per_minute``
+            (:class:`app.http.lockouts.DatabaseFailures`: the app's database).
     """
 
     def __init__(
-        self, per_minute: int = FAILED_LOGINS_PER_MINUTE, *, shared: Path | None = None
+        self,
+        per_minute: int = FAILED_LOGINS_PER_MINUTE,
+        *,
+        shared: Path | None = None,
+        store: Failures | None = None,
     ) -> None:
         self._item = RateLimitItemPerMinute(per_minute)
         self._limiter = MovingWindowRateLimiter(MemoryStorage())
-        self._shared = None if shared is None else SharedFailures(shared, per_minute)
+        self._shared: Failures | None = store
+        if store is None and shared is not None:
+            self._shared = SharedFailures(shared, per_minute)
 
     def blocked(self, address: str) -> bool:
         """Whether ``address`` used up its failures (checked before the token is)."""

@@ -16,6 +16,7 @@ from app.models.base import (
     status_check,
     utcnow,
 )
+from app.models.logins import LoginFailure
 from app.models.people import (
     MemberColumns,
     OpenLink,
@@ -75,6 +76,7 @@ __all__ = [
     "GoldAnswer",
     "GoldItem",
     "Label",
+    "LoginFailure",
     "Match",
     "MemberColumns",
     "NAMING",

@@ -11,9 +11,11 @@ from sqlalchemy import (
     CheckConstraint,
     DateTime,
     ForeignKey,
+    Index,
     Integer,
     String,
     Text,
+    text,
 )
 from sqlalchemy.orm import Mapped, mapped_column
 
@@ -27,6 +29,9 @@ from app.models.base import (
 )
 from engine.rl.config import Algo
 from engine.teachers import Teacher
+
+#: The rows of ``ix_runs_shared``: runs experiments share.
+SHARED = text("config_digest IS NOT NULL")
 
 
 class Run(Base):
@@ -46,6 +51,16 @@ class Run(Base):
         status_check(RunStatus),
         CheckConstraint("participant_id IS NULL OR teacher IS NULL", name="one_advice_source"),
         CheckConstraint("timesteps > 0 AND n_envs > 0 AND progress >= 0", name="budget"),
+        # One shared run per study, config and seed: concurrent experiments take the same one
+        Index(
+            "ix_runs_shared",
+            "study_id",
+            "config_digest",
+            "seed",
+            unique=True,
+            sqlite_where=SHARED,
+            postgresql_where=SHARED,
+        ),
     )
 
     id: Mapped[int] = mapped_column(Integer, primary_key=True)
@@ -75,6 +90,11 @@ class Run(Base):
     started_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), default=None)
     heartbeat_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), default=None)
     finished_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), default=None)
+    #: Set on the one run that experiments share as their baseline or pilot at this study,
+    #: config and seed (a ``ppo`` run naming advice): the SHA-256 of ``config``
+    #: (:func:`app.runs.shared.config_digest`); NULL on every other run, and cleared when a
+    #: failed or cancelled run gives its place to a new one.
+    config_digest: Mapped[str | None] = mapped_column(String(64), default=None)
 
 
 class Experiment(Base):

@@ -61,6 +61,10 @@ class Study(Base):
     allow_ties: Mapped[bool] = mapped_column(Boolean, default=False)
     #: Practice pairs shown before the bracket (0, or 2 to 5); never stored as labels.
     practice_pairs: Mapped[int] = mapped_column(Integer, default=0)
+    #: Its webhooks and gold items, counted in the transactions that add and remove them: the
+    #: database caps them (:func:`app.core.atomic.take`), never a count read beforehand.
+    webhook_count: Mapped[int] = mapped_column(Integer, default=0)
+    gold_item_count: Mapped[int] = mapped_column(Integer, default=0)
     status: Mapped[StudyStatus] = mapped_column(
         enum_type(StudyStatus), default=StudyStatus.PREPARING
     )

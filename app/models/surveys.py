@@ -55,6 +55,8 @@ class Survey(Base):
     exclusion_rule: Mapped[str] = mapped_column(String(32))
     seed: Mapped[int] = mapped_column(BigInteger)
     rr_counter: Mapped[int] = mapped_column(Integer, default=0)
+    #: Its webhooks, counted as a study's are (:attr:`Study.webhook_count`).
+    webhook_count: Mapped[int] = mapped_column(Integer, default=0)
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
 
 

@@ -23,6 +23,7 @@ from typing import Protocol, TypeVar
 from sqlalchemy import ColumnElement, select, update
 from sqlalchemy.orm import Session
 
+from app.core import atomic
 from app.core.errors import AuthError, ConflictError, NotFoundError, ServiceError
 from app.core.limits import check_text
 from app.db import writing
@@ -256,17 +257,13 @@ def take_seat(
     session: Session, model: type[Link], owner: ColumnElement[bool], *, full: LinkFullError
 ) -> None:
     """Count one more person on the link ``owner`` selects, inside the caller's write
-    transaction (atomic: ``UPDATE ... WHERE joined < max_participants``).
+    transaction (atomic: ``UPDATE ... WHERE joined < max_participants``,
+    :func:`app.core.atomic.take`).
 
     Raises:
         LinkFullError: ``full``, when every seat is taken.
     """
-    taken = session.execute(
-        update(model)
-        .where(owner, model.joined < model.max_participants)
-        .values(joined=model.joined + 1)
-    ).rowcount  # type: ignore[attr-defined]
-    if taken == 0:
+    if not atomic.take(session, model.joined, owner, limit=model.max_participants):
         raise full
 
 

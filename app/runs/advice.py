@@ -51,17 +51,6 @@ def resolve(
     return None, advice_tree(session, study_id=study_id, source=source)
 
 
-def pool_weights(
-    session: Session, source: AdviceSource, *, study_id: int
-) -> tuple[float, ...] | None:
-    """The weights a run on ``source`` would train with: each pooled participant's
-    reliability now, in the pool's order; None for the plain mean or no pool."""
-    if not isinstance(source, PooledAdvice) or source.weighting != "reliability":
-        return None
-    ids = _pool_ids(session, source, study_id=study_id)
-    return tuple(w.weight for w in pools.reliability_weights(session, study_id=study_id, ids=ids))
-
-
 def _pool_ids(session: Session, source: PooledAdvice, *, study_id: int) -> list[int]:
     ids = pools.pool_ids(
         session,

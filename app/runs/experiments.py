@@ -5,7 +5,8 @@ evaluation seeds; its **matched baseline** is ``ppo`` with no advice on the same
 budget and settings, and its **pilot** runs are ``ppo`` on seeds of their own, which only pick
 the contested matches (docs/method.md §2.11). Baseline and pilot runs are shared: a run of the
 same study, config and seed that names advice (so its checkpoints are judged) and is not
-failed or cancelled is reused, not trained again.
+failed or cancelled is reused, not trained again, even by two experiments posted at once
+(the database keeps one, :mod:`app.runs.shared`).
 
 The verdict reads the runs' stored checkpoint artefacts (the per-candidate table that each
 run's executor writes) and hands them to :func:`engine.verdict.verdict`.
@@ -30,7 +31,6 @@ from app.models import (
     ExperimentRun,
     Run,
     RunCheckpoint,
-    RunStatus,
 )
 from app.runs import artefacts
 from app.runs import service as runs
@@ -127,23 +127,9 @@ def _check_spec(spec: ExperimentSpec) -> None:
 
 
 def _baseline_run(session: Session, spec: ExperimentSpec, seed: int) -> Run:
-    """The no-advice ``ppo`` run matching ``spec`` at ``seed``: an existing one, else new."""
-    request = spec.run.baseline(seed)
-    config = runs.run_config(session, spec=request).to_json()  # a weighted pool's weights too
-    reusable = session.scalars(
-        select(Run)
-        .where(
-            Run.study_id == request.study_id,
-            Run.algo == "ppo",
-            Run.seed == seed,
-            Run.status.not_in([RunStatus.FAILED, RunStatus.CANCELLED]),
-        )
-        .order_by(Run.id)
-    )
-    # Only runs that name advice have their checkpoints judged (app.jobs.execute). Checked
-    # here, not in SQL: the JSON column stores a run without advice as JSON null, not NULL.
-    same = next((r for r in reusable if r.config == config and r.advice is not None), None)
-    return same or runs.create_run(session, spec=request)
+    """The no-advice ``ppo`` run matching ``spec`` at ``seed`` (its config holds a weighted
+    pool's weights too): the shared one, else new."""
+    return runs.create_run(session, spec=spec.run.baseline(seed), reuse=True)
 
 
 def get_experiment(session: Session, *, experiment_id: int) -> Experiment:

@@ -21,7 +21,7 @@ from app.core.errors import ConflictError, NotFoundError
 from app.db import writing
 from app.jobs.queue import update_if
 from app.models import Run, RunStatus, utcnow
-from app.runs import advice, pools, run_state
+from app.runs import advice, pools, run_state, shared
 from app.runs.spec import ParticipantAdvice, RunSpec, TeacherAdvice
 from app.studies.service import get_ready_study
 from engine.errors import InputError
@@ -35,8 +35,13 @@ MAX_TIMESTEPS = 100_000_000
 DEFAULT_CHECKPOINTS = 10
 
 
-def create_run(session: Session, *, spec: RunSpec) -> Run:
-    """Validate and queue a new run.
+def create_run(session: Session, *, spec: RunSpec, reuse: bool = False) -> Run:
+    """Validate and queue a new run (a ``ppo`` run that names advice is shared by experiments
+    while it is the first at its study, config and seed: :mod:`app.runs.shared`).
+
+    Args:
+        reuse: an experiment's baseline or pilot: the shared run of the same study, config and
+            seed when there is one, instead of a new run.
 
     Raises:
         InputError: bad parameters, a bad pool, or an advised algo without advice.
@@ -56,22 +61,13 @@ def create_run(session: Session, *, spec: RunSpec) -> Run:
         )
     if pooled is not None and pooled.weights is not None:  # F trains with the verdict's weights
         config = replace(config, pool_weights=pooled.weights)
-    return _queue(session, spec, config, None if pooled is None else pooled.members, tree)
+    pool = None if pooled is None else pooled.members
+    return _queue(session, spec, config, pool, tree, reuse=reuse)
 
 
 def _check_timesteps(spec: RunSpec) -> None:
     if not 0 < spec.timesteps <= MAX_TIMESTEPS:
         raise InputError(f"timesteps must be in 1..{MAX_TIMESTEPS}, got {spec.timesteps}")
-
-
-def run_config(session: Session, *, spec: RunSpec) -> TrainConfig:
-    """The configuration :func:`create_run` would store for ``spec`` now (a weighted pool's
-    weights included), without creating the run: what a reusable run must match."""
-    study = get_ready_study(session, study_id=spec.study_id)
-    _check_timesteps(spec)
-    config = train_config(spec, env_id=study.env_id)
-    weights = advice.pool_weights(session, spec.advice, study_id=spec.study_id)
-    return config if weights is None else replace(config, pool_weights=weights)
 
 
 def _queue(
@@ -80,10 +76,12 @@ def _queue(
     config: TrainConfig,
     pool: pools.Pool | None,
     tree: TreeDocument | None,
+    *,
+    reuse: bool,
 ) -> Run:
-    """Store the run, queued (a worker picks it up)."""
+    """Store the run, queued (a worker picks it up), or find the shared one (``reuse``)."""
     source = spec.advice
-    run = Run(
+    values: dict[str, Any] = dict(
         study_id=spec.study_id,
         participant_id=source.participant_id if isinstance(source, ParticipantAdvice) else None,
         teacher=source.teacher if isinstance(source, TeacherAdvice) else None,
@@ -99,6 +97,9 @@ def _queue(
         cancel_requested=False,
         progress=0,
     )
+    if shared.shareable(values):
+        return shared.store(session, values, reuse=reuse)
+    run = Run(**values)
     with writing(session):
         session.add(run)
     return run

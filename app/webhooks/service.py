@@ -6,10 +6,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from datetime import datetime
+from typing import Any, cast
 
-from sqlalchemy import case, delete, func, select
-from sqlalchemy.orm import Session
+from sqlalchemy import ColumnElement, CursorResult, case, delete, func, select
+from sqlalchemy.orm import InstrumentedAttribute, Session
 
+from app.core import atomic
 from app.core.errors import ConflictError, NotFoundError
 from app.db import writing
 from app.models import Study, Survey, Webhook, WebhookAttempt, WebhookEvent, utcnow
@@ -17,7 +19,7 @@ from app.webhooks.outbox import Owner
 from app.webhooks.signing import new_secret
 from app.webhooks.targets import Targets, check_url
 
-#: Webhooks one study or survey may have.
+#: Webhooks one study or survey may have (counted in ``webhook_count`` of its row).
 MAX_WEBHOOKS = 10
 #: Attempts and events a listing returns at most, newest first.
 MAX_LISTED = 500
@@ -61,12 +63,18 @@ def register(session: Session, *, owner: Owner, url: str, targets: Targets) -> W
     """
     _check_owner(session, owner)
     check_url(url, targets=targets)
-    if len(list_webhooks(session, owner=owner)) >= MAX_WEBHOOKS:
-        raise ConflictError(f"a {owner.noun} has at most {MAX_WEBHOOKS} webhooks")
     webhook = Webhook(url=url, secret=new_secret(), **owner.data())
-    with writing(session):
+    with writing(session):  # counted with the webhook: concurrent adds never pass the limit
+        if not atomic.take(session, *_counter(owner), limit=MAX_WEBHOOKS):
+            raise ConflictError(f"a {owner.noun} has at most {MAX_WEBHOOKS} webhooks")
         session.add(webhook)
     return webhook
+
+
+def _counter(owner: Owner) -> tuple[InstrumentedAttribute[int], ColumnElement[bool]]:
+    """The owner's webhook counter, and the condition that selects the owner's row."""
+    model: type[Study] | type[Survey] = Study if owner.noun == "study" else Survey
+    return model.webhook_count, model.id == owner.id
 
 
 def list_webhooks(session: Session, *, owner: Owner | None = None) -> list[Webhook]:
@@ -107,7 +115,10 @@ def remove(session: Session, *, webhook_id: int, owner: Owner | None = None) -> 
     if owner is not None and owner_of(webhook) != owner:
         raise NotFoundError(f"webhook {webhook_id} of {owner.noun} {owner.id} not found")
     with writing(session):
-        session.execute(delete(Webhook).where(Webhook.id == webhook_id))
+        gone = session.execute(delete(Webhook).where(Webhook.id == webhook_id))
+        if not cast(CursorResult[Any], gone).rowcount:  # a concurrent call removed it first
+            raise NotFoundError(f"webhook {webhook_id} not found")
+        atomic.give_back(session, *_counter(owner_of(webhook)))
     session.expunge(webhook)
 
 

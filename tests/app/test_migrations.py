@@ -104,3 +104,43 @@ def test_the_run_state_revision_keeps_every_row(settings) -> None:
     upgrade(url)
     assert _counts(url) == before
     assert {"run_metrics", "run_checkpoints"} <= _tables(url)
+
+
+def _limits_state(url: str) -> tuple[dict, dict]:
+    """``({study id: (webhook_count, gold_item_count)}, {run id: config_digest})``."""
+    engine = make_engine(url)
+    try:
+        with engine.connect() as conn:
+            counts = conn.execute(text("SELECT id, webhook_count, gold_item_count FROM studies"))
+            shared = conn.execute(
+                text("SELECT id, config_digest FROM runs WHERE config_digest IS NOT NULL")
+            )
+            return {i: (w, g) for i, w, g in counts}, dict(shared.all())
+    finally:
+        engine.dispose()
+
+
+def test_the_limits_revision_backfills_counters_and_shared_runs(settings) -> None:
+    """0016 counts each study's webhooks and gold items, and marks the runs experiments
+    shared (the oldest ``ppo`` run naming advice per study, config and seed), from the rows
+    alone: after a downgrade to 0015 and back, both are as the app kept them."""
+    with run_app(settings, worker=False) as client:
+        study = new_study(client, n_candidates=4, seed=16)
+        for i in range(3):
+            hook = {"url": f"http://127.0.0.1:9/{i}", "study_id": study["id"]}
+            assert client.post("/api/webhooks", json=hook, headers=ADMIN).status_code == 201
+        gold = {"kind": "pair", "a": 0, "b": 1, "answer": 1}
+        for _ in range(2):
+            added = client.post(f"/api/studies/{study['id']}/gold", json=gold, headers=ADMIN)
+            assert added.status_code == 201
+        body = {"study_id": study["id"], "teacher": "good", "timesteps": 512, "n_envs": 1}
+        experiment = {**body, "algo": "bipars-em", "seeds": 2, "pilot_seeds": 1}
+        assert client.post("/api/experiments", json=experiment, headers=ADMIN).status_code == 202
+        again = {**body, "algo": "ppo", "seed": 0}  # the baseline's twin: not the shared one
+        assert client.post("/api/runs", json=again, headers=ADMIN).status_code == 202
+    url = settings.sqlalchemy_url
+    counts, shared = _limits_state(url)
+    assert counts[study["id"]] == (3, 2) and len(shared) >= 3
+    downgrade(url, "0015")
+    upgrade(url)
+    assert _limits_state(url) == (counts, shared)
