@@ -22,13 +22,19 @@ from app.http import errors, health
 from app.http.access_log import install_access_log_filter
 from app.http.credentials_first import CredentialsFirst
 from app.http.docs import docs_router
-from app.http.ratelimit import JOINS_PER_MINUTE, LOGIN_FAILURES, OPEN_LINK_JOINS, LoginLimiter
+from app.http.lockouts import DatabaseFailures
+from app.http.ratelimit import (
+    FAILED_LOGINS_PER_MINUTE,
+    JOINS_PER_MINUTE,
+    OPEN_LINK_JOINS,
+    LoginLimiter,
+)
 from app.jobs.worker import start_app_worker
 from app.middleware import BodySizeLimit, SecurityHeaders
 from app.routes import api_router, pages_router
 from app.runtime import Runtime
 from app.settings import Settings
-from app.webhooks.delivery import start_delivery
+from app.webhooks.scheduler import start_delivery
 from engine import __version__
 
 #: Where the OpenAPI document is served (``/docs`` reads it).
@@ -96,10 +102,12 @@ def _lifespan(
 
 
 def _install_limiters(app: FastAPI, runtime: Runtime, processes: int) -> None:
-    """Failed researcher logins, and new people per address through open links; several
-    processes count together, in a file of the data dir."""
+    """Failed researcher logins, counted in the database by every process and host; and new
+    people per address through open links, which ``acv serve --workers N``'s processes count
+    together in a file of the data dir."""
+    failures = DatabaseFailures(runtime.engine, FAILED_LOGINS_PER_MINUTE)
+    app.state.login_limiter = LoginLimiter(FAILED_LOGINS_PER_MINUTE, store=failures)
     shared = runtime.settings.data_dir if processes > 1 else None
-    app.state.login_limiter = LoginLimiter(shared=shared / LOGIN_FAILURES if shared else None)
     app.state.join_limiter = LoginLimiter(
         JOINS_PER_MINUTE, shared=shared / OPEN_LINK_JOINS if shared else None
     )

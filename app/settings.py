@@ -29,6 +29,9 @@
 - ``ACV_WEBHOOK_BACKOFF_S`` (default 5) and ``ACV_WEBHOOK_BACKOFF_CAP_S`` (default 3600): a
   failed delivery is retried after ``backoff * 2**(attempts - 1)`` seconds, at most the cap,
   with jitter; after ``ACV_WEBHOOK_MAX_ATTEMPTS`` (default 40: about 31 hours) it gives up.
+- ``ACV_WEBHOOK_CONCURRENCY`` (default 8): webhook attempts in flight at once in a delivering
+  process, at most one per webhook, so that receivers that stall hold up no other (see
+  :mod:`app.webhooks.scheduler`).
 - ``ACV_LOG_FORMAT`` (default ``text``): the server's log lines (each with a UTC timestamp
   and a level), as ``text`` or as one JSON object a line, ``json`` (see :mod:`app.core.logs`).
 """
@@ -67,6 +70,7 @@ class Settings(BaseSettings):
     webhook_backoff_s: float = Field(default=5.0, gt=0, le=3600)
     webhook_backoff_cap_s: float = Field(default=3600.0, gt=0, le=86_400)
     webhook_max_attempts: int = Field(default=40, ge=1, le=1000)
+    webhook_concurrency: int = Field(default=8, ge=1, le=256)
     log_format: LogFormat = "text"
 
     @field_validator("forwarded_allow_ips")

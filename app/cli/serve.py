@@ -5,8 +5,9 @@ building its app with :func:`worker_app`) that share the listening socket. The w
 must happen once happens in the supervisor, before and beside them: the migrations, the
 admin token, resuming half-prepared studies, the training-run worker and webhook delivery
 (threads). The server processes share the database (SQLite in WAL mode, writers queued on a
-file lock; see :mod:`app.db`) and the failed-login counts (:mod:`app.http.ratelimit`);
-researcher and participant cookies are signed or looked up, never kept in a process.
+file lock; see :mod:`app.db`), with the failed-login counts in it (:mod:`app.http.lockouts`),
+and the open-link join counts (:mod:`app.http.ratelimit`); researcher and participant
+cookies are signed or looked up, never kept in a process.
 """
 
 from __future__ import annotations
@@ -37,7 +38,7 @@ from app.preflight import check_data_dir
 from app.runtime import Runtime
 from app.settings import Settings
 from app.studies.participants import invite_url
-from app.webhooks.delivery import start_delivery
+from app.webhooks.scheduler import start_delivery
 from engine.errors import InputError
 
 

@@ -64,6 +64,8 @@ def finished(
     conn, own = _connection(db), owner(kind, owner_id)
     if not webhook_ids(conn, own):
         return
+    # The link's row before the webhooks' rows (emit's turn), in the order a decline takes them
+    maximum = _locked_maximum(conn, kind, own)
     emit(
         conn,
         owner=own,
@@ -71,7 +73,7 @@ def finished(
         subject=str(member_id),
         data=lambda: _member_data(conn, kind, member_id) | extra(),
     )
-    _target(conn, kind, own)
+    _target(conn, kind, own, maximum)
 
 
 def flagged(
@@ -104,17 +106,21 @@ def _member_data(conn: Connection, kind: LinkKind[Any, Any], member_id: int) -> 
     }
 
 
-def _target(conn: Connection, kind: LinkKind[Any, Any], own: Owner) -> None:
-    """``<noun>.target_reached`` once the finished open-link members reach the maximum,
+def _locked_maximum(conn: Connection, kind: LinkKind[Any, Any], own: Owner) -> int | None:
+    """The open link's maximum, its row locked until the transaction ends (PostgreSQL; SQLite
+    has one writer anyway); ``None`` without a link."""
+    return conn.scalar(
+        select(kind.link.max_participants).where(kind.owner_is(own.id)).with_for_update()
+    )
+
+
+def _target(conn: Connection, kind: LinkKind[Any, Any], own: Owner, maximum: int | None) -> None:
+    """``<noun>.target_reached`` once the finished open-link members reach the ``maximum``,
     once per maximum (raising it and reaching it again is a new event).
 
-    The link's row is locked first (PostgreSQL; SQLite has one writer anyway), so that of
-    two members finishing at once the second counts the first: neither misses the target.
+    The link's row is locked first (:func:`_locked_maximum`), so that of two members
+    finishing at once the second counts the first: neither misses the target.
     """
-    link = kind.link
-    maximum = conn.scalar(
-        select(link.max_participants).where(kind.owner_is(own.id)).with_for_update()
-    )
     if maximum is None:
         return  # no open link: no target
     member = kind.members.member

@@ -11,6 +11,14 @@ about), so writing the same event twice stores it once (``INSERT ... ON CONFLICT
 NOTHING`` on the unique ``event_id``): a participant finishes once, a study reaches its
 target once, whatever undo and concurrent writers do. An event without a subject (a
 declined consent) gets a random id: each one is new.
+
+Delivery does not keep order (:mod:`app.webhooks.scheduler`), so each event's body carries
+its ``timestamp`` and ``seq``, its number among its study's (or survey's) events: one more
+than the last event written for the collection's webhooks, the same for every webhook of the
+collection, and increasing in the order the events were written. Writers of one collection's
+events take turns on its webhooks' rows (``FOR NO KEY UPDATE`` on PostgreSQL; SQLite has one
+writer at a time), so no two events share a number. A receiver may see gaps: numbers of
+events written before it was registered, or sent once and not again (a target reached).
 """
 
 from __future__ import annotations
@@ -62,9 +70,28 @@ def _connection(db: Session | Connection) -> Connection:
     return db.connection() if isinstance(db, Session) else db
 
 
-def webhook_ids(db: Session | Connection, owner: Owner) -> list[int]:
-    """The ids of the owner's webhooks."""
-    return list(_connection(db).scalars(select(Webhook.id).where(owner.column == owner.id)))
+def webhook_ids(db: Session | Connection, owner: Owner, *, lock: bool = False) -> list[int]:
+    """The ids of the owner's webhooks, in order.
+
+    Args:
+        lock: hold their rows until the caller's transaction ends (PostgreSQL), so that the
+            owner's event writers take turns.
+    """
+    query = select(Webhook.id).where(owner.column == owner.id).order_by(Webhook.id)
+    if lock:
+        query = query.with_for_update(key_share=True)  # FOR NO KEY UPDATE: events' keys stay free
+    return list(_connection(db).scalars(query))
+
+
+def last_seq(db: Session | Connection, ids: list[int]) -> int:
+    """The ``seq`` of the last event written for these webhooks (0 for none)."""
+    payload = _connection(db).scalar(
+        select(WebhookEvent.payload)
+        .where(WebhookEvent.webhook_id.in_(ids))
+        .order_by(WebhookEvent.id.desc())
+        .limit(1)
+    )
+    return int(payload.get("seq", 0)) if payload else 0
 
 
 def event_id(webhook_id: int, type_: str, subject: str | None) -> str:
@@ -93,11 +120,16 @@ def emit(
         data: the event's data beyond the owner's id, called only if there is a webhook.
     """
     conn = _connection(db)
-    ids = webhook_ids(conn, owner)
+    ids = webhook_ids(conn, owner, lock=True)
     if not ids:
         return 0
     now = utcnow()
-    payload = {"type": type_, "timestamp": now.isoformat(), "data": owner.data() | data()}
+    payload = {
+        "type": type_,
+        "timestamp": now.isoformat(),
+        "seq": last_seq(conn, ids) + 1,
+        "data": owner.data() | data(),
+    }
     rows = [
         {
             "webhook_id": webhook_id,

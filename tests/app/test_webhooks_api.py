@@ -20,8 +20,9 @@ from sqlalchemy import update
 from app.db import writing
 from app.models import WebhookEvent
 from app.settings import Settings
-from app.webhooks.delivery import Deliverer, Policy
+from app.webhooks.delivery import Policy
 from app.webhooks.outbox import Owner, emit
+from app.webhooks.scheduler import Deliverer
 from tests.support.crowd import configure, joined_player, visitor
 from tests.support.studies import Player
 from tests.support.surveys import invite as invite_respondents
@@ -141,9 +142,12 @@ def test_an_event_is_redelivered_on_request(
         again = client.post(path, headers=ADMIN)
         assert again.status_code == 200, again.text
         assert (again.json()["attempts"], again.json()["delivered_at"]) == (0, None)
-        wait_for(
-            lambda: [d.event_id for d in receiver.received()].count(event["event_id"]),
-            lambda n: n == 2,
+        wait_for(  # received, and logged: the loop's record must not land after the update
+            lambda: (
+                [d.event_id for d in receiver.received()].count(event["event_id"]),
+                _status(client, hook, event),
+            ),
+            lambda seen: seen == (2, "delivered"),
             what="the delivered event sent again",
         )
         with runtime.sessions() as session, writing(session):
