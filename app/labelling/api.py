@@ -195,7 +195,7 @@ def label_gold(
         response_ms=body.response_ms,
     )
     if created:
-        quality.apply_gate(session, study_id=person.study_id)
+        quality.apply_gate(session, study_id=person.study_id, participant_id=person.id)
     else:
         response.status_code = 200
     upcoming = labelling.next_match(session, participant=person)

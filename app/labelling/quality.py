@@ -18,6 +18,7 @@ from sqlalchemy.orm import Session
 
 from app.db import writing
 from app.labelling.check import agreement_by_participant
+from app.labelling.gate import GateStanding, below_gate
 from app.models import CrowdSettings, Label, Match, Participant
 from app.recruiting import events
 from app.recruiting import service as recruiting
@@ -57,14 +58,6 @@ def position_biased(left: int, sided: int) -> bool:
     half rejects at :data:`BIAS_ALPHA` (cached: participants share few distinct counts)."""
     p_value = agreement.side_bias(left=left, labels=sided).p_value
     return p_value is not None and p_value < BIAS_ALPHA
-
-
-@lru_cache(maxsize=4096)
-def below_gate(gold: GoldScore, gate: float | None) -> bool:
-    """The gate's flag: even the upper bound of gold accuracy's 95% Clopper-Pearson interval
-    is below the gate, so clearly careless, not merely unlucky on a few items."""
-    interval = gold_interval(Checks(gold_right=gold.right, gold_asked=gold.asked))
-    return gate is not None and interval is not None and interval[1] < gate
 
 
 def flags_of(
@@ -131,18 +124,19 @@ class ParticipantQuality:
         return gold_interval(self.checks)
 
     @property
+    def standing(self) -> GateStanding:
+        """What the gold gate reads of this participant."""
+        return GateStanding(self.participant, self.gold, self.gold_gate)
+
+    @property
     def below_gate(self) -> bool:
         """Whether the study's gate flags this participant (:func:`below_gate`)."""
-        return below_gate(self.gold, self.gold_gate)
+        return self.standing.below_gate
 
     @property
     def gate_reason(self) -> str:
         """Why the gate flags this participant, in words."""
-        low, high = self.gold_interval or (0.0, 1.0)
-        return (
-            f"gold gate: {self.gold.right} of {self.gold.asked} gold items right "
-            f"(95% interval {low:.2f} to {high:.2f}, below {self.gold_gate:g})"
-        )
+        return self.standing.gate_reason
 
     @property
     def reliability(self) -> float:
@@ -244,33 +238,47 @@ def configure_crowd(session: Session, *, study_id: int, options: CrowdOptions) -
     return settings
 
 
-def apply_gate(session: Session, *, study_id: int) -> list[int]:
+def apply_gate(session: Session, *, study_id: int, participant_id: int | None = None) -> list[int]:
     """Exclude the participants the gold gate flags, when the researcher has the gate
     exclude; returns who was newly excluded. Labels are kept. A participant the researcher
     decided on (excluded, or included again: ``exclusion_reason`` set) is left as decided.
     Whom the gate flags gets a ``participant.flagged`` webhook event, in this transaction.
+
+    With ``participant_id`` (after that participant's gold answer), only their standing is
+    read: one participant's gold answers, whatever the study's size (issue 45 §7).
     """
     settings = recruiting.settings(session, LINK, study_id)
     if settings is None or settings.gold_gate is None:
         return []
     if not settings.gate_excludes and not webhook_ids(session, Owner("study", study_id)):
         return []  # nobody to exclude, nobody to tell
-    flagged = [q for q in quality(session, study_id=study_id).participants if q.below_gate]
-    newly = [q for q in flagged if settings.gate_excludes and _gated(q)]
+    flagged = [s for s in _standings(session, study_id, participant_id, settings) if s.below_gate]
+    newly = [s for s in flagged if settings.gate_excludes and _gated(s)]
     with writing(session):
-        for q in newly:
-            q.participant.excluded, q.participant.exclusion_reason = True, q.gate_reason
-        for q in flagged:  # participant.flagged, once per participant (issue 29 §3)
-            _gate_event(session, study_id, q)
-    return [q.participant.id for q in newly]
+        for s in newly:
+            s.participant.excluded, s.participant.exclusion_reason = True, s.gate_reason
+        for s in flagged:  # participant.flagged, once per participant (issue 29 §3)
+            _gate_event(session, study_id, s)
+    return [s.participant.id for s in newly]
 
 
-def _gate_event(session: Session, study_id: int, q: ParticipantQuality) -> None:
+def _standings(
+    session: Session, study_id: int, participant_id: int | None, settings: CrowdSettings
+) -> list[GateStanding]:
+    """Every participant's gate standing, or one participant's."""
+    if participant_id is None:
+        return [q.standing for q in quality(session, study_id=study_id).participants]
+    person = session.get_one(Participant, participant_id)
+    found = gold.scores(session, study_id=study_id, participant_id=participant_id)
+    return [GateStanding(person, found.get(participant_id, GoldScore(0, 0)), settings.gold_gate)]
+
+
+def _gate_event(session: Session, study_id: int, q: GateStanding) -> None:
     data = {"flags": ["below_gate"], "reason": q.gate_reason, "excluded": q.participant.excluded}
     events.flagged(
         session, LINK, member_id=q.participant.id, owner_id=study_id, by="gold_gate", data=data
     )
 
 
-def _gated(q: ParticipantQuality) -> bool:
+def _gated(q: GateStanding) -> bool:
     return q.below_gate and q.participant.exclusion_reason is None

@@ -23,9 +23,10 @@ from dataclasses import dataclass
 from typing import Any, Literal, cast
 
 import numpy as np
-from sqlalchemy import Connection, CursorResult, bindparam, case, func, select, update
+from sqlalchemy import Connection, CursorResult, bindparam, case, delete, func, select, update
 from sqlalchemy.orm import Session
 
+from app.core import atomic
 from app.core.errors import ConflictError, NotFoundError
 from app.db import writing
 from app.models import Candidate, GoldAnswer, GoldItem, Label, Participant, Study, as_utc, utcnow
@@ -126,7 +127,11 @@ def add_item(
     study = get_ready_study(session, study_id=study_id)
     _check_item(session, study, kind, a, b, answer)
     item = GoldItem(study_id=study_id, kind=kind, a=a, b=b, answer=answer)
-    with writing(session):
+    with writing(session):  # counted with the item: concurrent adds never pass the limit
+        if not atomic.take(
+            session, Study.gold_item_count, Study.id == study_id, limit=MAX_GOLD_ITEMS
+        ):
+            raise InputError(f"a study has at most {MAX_GOLD_ITEMS} gold items")
         session.add(item)
     return item
 
@@ -141,8 +146,6 @@ def _check_item(session: Session, study: Study, kind: str, a: int, b: int, answe
             raise InputError(f"candidate {cid} is not one of study {study.id}'s candidates")
     if answer not in (a, b):
         raise InputError(f"answer must be {a} or {b}, got {answer}")
-    if len(list_items(session, study_id=study.id)) >= MAX_GOLD_ITEMS:
-        raise InputError(f"a study has at most {MAX_GOLD_ITEMS} gold items")
 
 
 def get_item(session: Session, *, study_id: int, item_id: int) -> GoldItem:
@@ -169,7 +172,11 @@ def delete_item(session: Session, *, study_id: int, item_id: int) -> None:
     if answered:
         raise ConflictError(f"gold item {item_id} has {answered} answers; it is kept")
     with writing(session):
-        session.delete(item)
+        gone = session.execute(delete(GoldItem).where(GoldItem.id == item.id))
+        if not cast(CursorResult[Any], gone).rowcount:  # a concurrent call removed it first
+            raise NotFoundError(f"gold item {item_id} of study {study_id} not found")
+        atomic.give_back(session, Study.gold_item_count, Study.id == study_id)
+    session.expunge(item)
 
 
 def positions(*, n_candidates: int, count: int, seed: int, participant_id: int) -> list[int]:
@@ -237,9 +244,8 @@ def answer(
     done = session.scalar(
         select(func.count(Label.id)).where(Label.participant_id == participant_id)
     )
-    if row.position > (
-        done or 0
-    ):  # shown only once that many matches are decided: no answering ahead
+    # shown only once that many matches are decided: no answering ahead
+    if row.position > (done or 0):
         raise ConflictError(
             f"gold item {item_id} is not due yet: it comes after {row.position} decided "
             f"matches, and {done} are decided"
@@ -271,9 +277,12 @@ def answer(
     return row, bool(stored)
 
 
-def scores(session: Session, *, study_id: int) -> dict[int, GoldScore]:
-    """Each participant's answered gold items: how many, and how many right."""
-    rows = session.execute(
+def scores(
+    session: Session, *, study_id: int, participant_id: int | None = None
+) -> dict[int, GoldScore]:
+    """Each participant's answered gold items: how many, and how many right (one
+    participant's only, by the answers' primary key, with ``participant_id``)."""
+    query = (
         select(
             GoldAnswer.participant_id,
             func.count(),
@@ -283,4 +292,7 @@ def scores(session: Session, *, study_id: int) -> dict[int, GoldScore]:
         .where(GoldItem.study_id == study_id, GoldAnswer.winner.is_not(None))
         .group_by(GoldAnswer.participant_id)
     )
+    if participant_id is not None:
+        query = query.where(GoldAnswer.participant_id == participant_id)
+    rows = session.execute(query)
     return {pid: GoldScore(int(right or 0), int(asked)) for pid, asked, right in rows}

@@ -8,7 +8,7 @@ from __future__ import annotations
 import pytest
 from scipy.stats import binom
 
-from app.labelling.quality import below_gate
+from app.labelling.gate import below_gate
 from app.studies.gold import GoldScore
 
 
