@@ -24,7 +24,7 @@ from engine.provenance import git_commit
 from engine.rl.agent_judge import behaviour_visited, candidate_terms
 from engine.rl.behaviour import RolloutOptions, nearest_shares
 from engine.rl.checkpoint import find_checkpoint
-from engine.rl.trained import load_agent
+from engine.rl.trained import TrainedAgent, load_agent
 from engine.treefile import TreeDocument
 from engine.validation.measure import JUDGES, posture_truth, training_end, truth_states
 from engine.validation.round2_analysis import write
@@ -47,11 +47,11 @@ from engine.verdict_runs import judge_scores
 STATE_STRIDE = 4
 
 
-def bracket_scores(run: Path, doc: TreeDocument) -> dict[str, list[float]]:
+def bracket_scores(run: Path, agent: TrainedAgent, doc: TreeDocument) -> dict[str, list[float]]:
     """Each judge's score of each of the bracket's candidates, the secondary's nearest share
-    beside them, from the run's last checkpoint (the behaviour rollouts are cached)."""
+    beside them, from the run's last checkpoint ``agent`` (its behaviour rollouts are cached,
+    so the nearest share reuses the judge's)."""
     found = {judge: judge_scores([run], doc, judge)[0].tolist() for judge in JUDGES}
-    agent = load_agent(find_checkpoint(run))
     visited = behaviour_visited(agent, run_dir=run, rollouts=RolloutOptions())
     similarity = AdviceReward.from_tree(doc).similarity(visited) if len(visited) else None
     nearest = np.zeros(len(doc.candidates)) if similarity is None else nearest_shares(similarity)
@@ -73,7 +73,7 @@ def measure(
     states = truth_states(run, plan.env_id, plan.truth_episodes)
     teachers = [plan.teacher] + (["standing"] if "standing" in brackets else [])
     found = {
-        "scores": {name: bracket_scores(run, doc) for name, doc in brackets.items()},
+        "scores": {name: bracket_scores(run, agent, doc) for name, doc in brackets.items()},
         "reward": {
             name: candidate_terms(agent, doc).reward.tolist() for name, doc in brackets.items()
         },
