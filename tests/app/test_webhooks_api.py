@@ -28,8 +28,8 @@ from tests.support.studies import Player
 from tests.support.surveys import invite as invite_respondents
 from tests.support.surveys import paper_answers, paper_body, participant_trees
 from tests.support.wait import wait_for
-from tests.support.web import ADMIN, ADMIN_TOKEN, CSRF_RE, logged_in
-from tests.support.webhooks import Receiver, attempts, events
+from tests.support.web import ADMIN, CSRF_RE, logged_in
+from tests.support.webhooks import Receiver, attempts, events, webhook_settings
 
 REFUSED_LOOPBACK = "webhooks may only go to loopback (ACV_WEBHOOK_TARGETS=loopback) addresses"
 
@@ -37,15 +37,7 @@ REFUSED_LOOPBACK = "webhooks may only go to loopback (ACV_WEBHOOK_TARGETS=loopba
 @pytest.fixture(scope="module")
 def settings(backend_url: tuple[Path, str]) -> Settings:
     """Webhooks to 127.0.0.1 only (the tests' setting) and quick retries."""
-    data_dir, url = backend_url
-    return Settings(
-        data_dir=data_dir,
-        database_url=url,
-        admin_token=ADMIN_TOKEN,
-        webhook_targets="loopback",
-        webhook_backoff_s=0.2,
-        webhook_backoff_cap_s=0.4,
-    )
+    return webhook_settings(backend_url)
 
 
 def register(client: TestClient, url: str, **owner: int) -> dict[str, Any]:

@@ -23,8 +23,8 @@ from app.webhooks.delivery import Policy
 from app.webhooks.outbox import Owner, emit
 from app.webhooks.scheduler import Deliverer, DeliveryThread
 from tests.support.wait import wait_for
-from tests.support.web import ADMIN, ADMIN_TOKEN
-from tests.support.webhooks import Receiver, StalledReceiver, attempts, events
+from tests.support.web import ADMIN
+from tests.support.webhooks import Receiver, StalledReceiver, attempts, events, webhook_settings
 
 #: Attempts in flight at once in the app (``ACV_WEBHOOK_CONCURRENCY``): room for one stalled
 #: receiver beside a healthy one, and too little for three stalled ones.
@@ -36,16 +36,7 @@ MAX_LAG_S = 1.0
 @pytest.fixture(scope="module")
 def settings(backend_url: tuple[Path, str]) -> Settings:
     """Webhooks to 127.0.0.1 only, quick retries, and two attempts in flight at once."""
-    data_dir, url = backend_url
-    return Settings(
-        data_dir=data_dir,
-        database_url=url,
-        admin_token=ADMIN_TOKEN,
-        webhook_targets="loopback",
-        webhook_backoff_s=0.2,
-        webhook_backoff_cap_s=0.4,
-        webhook_concurrency=LANES,
-    )
+    return webhook_settings(backend_url, webhook_concurrency=LANES)
 
 
 def register(client: TestClient, url: str, study_id: int) -> dict[str, Any]:

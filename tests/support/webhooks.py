@@ -13,11 +13,15 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from datetime import datetime
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
-from typing import Any
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 from standardwebhooks import Webhook as Verifier
 
-from tests.support.web import ADMIN
+if TYPE_CHECKING:
+    from app.settings import Settings
+
+from tests.support.web import ADMIN, ADMIN_TOKEN
 
 
 @dataclass(frozen=True)
@@ -220,3 +224,20 @@ def attempts(api: Any, webhook_id: int, headers: dict[str, str] = ADMIN) -> list
     response = api.get(f"/api/webhooks/{webhook_id}/attempts", headers=headers)
     assert response.status_code == 200, response.text
     return response.json()
+
+
+def webhook_settings(backend_url: tuple[Path, str], **extra: Any) -> Settings:
+    """The webhook tests' settings: webhooks to 127.0.0.1 only and quick retries (and
+    ``extra``), on the test database."""
+    from app.settings import Settings
+
+    data_dir, url = backend_url
+    return Settings(
+        data_dir=data_dir,
+        database_url=url,
+        admin_token=ADMIN_TOKEN,
+        webhook_targets="loopback",
+        webhook_backoff_s=0.2,
+        webhook_backoff_cap_s=0.4,
+        **extra,
+    )
