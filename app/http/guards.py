@@ -14,7 +14,7 @@ from app.http.deps import ResearcherCookie, RuntimeDep, SessionDep
 from app.http.rendering import RedirectTo, login_url
 from app.models import Participant
 from app.recruiting import members
-from app.recruiting.members import CollectionKind, Member
+from app.recruiting.members import CollectionKind, MemberRow
 
 DEFAULT_NEXT = "/studies"
 ParticipantCookie = Annotated[str | None, Cookie(alias=auth.PARTICIPANT_COOKIE)]
@@ -32,8 +32,8 @@ ResearcherPage = Depends(researcher_page)
 
 
 def page_member(
-    session: Session, kind: CollectionKind[Member], cookie: str | None, *, lost: str
-) -> Member:
+    session: Session, kind: CollectionKind[MemberRow], cookie: str | None, *, lost: str
+) -> MemberRow:
     """The member of ``kind`` whose invite cookie this browser holds.
 
     Raises:

@@ -225,8 +225,9 @@ def _submit(
         sibling = shape.byes[slot ^ 1]
     if not progress.finished and sibling is not None:
         _open_next_round(conn, shape, pid, rnd, slot, winner, sibling)
-    conn.execute(sql.FINISH if progress.finished else sql.TOUCH, {"pid": pid, "now": now})
-    if progress.finished:  # webhook events, in this transaction (one query when none)
+    conn.execute(sql.TOUCH, {"pid": pid, "now": now})
+    if progress.finished:  # then webhook events, in this transaction (one query when none)
+        conn.execute(sql.FINISH, {"pid": pid, "now": now})
         events.finished(conn, participant=participant)
     return LabelResult(
         match_id,

@@ -7,7 +7,7 @@ from __future__ import annotations
 from sqlalchemy import BindParameter, bindparam, func, insert, select, update
 from sqlalchemy.orm import aliased
 
-from app.models import Label, Match, Participant
+from app.models import Label, Match, Member, Participant
 
 PID: BindParameter[int] = bindparam("pid")
 MID: BindParameter[int] = bindparam("mid")
@@ -21,7 +21,11 @@ OPEN = (
 )
 OPEN_AND_DONE = OPEN.add_columns(DONE)
 #: The first statement of a label's transaction: takes the participant's lock.
-LOCK = update(Participant).where(Participant.id == PID).values(finished_at=Participant.finished_at)
+LOCK = (
+    update(Member)
+    .where(Member.id == PID, Member.collection_kind == "study")
+    .values(finished_at=Member.finished_at)
+)
 _sibling, _sibling_label = aliased(Match), aliased(Label)
 #: The winner of the slot whose winner meets this match's (slots 2k and 2k + 1 pair up).
 SIBLING_WINNER = (
@@ -54,6 +58,6 @@ MATCH_ROW = (
 )
 INSERT_LABEL, INSERT_MATCH = insert(Label), insert(Match)
 TOUCH = update(Participant).where(Participant.id == PID).values(last_active_at=bindparam("now"))
-FINISH = TOUCH.values(finished_at=bindparam("now"))
+FINISH = update(Member).where(Member.id == PID).values(finished_at=bindparam("now"))
 LABEL_WINNER = select(Label.winner, Label.tie).where(Label.match_id == MID)
 DONE_ONLY = select(DONE)

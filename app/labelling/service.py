@@ -32,7 +32,7 @@ from app.labelling.flow import (
     submit_label,
 )
 from app.labelling.shape import shape_of
-from app.models import DisagreementPair, Label, Match, Participant, utcnow
+from app.models import DisagreementPair, Label, Match, Member, Participant, utcnow
 from engine.bracket import Bracket, Results
 
 __all__ = [
@@ -102,9 +102,7 @@ def undo_label(
         match = session.get_one(Match, label.match_id)
         _drop_next_match(session, participant, match)
         session.delete(label)
-        session.execute(
-            update(Participant).where(Participant.id == participant.id).values(finished_at=None)
-        )
+        session.execute(update(Member).where(Member.id == participant.id).values(finished_at=None))
         # Disagreement pairs still to answer were chosen from the tree this undo changes;
         # answered ones stay (they are labels).
         session.execute(

@@ -18,9 +18,9 @@ from app.models.base import (
 )
 from app.models.logins import LoginFailure
 from app.models.people import (
-    MemberColumns,
+    COLLECTION_KINDS,
+    Member,
     OpenLink,
-    open_link_counts,
     token_digest,
 )
 from app.models.runs import (
@@ -61,6 +61,7 @@ from app.models.webhooks import (
 )
 
 __all__ = [
+    "COLLECTION_KINDS",
     "RUN_STATUSES",
     "STUDY_STATUSES",
     "Base",
@@ -78,7 +79,7 @@ __all__ = [
     "Label",
     "LoginFailure",
     "Match",
-    "MemberColumns",
+    "Member",
     "NAMING",
     "OpenLink",
     "Participant",
@@ -101,7 +102,6 @@ __all__ = [
     "WebhookEvent",
     "as_utc",
     "enum_type",
-    "open_link_counts",
     "status_check",
     "token_digest",
     "utcnow",

@@ -1,5 +1,13 @@
-"""The columns every person of a collection has (a study's participant, a survey's
-respondent) and those of an open link (app/recruiting)."""
+"""The people of every collection (a study's participants, a survey's respondents) in one
+``members`` table, and every open link in one ``open_links`` table (app/recruiting).
+
+Each kind keeps its few own columns in a child table (SQLAlchemy joined-table inheritance,
+``polymorphic_on=collection_kind``): a participant's activity and exclusion
+(``participants``), a respondent's stimulus and start (``survey_respondents``), a study
+link's quality options (``study_link_options``). ``collection_id`` names a study or a survey
+by ``collection_kind``; a reference to one of two tables cannot be a foreign key, and no
+collection is ever deleted.
+"""
 
 from __future__ import annotations
 
@@ -11,30 +19,51 @@ from sqlalchemy import (
     Boolean,
     CheckConstraint,
     DateTime,
+    Index,
     Integer,
     String,
     Text,
 )
 from sqlalchemy.orm import Mapped, mapped_column, validates
 
-from app.models.base import utcnow
+from app.models.base import Base, utcnow
+
+#: What a member or an open link belongs to: a study (bracket labelling) or a survey.
+COLLECTION_KINDS = ("study", "survey")
+_KIND_CHECK = "collection_kind IN ('study', 'survey')"
 
 
 def token_digest(token: str) -> str:
-    """SHA-256 of an invite token (hex): what participants are looked up by."""
+    """SHA-256 of an invite token (hex): what members are looked up by."""
     return hashlib.sha256(token.encode()).hexdigest()
 
 
-class MemberColumns:
-    """The columns every member of a collection has (a study's participant, a survey's
-    respondent): who they are to us, an invite token, and who they are to a crowd platform.
+class Member(Base):
+    """A member of a collection (a study's participant, a survey's respondent): who they are
+    to us, an invite token, and who they are to a crowd platform.
 
     Requests are matched by ``token_hash`` and then the token itself is compared in
     constant time (:func:`app.recruiting.members.resolve`): an index lookup's timing
     can tell an attacker about the hash of their guess, never about a real token.
     """
 
-    id: Mapped[int] = mapped_column(Integer, primary_key=True, sort_order=-1)
+    __tablename__ = "members"
+    __table_args__ = (
+        CheckConstraint(_KIND_CHECK, name="collection_kind"),
+        Index("ix_members_collection", "collection_kind", "collection_id"),
+        Index(
+            "uq_members_collection_external_id",
+            "collection_kind",
+            "collection_id",
+            "external_id",
+            unique=True,
+        ),
+    )
+    __mapper_args__ = {"polymorphic_on": "collection_kind"}
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    collection_kind: Mapped[str] = mapped_column(String(16))
+    collection_id: Mapped[int] = mapped_column(Integer)
     token: Mapped[str] = mapped_column(String(64), unique=True)
     token_hash: Mapped[str] = mapped_column(String(64), index=True, unique=True)
     name: Mapped[str | None] = mapped_column(String(200), default=None)
@@ -55,14 +84,29 @@ class MemberColumns:
         return token
 
 
-class OpenLink:
-    """The columns of an open link (``/s/<slug>`` of a study, ``/q/<slug>`` of a survey).
+class OpenLink(Base):
+    """An open link (``/s/<slug>`` of a study, ``/q/<slug>`` of a survey) and its options.
 
     ``joined`` counts people created through the link; the database refuses more than
-    ``max_participants`` (a CHECK on each table), and a join increments it atomically.
-    ``declines`` counts declined consents (nothing else of a decline is stored).
+    ``max_participants`` (a CHECK), and a join increments it atomically. ``declines``
+    counts declined consents (nothing else of a decline is stored).
     """
 
+    __tablename__ = "open_links"
+    __table_args__: tuple[object, ...] = (
+        CheckConstraint(_KIND_CHECK, name="collection_kind"),
+        CheckConstraint(
+            "max_participants >= 1 AND joined >= 0 AND joined <= max_participants "
+            "AND declines >= 0",
+            name="counts",
+        ),
+        Index("uq_open_links_collection", "collection_kind", "collection_id", unique=True),
+    )
+    __mapper_args__ = {"polymorphic_on": "collection_kind"}
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    collection_kind: Mapped[str] = mapped_column(String(16))
+    collection_id: Mapped[int] = mapped_column(Integer)
     slug: Mapped[str] = mapped_column(String(64), unique=True)
     enabled: Mapped[bool] = mapped_column(Boolean, default=False)
     max_participants: Mapped[int] = mapped_column(Integer)
@@ -72,10 +116,3 @@ class OpenLink:
     consent_text: Mapped[str | None] = mapped_column(Text, default=None)
     completion_code: Mapped[str | None] = mapped_column(String(100), default=None)
     redirect_url: Mapped[str | None] = mapped_column(String(500), default=None)
-
-
-def open_link_counts() -> CheckConstraint:
-    return CheckConstraint(
-        "max_participants >= 1 AND joined >= 0 AND joined <= max_participants AND declines >= 0",
-        name="counts",
-    )

@@ -19,13 +19,12 @@ from sqlalchemy import (
     Float,
     ForeignKey,
     ForeignKeyConstraint,
-    Index,
     Integer,
     String,
     Text,
     UniqueConstraint,
 )
-from sqlalchemy.orm import Mapped, mapped_column
+from sqlalchemy.orm import Mapped, mapped_column, synonym
 
 from app.models.base import (
     Base,
@@ -34,7 +33,7 @@ from app.models.base import (
     status_check,
     utcnow,
 )
-from app.models.people import MemberColumns, OpenLink, open_link_counts
+from app.models.people import Member, OpenLink
 
 
 class Study(Base):
@@ -116,20 +115,21 @@ class BracketSlot(Base):
     b: Mapped[int | None] = mapped_column(Integer, default=None)
 
 
-class Participant(MemberColumns, Base):
-    """Someone labelling a study's bracket, known only by their invite token."""
+class Participant(Member):
+    """Someone labelling a study's bracket, known only by their invite token (a member of
+    kind ``study``; their activity and exclusion are this table's own)."""
 
     __tablename__ = "participants"
-    __table_args__ = (
-        Index("uq_participants_study_external_id", "study_id", "external_id", unique=True),
-    )
+    __mapper_args__ = {"polymorphic_identity": "study"}
 
-    study_id: Mapped[int] = mapped_column(ForeignKey("studies.id", ondelete="CASCADE"), index=True)
+    id: Mapped[int] = mapped_column(ForeignKey("members.id", ondelete="CASCADE"), primary_key=True)
     last_active_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), default=None)
     #: Left out of pooling and exports (by the researcher, or by the gold gate when it
     #: excludes); their labels are kept.
     excluded: Mapped[bool] = mapped_column(Boolean, default=False)
     exclusion_reason: Mapped[str | None] = mapped_column(String(200), default=None)
+    #: Their study (the member's collection).
+    study_id = synonym("collection_id")
 
 
 class Match(Base):
@@ -172,17 +172,16 @@ class Label(Base):
     tie: Mapped[bool] = mapped_column(Boolean, default=False)
 
 
-class CrowdSettings(OpenLink, Base):
-    """A study's open link ``/s/<slug>`` and its crowd options (app.studies.crowd)."""
+class CrowdSettings(OpenLink):
+    """A study's open link ``/s/<slug>`` and its quality options (app.studies.crowd), the
+    options in this table."""
 
-    __tablename__ = "crowd_settings"
-    __table_args__ = (
-        open_link_counts(),
-        CheckConstraint("speed_threshold_ms >= 0", name="speed"),
-    )
+    __tablename__ = "study_link_options"
+    __table_args__ = (CheckConstraint("speed_threshold_ms >= 0", name="speed"),)
+    __mapper_args__ = {"polymorphic_identity": "study"}
 
-    study_id: Mapped[int] = mapped_column(
-        ForeignKey("studies.id", ondelete="CASCADE"), primary_key=True
+    id: Mapped[int] = mapped_column(
+        ForeignKey("open_links.id", ondelete="CASCADE"), primary_key=True
     )
     consistency_check: Mapped[bool] = mapped_column(Boolean, default=False)
     speed_threshold_ms: Mapped[int] = mapped_column(Integer, default=800)
@@ -191,6 +190,8 @@ class CrowdSettings(OpenLink, Base):
     gold_gate: Mapped[float | None] = mapped_column(Float, default=None)
     #: Whether the gate also excludes the participants it flags.
     gate_excludes: Mapped[bool] = mapped_column(Boolean, default=False)
+    #: The study whose link this is.
+    study_id = synonym("collection_id")
 
 
 class ConsistencyCheck(Base):

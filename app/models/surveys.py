@@ -9,21 +9,23 @@ from sqlalchemy import (
     BigInteger,
     Boolean,
     CheckConstraint,
+    ColumnElement,
     DateTime,
     ForeignKey,
-    Index,
     Integer,
     String,
     Text,
     UniqueConstraint,
+    func,
 )
-from sqlalchemy.orm import Mapped, mapped_column
+from sqlalchemy.ext.hybrid import hybrid_property
+from sqlalchemy.orm import Mapped, mapped_column, synonym
 
 from app.models.base import (
     Base,
     utcnow,
 )
-from app.models.people import MemberColumns, OpenLink, open_link_counts
+from app.models.people import Member, OpenLink
 
 SURVEY_ASSIGNMENTS = ("all", "round_robin")
 SURVEY_EXCLUSIONS = ("none", "attention_check")
@@ -82,34 +84,47 @@ class SurveyStimulus(Base):
     expected: Mapped[dict] = mapped_column(JSON)
 
 
-class SurveyRespondent(MemberColumns, Base):
-    """Someone answering a survey, known only by their invite token (as a participant).
+class SurveyRespondent(Member):
+    """Someone answering a survey, known only by their invite token (a member of kind
+    ``survey``, as a participant is of a study).
 
     ``started_at`` is set once, by whichever request first plans their screens (an atomic
     ``UPDATE ... WHERE started_at IS NULL``); ``stimulus_id`` is their round-robin stimulus.
+    ``former_id`` is the id a respondent had before members were one table (revision 0017
+    gave them new ids above every participant's): exports, payloads and their screen plan
+    keep showing and using it (:attr:`shown_id`).
     """
 
     __tablename__ = "survey_respondents"
-    __table_args__ = (
-        Index("uq_survey_respondents_survey_external_id", "survey_id", "external_id", unique=True),
-    )
+    __mapper_args__ = {"polymorphic_identity": "survey"}
 
-    survey_id: Mapped[int] = mapped_column(ForeignKey("surveys.id", ondelete="CASCADE"), index=True)
+    id: Mapped[int] = mapped_column(ForeignKey("members.id", ondelete="CASCADE"), primary_key=True)
     stimulus_id: Mapped[int | None] = mapped_column(
         ForeignKey("survey_stimuli.id", ondelete="CASCADE"), default=None
     )
     started_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), default=None)
+    former_id: Mapped[int | None] = mapped_column(Integer, unique=True, default=None)
+    #: Their survey (the member's collection).
+    survey_id = synonym("collection_id")
+
+    @hybrid_property
+    def shown_id(self) -> int:
+        """The id exports, webhook payloads and the screen plan's seed use."""
+        return self.id if self.former_id is None else self.former_id
+
+    @shown_id.inplace.expression
+    @classmethod
+    def _shown_id(cls) -> ColumnElement[int]:
+        return func.coalesce(cls.former_id, cls.id)
 
 
-class SurveyCrowdSettings(OpenLink, Base):
-    """A survey's open link ``/q/<slug>`` (app.surveys.crowd)."""
+class SurveyCrowdSettings(OpenLink):
+    """A survey's open link ``/q/<slug>`` (app.surveys.crowd); it has no options of its own."""
 
-    __tablename__ = "survey_crowd_settings"
-    __table_args__ = (open_link_counts(),)
+    __mapper_args__ = {"polymorphic_identity": "survey"}
 
-    survey_id: Mapped[int] = mapped_column(
-        ForeignKey("surveys.id", ondelete="CASCADE"), primary_key=True
-    )
+    #: The survey whose link this is.
+    survey_id = synonym("collection_id")
 
 
 class SurveyScreen(Base):

@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING, Any
 from sqlalchemy import Connection, func, select
 from sqlalchemy.orm import Session
 
+from app.models import Member, OpenLink, SurveyRespondent
 from app.webhooks.outbox import Data, Owner, emit, webhook_ids
 
 if TYPE_CHECKING:  # the service writes declines through this module
@@ -38,7 +39,7 @@ def declined(db: DB, kind: LinkKind[Any, Any], *, owner_id: int) -> None:
     """A visitor declined consent (nothing about them is stored, so the event carries only
     the count of declines)."""
     conn = _connection(db)
-    count = select(kind.link.declines).where(kind.owner_is(owner_id))
+    count = select(OpenLink.declines).where(kind.owner_is(owner_id))
     emit(
         conn,
         owner=owner(kind, owner_id),
@@ -66,12 +67,13 @@ def finished(
         return
     # The link's row before the webhooks' rows (emit's turn), in the order a decline takes them
     maximum = _locked_maximum(conn, kind, own)
+    shown = _shown_id(conn, member_id)
     emit(
         conn,
         owner=own,
         type_=f"{kind.members.person}.finished",
-        subject=str(member_id),
-        data=lambda: _member_data(conn, kind, member_id) | extra(),
+        subject=str(shown),
+        data=lambda: _member_data(conn, kind, member_id, shown) | extra(),
     )
     _target(conn, kind, own, maximum)
 
@@ -90,15 +92,21 @@ def flagged(
     )
 
 
-def _member_data(conn: Connection, kind: LinkKind[Any, Any], member_id: int) -> Data:
-    member = kind.members.member
+def _shown_id(conn: Connection, member_id: int) -> int:
+    """The id a member's events show: a respondent renumbered by revision 0017 keeps the one
+    they had (:attr:`app.models.SurveyRespondent.shown_id`)."""
+    shown = select(SurveyRespondent.shown_id).where(SurveyRespondent.id == member_id)
+    return conn.scalar(shown) or member_id
+
+
+def _member_data(conn: Connection, kind: LinkKind[Any, Any], member_id: int, shown_id: int) -> Data:
     row = conn.execute(
-        select(member.external_id, member.external_ids, member.via_link, member.finished_at).where(
-            member.id == member_id
+        select(Member.external_id, Member.external_ids, Member.via_link, Member.finished_at).where(
+            Member.id == member_id
         )
     ).one()
     return {
-        f"{kind.members.person}_id": member_id,
+        f"{kind.members.person}_id": shown_id,
         "external_id": row.external_id,
         "external_ids": row.external_ids or {},
         "via_link": row.via_link,
@@ -110,7 +118,7 @@ def _locked_maximum(conn: Connection, kind: LinkKind[Any, Any], own: Owner) -> i
     """The open link's maximum, its row locked until the transaction ends (PostgreSQL; SQLite
     has one writer anyway); ``None`` without a link."""
     return conn.scalar(
-        select(kind.link.max_participants).where(kind.owner_is(own.id)).with_for_update()
+        select(OpenLink.max_participants).where(kind.owner_is(own.id)).with_for_update()
     )
 
 
@@ -123,12 +131,12 @@ def _target(conn: Connection, kind: LinkKind[Any, Any], own: Owner, maximum: int
     """
     if maximum is None:
         return  # no open link: no target
-    member = kind.members.member
     done = conn.scalar(
-        select(func.count(member.id)).where(
-            getattr(member, kind.members.owner) == own.id,
-            member.via_link.is_(True),
-            member.finished_at.is_not(None),
+        select(func.count(Member.id)).where(
+            Member.collection_kind == own.noun,
+            Member.collection_id == own.id,
+            Member.via_link.is_(True),
+            Member.finished_at.is_not(None),
         )
     )
     if done is not None and done >= maximum:

@@ -17,8 +17,7 @@ import secrets
 import unicodedata
 from collections.abc import Callable
 from dataclasses import dataclass
-from datetime import datetime
-from typing import Protocol, TypeVar
+from typing import TypeVar
 
 from sqlalchemy import ColumnElement, select, update
 from sqlalchemy.orm import Session
@@ -27,7 +26,14 @@ from app.core import atomic
 from app.core.errors import AuthError, ConflictError, NotFoundError, ServiceError
 from app.core.limits import check_text
 from app.db import writing
-from app.models import CrowdSettings, Participant, SurveyCrowdSettings, SurveyRespondent
+from app.models import (
+    CrowdSettings,
+    Member,
+    OpenLink,
+    Participant,
+    SurveyCrowdSettings,
+    SurveyRespondent,
+)
 from app.recruiting import members
 from app.recruiting.members import CollectionKind
 from engine.errors import InputError
@@ -174,28 +180,6 @@ def external_ids(params: list[str], query: dict[str, str]) -> dict[str, str]:
     return found
 
 
-class Joiner(Protocol):
-    """A person an open link may have brought in: a study participant or a survey respondent."""
-
-    @property
-    def id(self) -> int: ...
-    @property
-    def via_link(self) -> bool: ...
-    @property
-    def finished_at(self) -> datetime | None: ...
-    @property
-    def external_ids(self) -> dict | None: ...
-
-
-def completion(session: Session, model: type[Link], key: int, person: Joiner) -> Link | None:
-    """The open link (of ``model``, primary key ``key``) whose completion code and redirect
-    ``person`` gets: only someone who came through that link, once they finish. An invited
-    person never gets them (the code is what a crowd platform pays against)."""
-    if not person.via_link or person.finished_at is None:
-        return None
-    return session.get(model, key)
-
-
 def returning(
     session: Session,
     kind: CollectionKind[Person],
@@ -226,9 +210,12 @@ def returning(
     key = ids.get(params[0])
     if key is None:
         return cookie
-    model = kind.member
     known = session.scalar(
-        select(model).where(getattr(model, kind.owner) == owner_id, model.external_id == key)
+        select(kind.member).where(
+            Member.collection_kind == kind.noun,
+            Member.collection_id == owner_id,
+            Member.external_id == key,
+        )
     )
     if known is None:
         return None
@@ -253,9 +240,7 @@ def is_full(link: CrowdSettings | SurveyCrowdSettings) -> bool:
     return link.joined >= link.max_participants
 
 
-def take_seat(
-    session: Session, model: type[Link], owner: ColumnElement[bool], *, full: LinkFullError
-) -> None:
+def take_seat(session: Session, owner: ColumnElement[bool], *, full: LinkFullError) -> None:
     """Count one more person on the link ``owner`` selects, inside the caller's write
     transaction (atomic: ``UPDATE ... WHERE joined < max_participants``,
     :func:`app.core.atomic.take`).
@@ -263,11 +248,11 @@ def take_seat(
     Raises:
         LinkFullError: ``full``, when every seat is taken.
     """
-    if not atomic.take(session, model.joined, owner, limit=model.max_participants):
+    if not atomic.take(session, OpenLink.joined, owner, limit=OpenLink.max_participants):
         raise full
 
 
-def count_decline(session: Session, model: type[Link], owner: ColumnElement[bool]) -> None:
+def count_decline(session: Session, owner: ColumnElement[bool]) -> None:
     """Count a declined consent, inside the caller's write transaction; nothing else about
     the visitor is stored."""
-    session.execute(update(model).where(owner).values(declines=model.declines + 1))
+    session.execute(update(OpenLink).where(owner).values(declines=OpenLink.declines + 1))

@@ -39,25 +39,25 @@ from sqlalchemy.orm import Session
 from app.core import auth
 from app.core.errors import AuthError
 from app.db import engine_of
-from app.models import Participant, Study, Survey, SurveyRespondent, token_digest
+from app.models import Member, Participant, Study, Survey, SurveyRespondent, token_digest
 
 #: What invite tokens look like (URL-safe base64); anything else is not looked up at all.
 TOKEN_SHAPE = re.compile(r"[A-Za-z0-9_-]{1,256}")
 #: Members remembered per process (see :func:`resolve`); past this the memory starts over.
 MAX_KNOWN = 100_000
 
-Member = TypeVar("Member", Participant, SurveyRespondent)
+MemberRow = TypeVar("MemberRow", Participant, SurveyRespondent)
 
 
 @dataclass(frozen=True)
-class CollectionKind(Generic[Member]):
+class CollectionKind(Generic[MemberRow]):
     """A kind of collection (studies, surveys) as the people code needs to know it."""
 
     #: The collection's noun (``study``), its table's model, its members' model and noun
     #: (``participant``).
     noun: str
     collection: type[Study] | type[Survey]
-    member: type[Member]
+    member: type[MemberRow]
     person: str
     #: Where an invite link points (this prefix and the token), and the cookie it sets.
     invite_prefix: str
@@ -77,11 +77,6 @@ class CollectionKind(Generic[Member]):
     def unknown(self) -> str:
         """What a caller whose token names nobody of this kind is told."""
         return f"unknown {self.person} invite token"
-
-    @property
-    def owner(self) -> str:
-        """The member's column that holds their collection's id (``study_id``)."""
-        return f"{self.noun}_id"
 
     def invite_path(self, token: str) -> str:
         """The path of a member's invite link."""
@@ -124,16 +119,15 @@ _known: weakref.WeakKeyDictionary[Engine, dict[tuple[str, str], MemberRef]] = (
 
 
 @functools.cache
-def _by_digest(kind: CollectionKind[Member]) -> Select[int, int, str]:
-    model = kind.member
-    return select(model.id, getattr(model, kind.owner), model.token).where(
-        model.token_hash == bindparam("digest")
+def _by_digest(kind: CollectionKind[MemberRow]) -> Select[int, int, str]:
+    return select(Member.id, Member.collection_id, Member.token).where(
+        Member.token_hash == bindparam("digest"), Member.collection_kind == kind.noun
     )
 
 
 def resolve(
     db: Session | Connection,
-    kind: CollectionKind[Member],
+    kind: CollectionKind[MemberRow],
     *,
     token: str | None,
     collection_id: int | None = None,
@@ -150,7 +144,7 @@ def resolve(
     return ref
 
 
-def _lookup(db: Session | Connection, kind: CollectionKind[Member], digest: str) -> MemberRef:
+def _lookup(db: Session | Connection, kind: CollectionKind[MemberRow], digest: str) -> MemberRef:
     """The member whose token has ``digest``: from this process's memory, else by a query
     (then remembered)."""
     remembered = _known.setdefault(engine_of(db), {})
@@ -166,7 +160,7 @@ def _lookup(db: Session | Connection, kind: CollectionKind[Member], digest: str)
     return ref
 
 
-def _digest(kind: CollectionKind[Member], token: str | None) -> str:
+def _digest(kind: CollectionKind[MemberRow], token: str | None) -> str:
     """The digest ``token`` is looked up by, once it is sent and has the shape of ours."""
     if not token:
         raise AuthError(kind.missing)
@@ -180,7 +174,7 @@ def _same(token: str | None, ref: MemberRef) -> bool:
     return token is not None and secrets.compare_digest(token.encode(), ref.token.encode())
 
 
-def known(engine: Engine, kind: CollectionKind[Member], *, token: str | None) -> bool:
+def known(engine: Engine, kind: CollectionKind[MemberRow], *, token: str | None) -> bool:
     """Whether :func:`resolve` accepts ``token`` from this process's memory alone (no query:
     the hot path checks a credential it has seen without a thread hop)."""
     if not token or not TOKEN_SHAPE.fullmatch(token):
@@ -191,11 +185,11 @@ def known(engine: Engine, kind: CollectionKind[Member], *, token: str | None) ->
 
 def member_by_token(
     session: Session,
-    kind: CollectionKind[Member],
+    kind: CollectionKind[MemberRow],
     *,
     token: str | None,
     collection_id: int | None = None,
-) -> Member:
+) -> MemberRow:
     """The row of the member :func:`resolve` finds.
 
     Raises:
@@ -215,7 +209,7 @@ def is_member_token(db: Session | Connection, *, token: str) -> bool:
     return _accepts(db, STUDY, token) or _accepts(db, SURVEY, token)
 
 
-def _accepts(db: Session | Connection, kind: CollectionKind[Member], token: str) -> bool:
+def _accepts(db: Session | Connection, kind: CollectionKind[MemberRow], token: str) -> bool:
     try:
         resolve(db, kind, token=token)
     except AuthError:

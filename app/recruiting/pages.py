@@ -28,7 +28,7 @@ from app.http.rendering import PageRoute, is_https, redirect, render
 from app.models import CrowdSettings, SurveyCrowdSettings
 from app.recruiting import service as recruiting
 from app.recruiting.links import DEFAULT_EXTERNAL_PARAMS, check_open, is_full
-from app.recruiting.members import Member
+from app.recruiting.members import MemberRow
 from app.recruiting.service import Link, LinkKind
 from engine.errors import InputError
 
@@ -128,20 +128,20 @@ def whole(fields: dict[str, str], name: str) -> int:
 
 
 @dataclass(frozen=True)
-class LinkPages(Generic[Link, Member]):
+class LinkPages(Generic[Link, MemberRow]):
     """What the open-link pages of one kind of collection need beyond its :class:`LinkKind`."""
 
-    kind: LinkKind[Link, Member]
+    kind: LinkKind[Link, MemberRow]
     #: The collection's name, shown in the page header (by its id).
     name_of: Callable[[Session, int], str]
     #: Where a member goes once they joined or resumed: their next page.
-    next_path: Callable[[Session, Member], str]
+    next_path: Callable[[Session, MemberRow], str]
     #: The consent page's optional checkbox to share one's answers in a public dataset
     #: (its label), or ``None`` where the kind's answers are never shared.
     share_label: str | None = None
 
     def name(self, session: Session, link: Link) -> str:
-        return self.name_of(session, self.kind.owner_id(link))
+        return self.name_of(session, link.collection_id)
 
     def full(self, request: Request, session: Session, link: Link) -> Response:
         """The page a visitor sees past the link's largest number of people."""
@@ -188,24 +188,24 @@ def open_link_router(pages: LinkPages[Any, Any]) -> APIRouter:
 
 
 def _returning(
-    kind: LinkKind[Link, Member],
+    kind: LinkKind[Link, MemberRow],
     request: Request,
     session: Session,
     link: Link,
     ids: dict[str, str],
-) -> Member | None:
+) -> MemberRow | None:
     """The member this visitor already is (by their cookie or first external id), or None."""
     token = request.cookies.get(kind.members.cookie)
     return recruiting.returning(session, kind, link=link, ids=ids, token=token)
 
 
 def _enter(
-    pages: LinkPages[Link, Member],
+    pages: LinkPages[Link, MemberRow],
     request: Request,
     session: Session,
     link: Link,
     ids: dict[str, str],
-    person: Member | None,
+    person: MemberRow | None,
     share: bool = False,
 ) -> Response:
     """Resume ``person`` (a returning visitor), or make a member of a new one (rate-limited;

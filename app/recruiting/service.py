@@ -15,27 +15,27 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Generic, TypeVar
 
-from sqlalchemy import ColumnElement
+from sqlalchemy import ColumnElement, and_, select
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from app.core.auth import new_token
 from app.core.errors import NotFoundError
 from app.db import writing
-from app.models import CrowdSettings, SurveyCrowdSettings
+from app.models import CrowdSettings, OpenLink, SurveyCrowdSettings
 from app.recruiting import events
 from app.recruiting import links as open_links
 from app.recruiting.links import LinkFullError, LinkOptions
-from app.recruiting.members import CollectionKind, Member
+from app.recruiting.members import CollectionKind, MemberRow
 
 Link = TypeVar("Link", CrowdSettings, SurveyCrowdSettings)
 
 
 @dataclass(frozen=True)
-class LinkKind(Generic[Link, Member]):
+class LinkKind(Generic[Link, MemberRow]):
     """A kind of collection's open link: its members, table and path, and what joining takes."""
 
-    members: CollectionKind[Member]
+    members: CollectionKind[MemberRow]
     link: type[Link]
     #: The link's path is this prefix and its slug (``/s/``, ``/q/``).
     prefix: str
@@ -45,7 +45,7 @@ class LinkKind(Generic[Link, Member]):
     check_collection: Callable[[Session, int], object]
     #: Adds a new member inside the join's write transaction (a participant's first round
     #: of matches is made with them).
-    stage: Callable[[Session, Member], None]
+    stage: Callable[[Session, MemberRow], None]
 
     @property
     def full(self) -> tuple[str, str]:
@@ -64,21 +64,19 @@ class LinkKind(Generic[Link, Member]):
         """The open link ``slug`` under ``base_url`` (a request's, e.g. ``http://host/``)."""
         return str(base_url).rstrip("/") + self.open_path(slug)
 
-    def owner_id(self, link: Link) -> int:
-        """The id of the collection that owns ``link``."""
-        return int(getattr(link, self.members.owner))
-
     def owner_is(self, owner_id: int) -> ColumnElement[bool]:
         """The condition that selects the link row of collection ``owner_id``."""
-        return getattr(self.link, self.members.owner) == owner_id
+        return and_(
+            OpenLink.collection_kind == self.members.noun, OpenLink.collection_id == owner_id
+        )
 
 
-def settings(session: Session, kind: LinkKind[Link, Member], owner_id: int) -> Link | None:
+def settings(session: Session, kind: LinkKind[Link, MemberRow], owner_id: int) -> Link | None:
     """The collection's open link and options, or ``None`` when never set."""
-    return session.get(kind.link, owner_id)
+    return session.scalar(select(kind.link).where(kind.owner_is(owner_id)))
 
 
-def configured(session: Session, kind: LinkKind[Link, Member], owner_id: int) -> Link:
+def configured(session: Session, kind: LinkKind[Link, MemberRow], owner_id: int) -> Link:
     """The collection's open link and options.
 
     Raises:
@@ -91,7 +89,7 @@ def configured(session: Session, kind: LinkKind[Link, Member], owner_id: int) ->
 
 
 def configure(
-    session: Session, kind: LinkKind[Link, Member], owner_id: int, options: LinkOptions
+    session: Session, kind: LinkKind[Link, MemberRow], owner_id: int, options: LinkOptions
 ) -> Link:
     """Set the collection's open link and options (the slug is made once and kept); a
     subclass's options (a study's quality checks) are stored too, checked by the caller.
@@ -104,13 +102,13 @@ def configure(
     kind.check_collection(session, owner_id)
     return open_links.save(
         session,
-        session.get(kind.link, owner_id),
-        lambda: kind.link(**{kind.members.owner: owner_id}),
+        settings(session, kind, owner_id),
+        lambda: kind.link(collection_id=owner_id),
         options,
     )
 
 
-def open_link(session: Session, kind: LinkKind[Link, Member], slug: str) -> Link:
+def open_link(session: Session, kind: LinkKind[Link, MemberRow], slug: str) -> Link:
     """The open link ``slug``, open or closed (:func:`open_links.find`).
 
     Raises:
@@ -128,12 +126,12 @@ def external_ids(
 
 def returning(
     session: Session,
-    kind: LinkKind[Link, Member],
+    kind: LinkKind[Link, MemberRow],
     *,
     link: Link,
     ids: dict[str, str],
     token: str | None,
-) -> Member | None:
+) -> MemberRow | None:
     """The member this visitor already is (:func:`open_links.returning`): by the cookie the
     browser holds for this collection, or by the first external id with the per-attempt ids;
     ``None`` for a new visitor.
@@ -144,7 +142,7 @@ def returning(
     return open_links.returning(
         session,
         kind.members,
-        owner_id=kind.owner_id(link),
+        owner_id=link.collection_id,
         params=link.external_params,
         ids=ids,
         token=token,
@@ -153,14 +151,14 @@ def returning(
 
 def join(
     session: Session,
-    kind: LinkKind[Link, Member],
+    kind: LinkKind[Link, MemberRow],
     *,
     link: Link,
     ids: dict[str, str],
     share: bool = False,
-) -> Member:
+) -> MemberRow:
     """A new member for this visitor, or the one their first external id names (two first
-    visits of one id at once: the ``UNIQUE (collection, external_id)`` index settles it).
+    visits of one id at once: the members' ``UNIQUE (collection_kind, collection_id, external_id)`` index settles it).
     ``share``: they agreed to have their labels shared in a public dataset (off unless they
     ticked it on the consent page).
 
@@ -169,10 +167,10 @@ def join(
         LinkFullError: ``kind.full_error``, when the link has its largest number of people.
     """
     open_links.check_open(link, what=kind.members.noun)
-    owner_id = kind.owner_id(link)
+    owner_id = link.collection_id
     kind.check_collection(session, owner_id)
     person = kind.members.member(
-        **{kind.members.owner: owner_id},
+        collection_id=owner_id,
         token=new_token(),
         external_id=ids.get(link.external_params[0]),
         external_ids=ids or None,
@@ -182,7 +180,7 @@ def join(
     try:
         with writing(session):
             full = kind.full_error(": ".join(kind.full))
-            open_links.take_seat(session, kind.link, kind.owner_is(owner_id), full=full)
+            open_links.take_seat(session, kind.owner_is(owner_id), full=full)
             kind.stage(session, person)
     except IntegrityError:  # the same external id joined at the same moment: resume it
         existing = returning(session, kind, link=link, ids=ids, token=None)
@@ -192,17 +190,20 @@ def join(
     return person
 
 
-def decline(session: Session, kind: LinkKind[Link, Member], *, link: Link) -> None:
+def decline(session: Session, kind: LinkKind[Link, MemberRow], *, link: Link) -> None:
     """Count a declined consent, and write its webhook event in the same transaction;
     nothing else about the visitor is stored."""
-    owner_id = kind.owner_id(link)
+    owner_id = link.collection_id
     with writing(session):
-        open_links.count_decline(session, kind.link, kind.owner_is(owner_id))
+        open_links.count_decline(session, kind.owner_is(owner_id))
         events.declined(session, kind, owner_id=owner_id)
 
 
-def completion(session: Session, kind: LinkKind[Link, Member], *, member: Member) -> Link | None:
+def completion(
+    session: Session, kind: LinkKind[Link, MemberRow], *, member: MemberRow
+) -> Link | None:
     """The link whose completion code and redirect a finished open-link member gets; ``None``
     before they finish, or for an invited member."""
-    owner_id = int(getattr(member, kind.members.owner))
-    return open_links.completion(session, kind.link, owner_id, member)
+    if not member.via_link or member.finished_at is None:
+        return None  # the code is what a crowd platform pays against
+    return settings(session, kind, member.collection_id)

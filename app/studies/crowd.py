@@ -6,7 +6,7 @@ written once for studies and surveys; :data:`LINK` says what is a study's own: i
 its path, that only a ready study takes people, and that a new participant gets their first
 round of matches as they join. A visitor carrying the study's first external parameter
 (``PROLIFIC_PID`` by default) who was seen before resumes that participant: the
-``UNIQUE (study_id, external_id)`` constraint settles two first visits at once.
+``UNIQUE (collection_kind, collection_id, external_id)`` index of ``members`` settles two first visits at once.
 """
 
 from __future__ import annotations

@@ -16,7 +16,7 @@ from sqlalchemy.orm import Session
 from app.core.errors import ConflictError, NotFoundError
 from app.core.limits import check_text
 from app.db import writing
-from app.models import SurveyAnswer, SurveyRespondent, SurveyScreen, SurveyStimulus, utcnow
+from app.models import Member, SurveyAnswer, SurveyRespondent, SurveyScreen, SurveyStimulus, utcnow
 from app.recruiting import events
 from app.surveys.crowd import LINK
 from app.surveys.respond import start
@@ -137,10 +137,10 @@ def _finish_if_done(session: Session, respondent_id: int, now: datetime) -> None
     )
     if left == 0:
         done = session.execute(
-            update(SurveyRespondent)
-            .where(SurveyRespondent.id == respondent_id, SurveyRespondent.finished_at.is_(None))
+            update(Member)
+            .where(Member.id == respondent_id, Member.finished_at.is_(None))
             .values(finished_at=now)
-            .returning(SurveyRespondent.survey_id)
+            .returning(Member.collection_id)
         ).scalar_one_or_none()
         if done is not None:  # just finished: the webhook events, in this transaction
             events.finished(session, LINK, member_id=respondent_id, owner_id=done)

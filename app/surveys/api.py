@@ -59,6 +59,7 @@ def respondent_out(request: Request, person: SurveyRespondent) -> RespondentOut:
     return from_row(
         RespondentOut,
         person,
+        id=person.shown_id,
         invite_url=str(request.base_url).rstrip("/") + survey_respond.invite_path(person.token),
         started=person.started_at is not None,
         finished=person.finished_at is not None,

@@ -3,8 +3,8 @@
 Joining, resuming, consent and the completion code are :mod:`app.recruiting.service`, as for
 studies; :data:`LINK` says what is a survey's own. A visitor carrying the survey's first
 external parameter (``PROLIFIC_PID`` by default) who was seen before resumes that
-respondent: ``UNIQUE (survey_id, external_id)`` on ``survey_respondents`` settles two first
-visits at once.
+respondent: ``UNIQUE (collection_kind, collection_id, external_id)`` on ``members`` settles
+two first visits at once.
 """
 
 from __future__ import annotations

@@ -112,7 +112,7 @@ def _store_plan(session: Session, survey: Survey, respondent: SurveyRespondent) 
             .values(stimulus_id=main[0])
         )
     plan = plan_screens(
-        respondent_rng(survey, respondent.id), stimulus_ids=main, attention_id=attention
+        respondent_rng(survey, respondent.shown_id), stimulus_ids=main, attention_id=attention
     )
     session.add_all(
         SurveyScreen(respondent_id=respondent.id, position=i, stimulus_id=sid, tree1_left=left)

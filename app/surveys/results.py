@@ -64,7 +64,9 @@ def answer_rows(session: Session, *, survey_id: int) -> list[Row]:
     """Every answer of the survey, in the order given."""
     stimuli = {s.id: s for s in stimuli_of(session, survey_id=survey_id)}
     rows = session.execute(
-        select(SurveyAnswer, SurveyScreen.screen_ms, SurveyScreen.tree1_left)
+        select(
+            SurveyAnswer, SurveyRespondent.shown_id, SurveyScreen.screen_ms, SurveyScreen.tree1_left
+        )
         .join(SurveyRespondent, SurveyRespondent.id == SurveyAnswer.respondent_id)
         .join(
             SurveyScreen,
@@ -76,7 +78,7 @@ def answer_rows(session: Session, *, survey_id: int) -> list[Row]:
     )
     return [
         Row(
-            a.respondent_id,
+            shown_id,
             stimuli[a.stimulus_id],
             a.question,
             a.value,
@@ -85,7 +87,7 @@ def answer_rows(session: Session, *, survey_id: int) -> list[Row]:
             left,
             a.created_at,
         )
-        for a, ms, left in rows
+        for a, shown_id, ms, left in rows
     ]
 
 
@@ -184,7 +186,7 @@ def _external_ids(session: Session, survey_id: int) -> dict[int, tuple[str | Non
     """Each respondent's crowd platform ids (open link), by respondent id."""
     found = session.execute(
         select(
-            SurveyRespondent.id, SurveyRespondent.external_id, SurveyRespondent.external_ids
+            SurveyRespondent.shown_id, SurveyRespondent.external_id, SurveyRespondent.external_ids
         ).where(SurveyRespondent.survey_id == survey_id)
     )
     return {rid: (key, ids or {}) for rid, key, ids in found}

@@ -13,7 +13,7 @@ import pytest
 from sqlalchemy import create_engine, select, update
 from sqlalchemy.orm import Session
 
-from app.models import Participant
+from app.models import Member, Participant
 from tests.support.cli import acv
 from tests.support.hf import card, check_tables, load
 from tests.support.hub import local_hub
@@ -41,8 +41,8 @@ def played_study(run, backend_url, *, shared: int) -> str:
     with Session(engine) as session, session.begin():
         mine = Participant.study_id == int(study)
         ids = session.scalars(select(Participant.id).where(mine).order_by(Participant.id)).all()
-        agreed = Participant.id.in_(ids[:shared])
-        session.execute(update(Participant).where(agreed).values(share_consent=True))
+        agreed = Member.id.in_(ids[:shared])
+        session.execute(update(Member).where(agreed).values(share_consent=True))
     engine.dispose()
     return study
 

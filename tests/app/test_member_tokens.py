@@ -16,7 +16,7 @@ from sqlalchemy import delete, update
 from app.core import auth
 from app.core.errors import AuthError
 from app.http.ratelimit import LoginLimiter
-from app.models import token_digest
+from app.models import Member, token_digest
 from app.recruiting import members
 from app.recruiting.members import STUDY, SURVEY, CollectionKind
 from app.surveys import respond as survey_respond
@@ -170,10 +170,9 @@ def test_a_lookup_by_digest_is_confirmed_in_constant_time(
     enough: the stored token itself must match, compared by :func:`secrets.compare_digest`."""
     member_id, token = collection.add()
     forged = auth.new_token()
-    model = collection.kind.member
     with collection.client.app.state.runtime.sessions() as session, session.begin():
         session.execute(
-            update(model).where(model.id == member_id).values(token_hash=token_digest(forged))
+            update(Member).where(Member.id == member_id).values(token_hash=token_digest(forged))
         )
     compared: list[tuple[bytes, bytes]] = []
     real = members.secrets.compare_digest

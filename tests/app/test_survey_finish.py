@@ -131,7 +131,7 @@ def test_migration_0010_finishes_stuck_respondents_and_keeps_every_row(
         ):
             conn.execute(text(statement), {"done": done, "early": early})
     engine.dispose()
-    upgrade(url)
+    upgrade(url, "0010")  # the revision under test (0017 moves the columns read here)
     engine = make_engine(url)
     try:
         with engine.connect() as conn:
@@ -174,7 +174,7 @@ def test_migration_0011_marks_existing_crowd_participants(request, tmp_path, bac
         ):
             conn.execute(text(statement))
     engine.dispose()
-    upgrade(url)
+    upgrade(url, "0011")  # the revision under test (0017 moves the columns read here)
     engine = make_engine(url)
     try:
         with engine.connect() as conn:
