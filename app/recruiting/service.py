@@ -158,7 +158,8 @@ def join(
     share: bool = False,
 ) -> MemberRow:
     """A new member for this visitor, or the one their first external id names (two first
-    visits of one id at once: the members' ``UNIQUE (collection_kind, collection_id, external_id)`` index settles it).
+    visits of one id at once: the members' unique index of collection and external id
+    settles it).
     ``share``: they agreed to have their labels shared in a public dataset (off unless they
     ticked it on the consent page).
 

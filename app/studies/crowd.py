@@ -5,8 +5,9 @@ Joining, resuming, consent and the completion code are :mod:`app.recruiting.serv
 written once for studies and surveys; :data:`LINK` says what is a study's own: its table,
 its path, that only a ready study takes people, and that a new participant gets their first
 round of matches as they join. A visitor carrying the study's first external parameter
-(``PROLIFIC_PID`` by default) who was seen before resumes that participant: the
-``UNIQUE (collection_kind, collection_id, external_id)`` index of ``members`` settles two first visits at once.
+(``PROLIFIC_PID`` by default) who was seen before resumes that participant: the ``members``
+index ``UNIQUE (collection_kind, collection_id, external_id)`` settles two first visits at
+once.
 """
 
 from __future__ import annotations
