@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Any
 from sqlalchemy import Connection, func, select
 from sqlalchemy.orm import Session
 
-from app.models import Member, OpenLink, SurveyRespondent
+from app.models import Member, OpenLink
 from app.webhooks.outbox import Data, Owner, emit, webhook_ids
 
 if TYPE_CHECKING:  # the service writes declines through this module
@@ -55,10 +55,13 @@ def finished(
     *,
     member_id: int,
     owner_id: int,
+    shown_id: int | None = None,
     extra: Callable[[], Data] = dict,
 ) -> None:
     """A member finished: ``<person>.finished`` with their external ids (and ``extra``),
-    then the target event if their collection just reached it.
+    then the target event if their collection just reached it. ``shown_id`` is the id the
+    event shows, where it is not ``member_id`` (a respondent renumbered by revision 0017:
+    :attr:`app.models.SurveyRespondent.shown_id`).
 
     Call it only when the member has just been marked finished, in that transaction.
     """
@@ -67,7 +70,7 @@ def finished(
         return
     # The link's row before the webhooks' rows (emit's turn), in the order a decline takes them
     maximum = _locked_maximum(conn, kind, own)
-    shown = _shown_id(conn, member_id)
+    shown = member_id if shown_id is None else shown_id
     emit(
         conn,
         owner=own,
@@ -90,13 +93,6 @@ def flagged(
         subject=f"{member_id}:{by}",
         data=lambda: {f"{kind.members.person}_id": member_id, "by": by} | data,
     )
-
-
-def _shown_id(conn: Connection, member_id: int) -> int:
-    """The id a member's events show: a respondent renumbered by revision 0017 keeps the one
-    they had (:attr:`app.models.SurveyRespondent.shown_id`)."""
-    shown = select(SurveyRespondent.shown_id).where(SurveyRespondent.id == member_id)
-    return conn.scalar(shown) or member_id
 
 
 def _member_data(conn: Connection, kind: LinkKind[Any, Any], member_id: int, shown_id: int) -> Data:

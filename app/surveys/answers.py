@@ -143,7 +143,14 @@ def _finish_if_done(session: Session, respondent_id: int, now: datetime) -> None
             .returning(Member.collection_id)
         ).scalar_one_or_none()
         if done is not None:  # just finished: the webhook events, in this transaction
-            events.finished(session, LINK, member_id=respondent_id, owner_id=done)
+            shown = select(SurveyRespondent.shown_id).where(SurveyRespondent.id == respondent_id)
+            events.finished(
+                session,
+                LINK,
+                member_id=respondent_id,
+                owner_id=done,
+                shown_id=session.scalar(shown),
+            )
 
 
 def _lock_respondent(session: Session, respondent_id: int) -> None:

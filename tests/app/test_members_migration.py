@@ -67,6 +67,8 @@ def _fill(client: TestClient) -> dict[str, int]:
     assert crowd.label(match["match_id"], match["a"]["candidate_id"]).status_code == 201
     trees = [{"kind": "participant", "participant_id": p.id} for p in players]
     survey = client.post("/api/surveys", json=paper_body(*trees), headers=ADMIN).json()["id"]
+    hook = {"url": "http://127.0.0.1:9/hook", "survey_id": survey}
+    assert client.post("/api/webhooks", json=hook, headers=ADMIN).status_code == 201
     options = {"enabled": True, "max_participants": 5, "completion_code": "DONE-2"}
     survey_link = client.put(f"/api/surveys/{survey}/crowd", json=options, headers=ADMIN).json()
     [respondent] = invite(client, survey)
@@ -183,4 +185,23 @@ def _check_new_members(client: TestClient, ids: dict[str, int], url: str) -> Non
     [fresh] = invite(client, ids["survey"])
     assert body["id"] > largest and fresh.id > body["id"]
     twin = Respondent(client, ids["first_participant"], "twin-token", "")
-    assert twin.screen() is not None
+    while (screen := twin.screen()) is not None:
+        assert twin.answer(screen["position"], paper_answers(screen)).status_code == 201
+    assert _finished_payloads(url) == [twin.id]  # the id they had, in the webhook's payload
+
+
+def _finished_payloads(url: str) -> list[int]:
+    """The respondent ids of the ``respondent.finished`` events written since the upgrade."""
+    engine = make_engine(url)
+    try:
+        with engine.connect() as conn:
+            events = conn.execute(
+                text(
+                    "SELECT payload FROM webhook_events "
+                    "WHERE type = 'respondent.finished' ORDER BY id"
+                )
+            ).scalars()
+            payloads = [json.loads(p) if isinstance(p, str) else p for p in events]
+    finally:
+        engine.dispose()
+    return [p["data"]["respondent_id"] for p in payloads][1:]  # the first: before the upgrade
