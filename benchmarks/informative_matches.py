@@ -39,9 +39,9 @@ from typing import Any
 
 import numpy as np
 
-from engine.candidates import Policy, sample_candidates
+from engine.candidates import Policy
 from engine.disagreement import disagreement_pairs
-from engine.pipeline import teacher_bracket
+from engine.pipeline import sample_by_mode, teacher_bracket
 from engine.treefile import TreeDocument
 from engine.verdict import Pair, VerdictOptions, advice_scores, bracket_pairs, split_matches
 
@@ -78,7 +78,7 @@ def measure(args: argparse.Namespace) -> list[dict[str, Any]]:
             for mode in args.modes:
                 start = time.time()
                 rng = np.random.default_rng(seed)
-                cands = sample_candidates(
+                cands = sample_by_mode(
                     env_id,
                     args.candidates,
                     rng=rng,

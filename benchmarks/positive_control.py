@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from engine.candidates import sample_candidates
+from engine.informative import sample_informative
 from engine.pipeline import replay_with_teacher, run_tournament, teacher_bracket
 from engine.rl.checkpoint import find_checkpoint, list_checkpoints
 from engine.rl.config import TrainConfig
@@ -86,7 +86,7 @@ def evaluation_tree(pilot: Path, n_candidates: int) -> TreeDocument:
     from ``pilot``'s deterministic policy (seeded, apart from every training seed)."""
     rng = np.random.default_rng(20_000)
     policy = deterministic_policy(load_agent(find_checkpoint(pilot)))
-    candidates = sample_candidates(ENV, n_candidates, rng=rng, mode="informative", policy=policy)
+    candidates = sample_informative(ENV, n_candidates, rng=rng, policy=policy)
     return teacher_bracket(ENV, candidates, rng, p=0.9, seed=20_000, teacher="orthogonal")
 
 

@@ -5,13 +5,18 @@ Modes (docs/method.md section 2): ``uniform`` picks N of all visited states unif
 the state nearest each centroid (the paper's "future work" on more interpretable trees);
 ``informative`` pools states of a trained no-advice baseline's rollouts and of random ones,
 and keeps N spread over the baseline's return and diverse in posture, each carrying that
-return as its ``seed_score`` (:mod:`engine.informative`).
+return as its ``seed_score``.
+
+This module is the pure sampler, ``uniform`` and ``diverse``, and the candidate every part of
+the engine shares. ``informative`` reads a trained policy's returns
+(:func:`engine.rl.returns.state_returns`), so it sits above the agents, in
+:mod:`engine.informative`; :func:`engine.pipeline.sample_by_mode` samples in any mode.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Any, Literal
 
 import gymnasium as gym
@@ -24,6 +29,9 @@ from engine.rewards import posture_features, state_reward
 
 SamplingMode = Literal["uniform", "diverse", "informative"]
 SAMPLING_MODES: tuple[str, ...] = ("uniform", "diverse", "informative")
+#: The modes this module samples: they need no trained policy's returns.
+PureMode = Literal["uniform", "diverse"]
+PURE_MODES: tuple[str, ...] = ("uniform", "diverse")
 #: The modes that need a trained no-advice baseline's policy.
 BASELINE_MODES: tuple[str, ...] = ("informative",)
 MAX_CANDIDATES = 128
@@ -63,9 +71,13 @@ def seed_abilities(candidates: Sequence[Candidate]) -> np.ndarray:
     )
 
 
-def _check_request(n: int, mode: str, policy: Policy | None) -> None:
+def check_request(n: int, mode: str, policy: Policy | None) -> None:
     """Refuse a number of candidates out of range, an unknown mode, or ``informative``
-    sampling without a baseline policy."""
+    sampling without a baseline policy.
+
+    Raises:
+        InputError: the request names one of those.
+    """
     if not 2 <= n <= MAX_CANDIDATES:
         raise InputError(f"number of candidates must be in 2..{MAX_CANDIDATES}, got {n}")
     if mode not in SAMPLING_MODES:
@@ -77,12 +89,17 @@ def _check_request(n: int, mode: str, policy: Policy | None) -> None:
         )
 
 
+def visit_steps(n: int) -> int:
+    """Env steps visited for ``n`` candidates when the caller names none."""
+    return max(2000, 50 * n)
+
+
 def sample_candidates(
     env_id: str = DEFAULT_ENV_ID,
     n: int = 16,
     *,
     rng: np.random.Generator,
-    mode: SamplingMode = "uniform",
+    mode: PureMode = "uniform",
     rollout_steps: int | None = None,
     policy: Policy | None = None,
 ) -> list[Candidate]:
@@ -92,51 +109,30 @@ def sample_candidates(
         env_id: a Gymnasium MuJoCo env id.
         n: number of candidates, 2 ..  :data:`MAX_CANDIDATES`.
         rng: the only source of randomness (env seeds, actions, the pick).
-        mode: ``uniform``, ``diverse`` or ``informative``.
-        rollout_steps: env steps to visit; default ``max(2000, 50 n)``.
-        policy: observation -> action; random actions when ``None``. For ``informative``,
-            the trained no-advice baseline's deterministic policy (required): half the
-            steps follow it, half are random (:mod:`engine.informative`).
+        mode: ``uniform`` or ``diverse`` (``informative``:
+            :func:`engine.informative.sample_informative`).
+        rollout_steps: env steps to visit; default :func:`visit_steps`.
+        policy: observation -> action; random actions when ``None``.
 
     Raises:
-        InputError: ``n`` out of range, an unknown mode or env, or ``informative`` without
-            a baseline policy.
+        InputError: ``n`` out of range, an unknown mode or env, or ``informative``.
     """
-    _check_request(n, mode, policy)
-    if mode == "informative":
-        assert policy is not None  # checked above
-        return _sample_informative(env_id, n, rng, rollout_steps or max(2000, 50 * n), policy)
+    check_request(n, mode, policy)
+    if mode not in PURE_MODES:
+        raise InputError(
+            f"{mode} sampling reads a trained policy's returns: "
+            "engine.pipeline.sample_by_mode samples in every mode"
+        )
     env = make_env(env_id)
     try:
-        qpos, qvel = _rollout(env, rollout_steps or max(2000, 50 * n), rng, policy)
+        qpos, qvel = _rollout(env, rollout_steps or visit_steps(n), rng, policy)
         features = posture_features(qpos, mujoco_base(env).model)
         picked = (
             _pick_uniform(len(qpos), n, rng)
             if mode == "uniform"
             else _pick_diverse(features, n, rng)
         )
-        return [_candidate(env, i, qpos[j], qvel[j]) for i, j in enumerate(picked)]
-    finally:
-        env.close()
-
-
-def _sample_informative(
-    env_id: str, n: int, rng: np.random.Generator, steps: int, policy: Policy
-) -> list[Candidate]:
-    from engine.informative import informative_pool, pick_informative  # deferred: rollouts
-
-    pool = informative_pool(env_id, n, steps, rng, policy)
-    env = make_env(env_id)
-    try:
-        features = posture_features(pool.qpos, mujoco_base(env).model)
-        picked = pick_informative(pool.estimate, features, n, rng)
-        return [
-            replace(
-                _candidate(env, i, pool.qpos[j], pool.qvel[j]),
-                seed_score=float(pool.estimate[j]),
-            )
-            for i, j in enumerate(picked)
-        ]
+        return [candidate_at(env, i, qpos[j], qvel[j]) for i, j in enumerate(picked)]
     finally:
         env.close()
 
@@ -176,6 +172,7 @@ def _pick_diverse(features: np.ndarray, n: int, rng: np.random.Generator) -> np.
     return np.sort(np.array(picked))
 
 
-def _candidate(env: gym.Env[Any, Any], cid: int, qpos: np.ndarray, qvel: np.ndarray) -> Candidate:
+def candidate_at(env: gym.Env[Any, Any], cid: int, qpos: np.ndarray, qvel: np.ndarray) -> Candidate:
+    """Candidate ``cid`` at ``(qpos, qvel)``, its R(s) read from ``env`` restored there."""
     restore(env, qpos, qvel)
     return Candidate(id=cid, qpos=qpos, qvel=qvel, env_reward=state_reward(env))

@@ -16,11 +16,10 @@ import numpy as np
 
 from engine.conformance import compare
 from engine.envs import env_model
-from engine.pipeline import replay
 from engine.pooling import pooled_tree
 from engine.reliability import Checks, competence
 from engine.teachers import make_teacher
-from engine.treefile import TreeDocument
+from engine.treefile import TreeDocument, replay
 
 TASTES = ("standing", "orthogonal")
 CROWD = {"standing": 7, "orthogonal": 6, "random": 3, "always-left": 2}

@@ -32,27 +32,29 @@ preference, spread over its return and diverse in posture (issue 25 §5, docs/me
 Equal-width strata rather than equal-count quantiles: the pool's returns are often bimodal
 (fallen states near 0, upright ones high), and quantile bins would then put most candidates
 in one mode, where the baseline has no real preference between them.
+
+This mode reads a trained policy's returns, so it sits above :mod:`engine.rl`, and above the
+pure sampler (:mod:`engine.candidates`), whose candidates it makes.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
 
+from engine.candidates import Candidate, Policy, candidate_at, check_request, visit_steps
 from engine.envs import make_env
 from engine.gym_types import box, mujoco_base
+from engine.rewards import posture_features
 from engine.rl.returns import ReturnOptions, state_returns
 
 #: Lowest reset seed of the candidate rollouts; the judges' evaluation seeds stay below it.
 CANDIDATE_SEED_LOW = 2**30
 #: Pooled states per candidate (the pool's size is this times ``n``).
 POOL_PER_CANDIDATE = 6
-
-Policy = Callable[[np.ndarray], np.ndarray]
 
 
 @dataclass(frozen=True, eq=False)
@@ -70,6 +72,46 @@ class Pool:
     qvel: np.ndarray
     from_baseline: np.ndarray
     estimate: np.ndarray
+
+
+def sample_informative(
+    env_id: str,
+    n: int,
+    *,
+    rng: np.random.Generator,
+    rollout_steps: int | None = None,
+    policy: Policy | None,
+) -> list[Candidate]:
+    """``n`` candidates on which the trained no-advice ``policy`` has a clear preference, each
+    with its return estimate as ``seed_score`` (module docstring).
+
+    Args:
+        env_id: a Gymnasium MuJoCo env id.
+        n: number of candidates, 2 .. :data:`engine.candidates.MAX_CANDIDATES`.
+        rng: the only source of randomness (env seeds, actions, the pool, the pick).
+        rollout_steps: env steps to visit, half with ``policy``; default
+            :func:`engine.candidates.visit_steps`.
+        policy: the baseline's deterministic policy, observation -> action (required).
+
+    Raises:
+        InputError: ``n`` out of range, an unknown env, or no policy.
+    """
+    check_request(n, "informative", policy)
+    assert policy is not None  # checked above
+    pool = informative_pool(env_id, n, rollout_steps or visit_steps(n), rng, policy)
+    env = make_env(env_id)
+    try:
+        features = posture_features(pool.qpos, mujoco_base(env).model)
+        picked = pick_informative(pool.estimate, features, n, rng)
+        return [
+            replace(
+                candidate_at(env, i, pool.qpos[j], pool.qvel[j]),
+                seed_score=float(pool.estimate[j]),
+            )
+            for i, j in enumerate(picked)
+        ]
+    finally:
+        env.close()
 
 
 def informative_pool(

@@ -1,4 +1,10 @@
-"""End-to-end helpers: sample + seed + play a bracket, and replay it with another judge."""
+"""End-to-end helpers: sample (in any mode) + seed + play a bracket, and replay it with a
+simulated teacher.
+
+Above the agents: ``informative`` sampling reads a trained policy's returns
+(:mod:`engine.informative`). What the agents need of a bracket, replaying it with their own
+judge, is :func:`engine.treefile.replay`, below them.
+"""
 
 from __future__ import annotations
 
@@ -14,9 +20,42 @@ from engine.candidates import (
 )
 from engine.envs import env_model
 from engine.errors import check_seed
+from engine.informative import sample_informative
 from engine.teachers import make_teacher
-from engine.tournament import Judge, play
-from engine.treefile import TreeDocument, make_document
+from engine.tournament import play
+from engine.treefile import TreeDocument, make_document, replay
+
+
+def sample_by_mode(
+    env_id: str,
+    n: int,
+    *,
+    rng: np.random.Generator,
+    mode: SamplingMode = "uniform",
+    rollout_steps: int | None = None,
+    policy: Policy | None = None,
+) -> list[Candidate]:
+    """Candidates in any mode: ``informative`` by :func:`engine.informative.sample_informative`,
+    ``uniform`` and ``diverse`` by the pure :func:`engine.candidates.sample_candidates`.
+
+    Args:
+        env_id: a Gymnasium MuJoCo env id.
+        n: number of candidates, 2 .. :data:`engine.candidates.MAX_CANDIDATES`.
+        rng: the only source of randomness.
+        mode: ``uniform``, ``diverse`` or ``informative``.
+        rollout_steps: env steps to visit; default :func:`engine.candidates.visit_steps`.
+        policy: observation -> action, random actions when None; for ``informative``, the
+            trained no-advice baseline's deterministic policy (required).
+
+    Raises:
+        InputError: ``n`` out of range, an unknown mode or env, or ``informative`` without
+            a baseline policy.
+    """
+    if mode == "informative":
+        return sample_informative(env_id, n, rng=rng, rollout_steps=rollout_steps, policy=policy)
+    return sample_candidates(
+        env_id, n, rng=rng, mode=mode, rollout_steps=rollout_steps, policy=policy
+    )
 
 
 def run_tournament(
@@ -39,7 +78,7 @@ def run_tournament(
 
     Args:
         policy: observation -> action for the rollouts the candidates come from; random
-            actions when None (see :func:`engine.candidates.sample_candidates`); for
+            actions when None (see :func:`sample_by_mode`); for
             ``informative`` sampling, the no-advice baseline's policy, whose return estimate
             then seeds the bracket (:func:`engine.candidates.seed_abilities`).
 
@@ -47,7 +86,7 @@ def run_tournament(
         InputError: a bad argument (negative seed, N < 2, unknown env, teacher or mode).
     """
     rng = np.random.default_rng(check_seed(seed))
-    candidates = sample_candidates(env_id, n_candidates, rng=rng, mode=sampling, policy=policy)
+    candidates = sample_by_mode(env_id, n_candidates, rng=rng, mode=sampling, policy=policy)
     return teacher_bracket(
         env_id, candidates, rng, p=p, seed=seed, teacher=teacher, noise=noise, r_b=r_b, r_e=r_e
     )
@@ -91,25 +130,6 @@ def replay_with_teacher(doc: TreeDocument, teacher: str, noise: float = 0.0) -> 
         teacher, doc.candidates, env_model(doc.env_id), noise=noise, rng=rng
     )
     return replay(doc, judge, _name(teacher, noise), scores=scores)
-
-
-def replay(
-    doc: TreeDocument, judge: Judge, judge_name: str, scores: dict[int, float] | None = None
-) -> TreeDocument:
-    """The same bracket judged by ``judge``: trees over it are comparable."""
-    results = play(doc.bracket, doc.by_id, judge)
-    return make_document(
-        env_id=doc.env_id,
-        seed=doc.seed,
-        p=doc.p,
-        judge=judge_name,
-        candidates=doc.candidates,
-        first_round=doc.first_round,
-        results=results,
-        r_b=doc.r_b,
-        r_e=doc.r_e,
-        scores=scores,
-    )
 
 
 def _name(teacher: str, noise: float) -> str:

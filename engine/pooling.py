@@ -16,9 +16,8 @@ import numpy as np
 from engine.advice import AdviceReward, PooledAdvice
 from engine.conformance import check_same_bracket
 from engine.errors import InputError
-from engine.pipeline import replay
 from engine.tournament import ScoreJudge
-from engine.treefile import TreeDocument
+from engine.treefile import TreeDocument, replay
 
 
 def check_pool(docs: Sequence[TreeDocument]) -> None:

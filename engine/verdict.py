@@ -16,6 +16,9 @@ baseline, over seeds, on the matches that can tell (issue 25, docs/method.md §2
 4. **Decision**: the exact two-sided permutation test of the per-seed CAs at ``alpha``, with a
    crossed bootstrap interval of Δ and the AUC reported beside it (never deciding).
    :func:`engine.verdict_power.min_detectable_delta` gives the smallest Δ the design detects.
+
+This module holds the verdict's data and steps 1-2; steps 3-4 and the verdict itself are
+:func:`engine.verdict_outcome.verdict`, which builds on them (so they import nothing back).
 """
 
 from __future__ import annotations
@@ -28,13 +31,6 @@ import numpy as np
 from engine.conformance import contested_match
 from engine.errors import InputError
 from engine.treefile import TreeDocument
-from engine.verdict_outcome import outcome_and_reason, sentence
-from engine.verdict_power import (
-    auc,
-    crossed_bootstrap,
-    min_detectable_delta,
-    permutation_p,
-)
 
 #: ``(a, b, winner)``: a match of the advice (a bracket match or a disagreement pair).
 Pair = tuple[int, int, int]
@@ -243,61 +239,3 @@ def kept(scores: np.ndarray, pairs: tuple[Pair, ...]) -> np.ndarray:
     losers = np.array([b if w == a else a for a, b, w in pairs], dtype=np.intp)
     out: np.ndarray = scores[:, winners] > scores[:, losers]
     return out
-
-
-def _statistics(
-    inputs: VerdictInputs,
-    contested: tuple[Pair, ...],
-    rng: np.random.Generator,
-    options: VerdictOptions,
-) -> tuple[dict[str, Any], np.ndarray, np.ndarray]:
-    """Δ, its crossed bootstrap interval, the permutation test's p and the AUC (None where
-    an arm or the matches are empty), and each arm's per-seed CA, shape ``(k,)``."""
-    k_a, k_b = len(inputs.advised), len(inputs.baseline)
-    if not (contested and k_a and k_b):
-        empty: dict[str, Any] = {"delta": None, "interval": None, "p_value": None, "auc": None}
-        return empty, np.zeros(0), np.zeros(0)
-    kept_a, kept_b = kept(inputs.advised, contested), kept(inputs.baseline, contested)
-    ca_a, ca_b = kept_a.mean(axis=1), kept_b.mean(axis=1)
-    stats = {
-        "delta": float(ca_a.mean() - ca_b.mean()),
-        "interval": crossed_bootstrap(kept_a, kept_b, rng, options.n_boot),
-        # scipy needs two seeds per arm; with one, no test could reach alpha anyway
-        "p_value": float(permutation_p(ca_a, ca_b, rng)) if min(k_a, k_b) > 1 else None,
-        "auc": auc(ca_a, ca_b),
-    }
-    return stats, ca_a, ca_b
-
-
-def verdict(
-    inputs: VerdictInputs, rng: np.random.Generator, options: VerdictOptions = VerdictOptions()
-) -> Verdict:
-    """Decide whether the advised runs kept the advice more than the baseline (module doc).
-
-    Args:
-        inputs: the advice, the three arms' judge scores and the matches.
-        rng: draws the bootstrap (and a Monte Carlo test's relabellings at many seeds).
-        options: margins, minimum matches, level and power.
-    """
-    classes = classify(inputs, options)
-    sizes = len(classes.contested), len(inputs.advised), len(inputs.baseline)
-    mde = min_detectable_delta(
-        *sizes, alpha=options.alpha, power=options.power, seed_sd=options.seed_sd
-    )
-    stats, ca_a, ca_b = _statistics(inputs, classes.contested, rng, options)
-    outcome, label, reason = outcome_and_reason(
-        inputs, classes, mde, stats["delta"], stats["p_value"], options
-    )
-    result = Verdict(
-        outcome,
-        label,
-        reason,
-        classes,
-        tuple(ca_a.tolist()),
-        tuple(ca_b.tolist()),
-        min_detectable_delta=mde,
-        alpha=options.alpha,
-        power=options.power,
-        **stats,
-    )
-    return Verdict(**{**result.__dict__, "text": sentence(result)})

@@ -1,15 +1,29 @@
-"""The four outcomes of :mod:`engine.verdict` and the sentence that states one."""
+"""The verdict's decision over the matches :mod:`engine.verdict` splits (its steps 3-4):
+each run's share of contested matches kept, the test, one of four outcomes and the sentence
+that states it."""
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import Any
 
 import numpy as np
 
-from engine.verdict_power import smallest_p
-
-if TYPE_CHECKING:
-    from engine.verdict import MatchClasses, Verdict, VerdictInputs, VerdictOptions
+from engine.verdict import (
+    MatchClasses,
+    Pair,
+    Verdict,
+    VerdictInputs,
+    VerdictOptions,
+    classify,
+    kept,
+)
+from engine.verdict_power import (
+    auc,
+    crossed_bootstrap,
+    min_detectable_delta,
+    permutation_p,
+    smallest_p,
+)
 
 #: outcome -> its words in the verdict.
 LABELS: dict[str, str] = {
@@ -96,3 +110,61 @@ def sentence(v: Verdict) -> str:
     mde = v.min_detectable_delta
     can = "cannot detect any Δ" if mde is None else f"detects Δ ≥ {mde:.2f}"
     return f"{head} This design {can} at α = {v.alpha:g} with power {v.power:g}."
+
+
+def _statistics(
+    inputs: VerdictInputs,
+    contested: tuple[Pair, ...],
+    rng: np.random.Generator,
+    options: VerdictOptions,
+) -> tuple[dict[str, Any], np.ndarray, np.ndarray]:
+    """Δ, its crossed bootstrap interval, the permutation test's p and the AUC (None where
+    an arm or the matches are empty), and each arm's per-seed CA, shape ``(k,)``."""
+    k_a, k_b = len(inputs.advised), len(inputs.baseline)
+    if not (contested and k_a and k_b):
+        empty: dict[str, Any] = {"delta": None, "interval": None, "p_value": None, "auc": None}
+        return empty, np.zeros(0), np.zeros(0)
+    kept_a, kept_b = kept(inputs.advised, contested), kept(inputs.baseline, contested)
+    ca_a, ca_b = kept_a.mean(axis=1), kept_b.mean(axis=1)
+    stats = {
+        "delta": float(ca_a.mean() - ca_b.mean()),
+        "interval": crossed_bootstrap(kept_a, kept_b, rng, options.n_boot),
+        # scipy needs two seeds per arm; with one, no test could reach alpha anyway
+        "p_value": float(permutation_p(ca_a, ca_b, rng)) if min(k_a, k_b) > 1 else None,
+        "auc": auc(ca_a, ca_b),
+    }
+    return stats, ca_a, ca_b
+
+
+def verdict(
+    inputs: VerdictInputs, rng: np.random.Generator, options: VerdictOptions = VerdictOptions()
+) -> Verdict:
+    """Decide whether the advised runs kept the advice more than the baseline (module doc).
+
+    Args:
+        inputs: the advice, the three arms' judge scores and the matches.
+        rng: draws the bootstrap (and a Monte Carlo test's relabellings at many seeds).
+        options: margins, minimum matches, level and power.
+    """
+    classes = classify(inputs, options)
+    sizes = len(classes.contested), len(inputs.advised), len(inputs.baseline)
+    mde = min_detectable_delta(
+        *sizes, alpha=options.alpha, power=options.power, seed_sd=options.seed_sd
+    )
+    stats, ca_a, ca_b = _statistics(inputs, classes.contested, rng, options)
+    outcome, label, reason = outcome_and_reason(
+        inputs, classes, mde, stats["delta"], stats["p_value"], options
+    )
+    result = Verdict(
+        outcome,
+        label,
+        reason,
+        classes,
+        tuple(ca_a.tolist()),
+        tuple(ca_b.tolist()),
+        min_detectable_delta=mde,
+        alpha=options.alpha,
+        power=options.power,
+        **stats,
+    )
+    return Verdict(**{**result.__dict__, "text": sentence(result)})

@@ -26,8 +26,8 @@ from engine.verdict import (
     VerdictOptions,
     advice_scores,
     bracket_pairs,
-    verdict,
 )
+from engine.verdict_outcome import verdict
 
 
 def check_arms(

@@ -9,7 +9,7 @@ failed or cancelled is reused, not trained again, even by two experiments posted
 (the database keeps one, :mod:`app.runs.shared`).
 
 The verdict reads the runs' stored checkpoint artefacts (the per-candidate table that each
-run's executor writes) and hands them to :func:`engine.verdict.verdict`.
+run's executor writes) and hands them to :func:`engine.verdict_outcome.verdict`.
 """
 
 from __future__ import annotations
@@ -38,7 +38,8 @@ from app.runs.spec import RunSpec
 from engine.errors import InputError
 from engine.judges import JUDGE_COLUMNS, judge_name
 from engine.treefile import TreeDocument, tree_from_json
-from engine.verdict import Pair, Verdict, VerdictInputs, advice_scores, bracket_pairs, verdict
+from engine.verdict import Pair, Verdict, VerdictInputs, advice_scores, bracket_pairs
+from engine.verdict_outcome import verdict
 
 #: Evaluation seeds per arm: the default, and the range the form and API accept.
 DEFAULT_SEEDS, MIN_SEEDS, MAX_SEEDS = 5, 2, 20

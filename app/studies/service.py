@@ -41,6 +41,7 @@ from engine.candidates import SamplingMode
 from engine.disagreement import MAX_PAIRS
 from engine.envs import check_env_id
 from engine.errors import InputError
+from engine.pipeline import sample_by_mode
 from engine.practice import practice_pairs_error
 from engine.render import RenderService
 
@@ -171,7 +172,7 @@ def _sample(
 ) -> tuple[list[engine_candidates.Candidate], FirstRound]:
     """Candidates, then the first round, from one generator (as ``run_tournament`` does)."""
     rng = np.random.default_rng(study.seed)
-    cands = engine_candidates.sample_candidates(
+    cands = sample_by_mode(
         study.env_id,
         study.n_candidates,
         rng=rng,

@@ -38,7 +38,6 @@ from engine.envs import make_env, restore
 from engine.errors import InputError
 from engine.gym_types import box
 from engine.judges import judge_name
-from engine.pipeline import replay
 from engine.rewards import control_cost
 from engine.rl.behaviour import (
     RolloutOptions,
@@ -54,7 +53,7 @@ from engine.rl.runner import advice_reward, load_run_advice, load_run_pool, pool
 from engine.rl.shaping import AdviceFn, EnvRewardAdvice, scaled_advice
 from engine.rl.trained import TrainedAgent, deterministic_policy, load_agent
 from engine.tournament import ScoreJudge
-from engine.treefile import TreeDocument
+from engine.treefile import TreeDocument, replay
 
 
 @dataclass(frozen=True)

@@ -8,11 +8,12 @@ A match the judge could not tell carries ``"tie": true`` (its ``winner`` is the 
 the key is absent on every other match, so documents without ties are unchanged
 (docs/method.md §2.14).
 
-:mod:`~engine.treefile.document` holds the document, :mod:`~engine.treefile.write` its JSON,
-:mod:`~engine.treefile.read` the validating reader.
+:mod:`~engine.treefile.document` holds the document (and replays its bracket with another
+judge), :mod:`~engine.treefile.write` its JSON, :mod:`~engine.treefile.read` the validating
+reader.
 """
 
-from engine.treefile.document import SCHEMA, TreeDocument, make_document
+from engine.treefile.document import SCHEMA, TreeDocument, make_document, replay
 from engine.treefile.read import load_tree, tree_from_json
 from engine.treefile.write import dump_tree, dumps, tree_to_json
 
@@ -23,6 +24,7 @@ __all__ = [
     "dumps",
     "load_tree",
     "make_document",
+    "replay",
     "tree_from_json",
     "tree_to_json",
 ]

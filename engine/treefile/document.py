@@ -1,4 +1,5 @@
-"""The ``acv.tree/1`` document in memory: :class:`TreeDocument` and :func:`make_document`."""
+"""The ``acv.tree/1`` document in memory: :class:`TreeDocument`, :func:`make_document`, and
+:func:`replay`, its bracket judged again (here, below the agents that replay it)."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ from dataclasses import dataclass
 from engine.bracket import Bracket, FirstRound, Match
 from engine.candidates import Candidate
 from engine.preference_tree import PreferenceTree, from_dendrogram
-from engine.tournament import dendrogram, tie_heights
+from engine.tournament import Judge, dendrogram, play, tie_heights
 
 SCHEMA = "acv.tree/1"
 
@@ -106,4 +107,23 @@ def make_document(
         tree,
         scores,
         frozenset(ties),
+    )
+
+
+def replay(
+    doc: TreeDocument, judge: Judge, judge_name: str, scores: dict[int, float] | None = None
+) -> TreeDocument:
+    """The same bracket judged by ``judge``: trees over it are comparable."""
+    results = play(doc.bracket, doc.by_id, judge)
+    return make_document(
+        env_id=doc.env_id,
+        seed=doc.seed,
+        p=doc.p,
+        judge=judge_name,
+        candidates=doc.candidates,
+        first_round=doc.first_round,
+        results=results,
+        r_b=doc.r_b,
+        r_e=doc.r_e,
+        scores=scores,
     )

@@ -14,7 +14,8 @@ from engine.treefile import TreeDocument
 from engine.validation import criteria
 from engine.validation.criteria import ArmData, Criterion, Table
 from engine.validation.design import BASELINE, PILOT, Plan
-from engine.verdict import VerdictInputs, advice_scores, bracket_pairs, classify, kept, verdict
+from engine.verdict import VerdictInputs, advice_scores, bracket_pairs, classify, kept
+from engine.verdict_outcome import verdict
 
 #: Random splits of ``n1``'s seeds judged against each other (the placebo).
 PLACEBO_SPLITS = 20

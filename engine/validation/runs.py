@@ -24,15 +24,15 @@ from typing import Any
 
 import numpy as np
 
-from engine.candidates import sample_candidates
 from engine.errors import InputError
+from engine.informative import sample_informative
 from engine.pinned import pin_settings
-from engine.pipeline import replay, replay_with_teacher, teacher_bracket
+from engine.pipeline import replay_with_teacher, teacher_bracket
 from engine.rl.checkpoint import list_checkpoints
 from engine.rl.config import TrainConfig
 from engine.rl.runner import train
 from engine.tournament import ScoreJudge
-from engine.treefile import TreeDocument, dump_tree, load_tree
+from engine.treefile import TreeDocument, dump_tree, load_tree, replay
 from engine.validation.design import (
     ARM_BY_NAME,
     BASELINE,
@@ -210,9 +210,7 @@ def pilot_bracket(pilot: Path, plan: BracketPlan, seed: int) -> TreeDocument:
 
     policy = deterministic_policy(load_agent(find_checkpoint(pilot)))
     rng = np.random.default_rng(seed)
-    candidates = sample_candidates(
-        plan.env_id, plan.candidates, rng=rng, mode="informative", policy=policy
-    )
+    candidates = sample_informative(plan.env_id, plan.candidates, rng=rng, policy=policy)
     return teacher_bracket(plan.env_id, candidates, rng, p=plan.p, seed=seed, teacher=plan.teacher)
 
 

@@ -13,7 +13,8 @@ from fastapi.testclient import TestClient
 
 from app.settings import Settings
 from engine.bracket import make_first_round
-from engine.candidates import sample_candidates, seed_abilities
+from engine.candidates import seed_abilities
+from engine.informative import sample_informative
 from engine.rl.checkpoint import find_checkpoint
 from engine.rl.trained import deterministic_policy, load_agent
 from tests.support.runs import TINY, create_run, run_app, wait_run
@@ -83,7 +84,7 @@ def test_informative_study_waits_for_a_no_advice_baseline(
     run_dir = settings.data_dir / "runs" / str(baseline)
     policy = deterministic_policy(load_agent(find_checkpoint(run_dir)))
     rng = np.random.default_rng(BODY["seed"])
-    expected = sample_candidates("Hopper-v5", 4, rng=rng, mode="informative", policy=policy)
+    expected = sample_informative("Hopper-v5", 4, rng=rng, policy=policy)
     assert [c["qpos"] for c in got] == [e.qpos.tolist() for e in expected]  # exact floats
     assert len({tuple(c["qpos"]) for c in got}) == 4
     first = make_first_round([c.id for c in expected], seed_abilities(expected), 0.0, rng)

@@ -14,8 +14,8 @@ from engine.conformance import (
     tree_edit_distance,
 )
 from engine.errors import InputError
-from engine.pipeline import replay
 from engine.tournament import ScoreJudge, score_winner
+from engine.treefile import replay
 from tests.support.candidates import r_judged_doc
 
 

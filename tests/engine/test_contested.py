@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from engine.conformance import Conformance, compare, reference_agreement
-from engine.pipeline import replay, replay_with_teacher, run_tournament
+from engine.pipeline import replay_with_teacher, run_tournament
 from engine.tournament import ScoreJudge
-from engine.treefile import TreeDocument
+from engine.treefile import TreeDocument, replay
 
 
 @pytest.fixture(scope="module")

@@ -9,7 +9,13 @@ import pytest
 from engine.bracket import make_first_round
 from engine.candidates import Candidate, sample_candidates, seed_abilities
 from engine.errors import InputError
-from engine.informative import CANDIDATE_SEED_LOW, informative_pool, pick_informative
+from engine.informative import (
+    CANDIDATE_SEED_LOW,
+    informative_pool,
+    pick_informative,
+    sample_informative,
+)
+from engine.pipeline import sample_by_mode
 
 
 def _hold_joints(obs: np.ndarray) -> np.ndarray:
@@ -18,13 +24,8 @@ def _hold_joints(obs: np.ndarray) -> np.ndarray:
 
 
 def _sample(seed: int, n: int = 4) -> list[Candidate]:
-    return sample_candidates(
-        "Hopper-v5",
-        n,
-        rng=np.random.default_rng(seed),
-        mode="informative",
-        rollout_steps=100,
-        policy=_hold_joints,
+    return sample_informative(
+        "Hopper-v5", n, rng=np.random.default_rng(seed), rollout_steps=100, policy=_hold_joints
     )
 
 
@@ -54,7 +55,34 @@ def test_informative_spreads_the_estimate_over_the_pools_range() -> None:
 
 def test_informative_needs_a_baseline_policy() -> None:
     with pytest.raises(InputError, match="informative sampling needs a trained no-advice"):
-        sample_candidates("Hopper-v5", 4, rng=np.random.default_rng(0), mode="informative")
+        sample_by_mode("Hopper-v5", 4, rng=np.random.default_rng(0), mode="informative")
+
+
+def test_sampling_by_mode_is_the_pure_sampler_or_the_informative_one() -> None:
+    """The pipeline's entry point draws exactly what each sampler draws; the pure sampler
+    (below the agents) refuses ``informative`` and says where it is."""
+    informative = sample_by_mode(
+        "Hopper-v5",
+        4,
+        rng=np.random.default_rng(0),
+        mode="informative",
+        rollout_steps=100,
+        policy=_hold_joints,
+    )
+    uniform = sample_by_mode("Hopper-v5", 4, rng=np.random.default_rng(0), rollout_steps=100)
+    pure = sample_candidates("Hopper-v5", 4, rng=np.random.default_rng(0), rollout_steps=100)
+    for got, expected in ((informative, _sample(0)), (uniform, pure)):
+        assert [(c.qpos.tobytes(), c.seed_score) for c in got] == [
+            (c.qpos.tobytes(), c.seed_score) for c in expected
+        ]
+    with pytest.raises(InputError, match="sample_by_mode samples in every mode"):
+        sample_candidates(
+            "Hopper-v5",
+            4,
+            rng=np.random.default_rng(0),
+            mode="informative",  # type: ignore[arg-type]
+            policy=_hold_joints,
+        )
 
 
 def test_pick_takes_one_state_per_stratum_far_apart_in_posture() -> None:

@@ -10,11 +10,10 @@ from hypothesis import strategies as st
 from engine.bracket import Bracket, make_first_round
 from engine.conformance import compare
 from engine.errors import InputError
-from engine.pipeline import replay
 from engine.preference_tree import from_dendrogram
 from engine.teachers import CoinJudge
 from engine.tournament import ScoreJudge, dendrogram, play
-from engine.treefile import make_document
+from engine.treefile import make_document, replay
 from tests.support.candidates import make_candidates
 
 

@@ -15,10 +15,16 @@ from engine.advice import AdviceReward
 from engine.bracket import Bracket, FirstRound, make_first_round
 from engine.conformance import compare, reference_agreement
 from engine.errors import InputError
-from engine.pipeline import replay
 from engine.preference_tree import from_dendrogram
 from engine.tournament import ScoreJudge, dendrogram, match_heights, play
-from engine.treefile import TreeDocument, dumps, make_document, tree_from_json, tree_to_json
+from engine.treefile import (
+    TreeDocument,
+    dumps,
+    make_document,
+    replay,
+    tree_from_json,
+    tree_to_json,
+)
 from engine.verdict import bracket_pairs
 from tests.support.candidates import make_candidates
 

@@ -21,8 +21,8 @@ from engine.verdict import (
     bracket_pairs,
     classify,
     split_matches,
-    verdict,
 )
+from engine.verdict_outcome import verdict
 from tests.support.candidates import r_judged_doc
 
 N = 16
