@@ -38,11 +38,19 @@ def verdict_cmd(
         float, Opt(help="Share of the pilot scores' range a pilot preference must reach.")
     ] = 0.05,
     seed: Annotated[int, Opt(help="Seed of the bootstrap interval.")] = 0,
+    tensorboard: Annotated[
+        bool,
+        Opt(help="Write the numbers into the advised and baseline runs' TensorBoard logs."),
+    ] = True,
     as_json: JsonOpt = False,
 ) -> None:
     """Did the advised runs keep the advice more than runs without it? Scores each run's last
-    checkpoint with the judge, then tests the difference (exact permutation test, α = 0.05)."""
+    checkpoint with the judge, then tests the difference (exact permutation test, α = 0.05).
+    The numbers go to TensorBoard too, as ``verdict/<judge>/...`` beside each run's
+    hyper-parameters: ``tensorboard --logdir`` the runs' parent folder, tab HPARAMS."""
     from engine.errors import check_seed
+    from engine.judges import judge_name
+    from engine.rl.hparams import log_verdict
     from engine.verdict import VerdictOptions
     from engine.verdict_runs import runs_verdict
 
@@ -57,4 +65,6 @@ def verdict_cmd(
         np.random.default_rng(check_seed(seed)),
         options,
     )
+    if tensorboard:
+        log_verdict(result, judge_name(judge), advised, baseline)
     typer.echo(json.dumps(result.to_json(), indent=1) if as_json else result.text)

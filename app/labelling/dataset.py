@@ -1,6 +1,7 @@
 """A study's labels as a dataset that others can load (issue 29 §4): labels, candidates with
-their states and pictures, participants and trees, as Parquet with a dataset card
-(:mod:`app.labelling.dataset_card` says the folder's layout and columns).
+their states and pictures, participants and trees, and each answered pair as its chosen and
+rejected states (``preferences``, :mod:`app.labelling.dataset_preferences`), as Parquet with a
+dataset card (:mod:`app.labelling.dataset_card` says the folder's layout and columns).
 
 Only participants who agreed to share (``share_consent``) and whom the researcher did not
 exclude are in it, and only their labels and trees. Each is named by a pseudonym: an
@@ -35,6 +36,7 @@ from app.labelling.dataset_card import (
     DEFAULT_LICENSE,
     LABELS,
     PARTICIPANTS,
+    PREFERENCES,
     TREES,
     Facts,
     Table,
@@ -42,6 +44,7 @@ from app.labelling.dataset_card import (
     check_license,
     readme,
 )
+from app.labelling.dataset_preferences import preferences
 from app.labelling.quality import quality
 from app.models import Participant, Study
 from app.studies.images import image_file
@@ -115,6 +118,7 @@ def build(
         CANDIDATES: _candidates(session, study_id, data_dir),
         PARTICIPANTS: _participants(session, study_id, names, hashes, labels),
         TREES: _trees(session, people, names),
+        PREFERENCES: preferences(labels, list_candidates(session, study_id=study_id), study.env_id),
     }
     facts = _facts(study, len(people), tables, license)
     files = {t.path: _parquet(t, rows) for t, rows in tables.items()}

@@ -8,6 +8,7 @@ The folder that :mod:`app.labelling.dataset` writes::
     candidates/train-00000-of-00001.parquet      the candidate states, with their images
     participants/train-00000-of-00001.parquet    who labelled, under pseudonyms
     trees/train-00000-of-00001.parquet           each finished participant's Preference Tree
+    preferences/train-00000-of-00001.parquet     each answered pair as chosen and rejected states
 
 The labels sit in ``data/`` under the Hub's shard name because
 ``load_dataset("parquet", data_dir=DIR)`` reads no card: it takes the first file pattern that
@@ -120,7 +121,24 @@ TREES = Table(
         Column("document", "string", "The whole `acv.tree/1` JSON document."),
     ),
 )
-TABLES = (LABELS, CANDIDATES, PARTICIPANTS, TREES)
+PREFERENCES = Table(
+    "preferences",
+    "preferences",
+    "One row per answered pair, as reward learning reads it: both states, as arrays.",
+    (
+        PSEUDONYM,
+        Column("kind", "string", "`bracket` or `disagreement`, as in `labels`."),
+        Column("stimulus", "string", "What the pair showed of each state: `still`, a picture."),
+        Column("chosen", "int64", "The candidate preferred (the seeded coin's on a tie)."),
+        Column("rejected", "int64", "The other candidate of the pair."),
+        Column("tie", "bool", "The participant could not tell: read the pair as half each way."),
+        Column("chosen_posture", "list<float64>", "`qpos` less the position on the floor."),
+        Column("rejected_posture", "list<float64>", "The same for `rejected`."),
+        Column("chosen_observation", "list<float64>", "The env's observation in that state."),
+        Column("rejected_observation", "list<float64>", "The same for `rejected`."),
+    ),
+)
+TABLES = (LABELS, CANDIDATES, PARTICIPANTS, TREES, PREFERENCES)
 
 
 def check_license(license_id: str) -> str:
@@ -255,7 +273,12 @@ from datasets import load_dataset
 
 labels = load_dataset("parquet", data_dir="DIR")  # the labels (data/)
 candidates = load_dataset("DIR", "candidates")  # or "labels", "participants", "trees"
+pairs = load_dataset("DIR", "preferences", split="train").with_format("numpy")
 ```
+
+`preferences` is what reward-learning code reads: each answered pair's `chosen` and
+`rejected` states as arrays, ready for a Bradley-Terry reward model (ACV's
+`examples/bradley_terry.py` fits one).
 
 ## Tables
 

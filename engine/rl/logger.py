@@ -1,13 +1,18 @@
-"""The run's logs: ``metrics.jsonl`` (one row per update) and TensorBoard event files."""
+"""The run's logs: ``metrics.jsonl`` (one row per update) and TensorBoard event files, which
+also hold the run's hyper-parameters for the HPARAMS dashboard (:mod:`engine.rl.hparams`)."""
 
 from __future__ import annotations
 
 import json
 import math
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from engine.errors import InputError
+
+if TYPE_CHECKING:
+    from engine.rl.hparams import HParam
 
 METRICS_FILE = "metrics.jsonl"
 _EPISODE_KEYS = ("episode_returns", "episode_shaped_returns")
@@ -23,16 +28,23 @@ class RunLogger:
     Args:
         run_dir: the run directory.
         start: timesteps of the checkpoint the run continues from (0 for a new run).
+        hparams: the run's hyper-parameters (:func:`engine.rl.hparams.config_hparams`),
+            written again on resume, unchanged, so that a run started before they were logged
+            has them too.
     """
 
-    def __init__(self, run_dir: Path, start: int = 0):
+    def __init__(self, run_dir: Path, start: int = 0, hparams: Mapping[str, HParam] | None = None):
         # Here, not at the top: reading metrics (read_metrics) must not import torch, since web
         # processes import run folders of runs trained before run state rows existed.
         from torch.utils.tensorboard import SummaryWriter
 
+        from engine.rl.hparams import write_hparams
+
         self.path = Path(run_dir) / METRICS_FILE
         self._truncate(start)
         self.writer = SummaryWriter(str(run_dir), purge_step=start if start else None)
+        if hparams is not None:
+            write_hparams(self.writer, hparams)
 
     def _truncate(self, start: int) -> None:
         if not self.path.exists():

@@ -32,6 +32,7 @@ from engine.errors import InputError
 from engine.provenance import PROVENANCE_FILE, provenance
 from engine.rl.checkpoint import find_checkpoint, list_checkpoints, load_checkpoint, save_checkpoint
 from engine.rl.config import REWARD_ADVICE, TrainConfig
+from engine.rl.hparams import config_hparams
 from engine.rl.logger import METRICS_FILE, RunLogger
 from engine.rl.shaping import AdviceFn, EnvRewardAdvice
 from engine.rl.trainer import Trainer
@@ -116,7 +117,7 @@ def _start(
             trainer.load_state_dict(state)
         else:
             _write_new_run(config, advice, out_dir)
-        return trainer, RunLogger(out_dir, start=trainer.timesteps)
+        return trainer, RunLogger(out_dir, trainer.timesteps, config_hparams(config))
     except BaseException:
         trainer.close()
         if state is None:

@@ -1,4 +1,5 @@
-"""``acv verdict`` on tiny trained runs, in-process: the sentence, the JSON, and bad input."""
+"""``acv verdict`` on tiny trained runs, in-process: the sentence, the JSON, bad input, and
+what TensorBoard shows of the runs (each run's hyper-parameters, the verdict's numbers)."""
 
 from __future__ import annotations
 
@@ -11,7 +12,9 @@ import pytest
 
 from app.cli import main
 from engine.pipeline import run_tournament
+from engine.rl.checkpoint import list_checkpoints
 from engine.treefile import dump_tree
+from tests.support.tensorboard import events, hparams, last_scalars
 
 pytestmark = pytest.mark.training
 
@@ -137,3 +140,38 @@ def test_the_legacy_value_judge_is_shaped_value(monkeypatch, capsys, runs: Path)
     code, current, err = acv(monkeypatch, capsys, *args, "--json")
     assert code == 0, err
     assert json.loads(legacy) == json.loads(current)
+
+
+def test_runs_show_their_hparams_and_the_verdict_in_tensorboard(
+    monkeypatch, capsys, runs: Path
+) -> None:
+    for name, algo, seed in (("adv0", "ppo-shaped", 0), ("pilot7", "ppo", 7)):
+        logged = hparams(runs / name)
+        assert (logged["algo"], logged["seed"], logged["env_id"]) == (algo, seed, "Hopper-v5")
+        assert logged["norm_obs"] == "true" and logged["pool_weights"] == "none"
+    code, out, err = acv(monkeypatch, capsys, *_args(runs), "--json")
+    assert code == 0, err
+    v = json.loads(out)
+    low, high = v["interval"] or (None, None)
+    design = {
+        "delta": v["delta"],
+        "interval_low": low,
+        "interval_high": high,
+        "p_value": v["p_value"],
+        "auc": v["auc"],
+        "contested": len(v["matches"]["contested"]),
+        "min_detectable_delta": v["min_detectable_delta"],
+    }
+    design = {k: x for k, x in design.items() if x is not None}
+    judged = max(list_checkpoints(runs / "adv0"))
+    for name, arm, extra in (("adv0", "ca_advised", design), ("base1", "ca_baseline", {})):
+        own = {"ca": v[arm][0 if name == "adv0" else 1]} if v[arm] else {}
+        logged = last_scalars(runs / name, "verdict/shaped/")
+        assert logged == {k: (judged, pytest.approx(x, abs=1e-6)) for k, x in (own | extra).items()}
+    assert "verdict/shaped/text_summary" in events(runs / "adv0").Tags()["tensors"]
+    assert last_scalars(runs / "pilot7", "verdict/") == {}  # it only picked the matches
+
+    before = sorted((runs / "adv1").glob("events.out.tfevents.*"))
+    code, _, err = acv(monkeypatch, capsys, *_args(runs), "--no-tensorboard")
+    assert code == 0, err
+    assert sorted((runs / "adv1").glob("events.out.tfevents.*")) == before

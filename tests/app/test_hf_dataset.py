@@ -15,24 +15,13 @@ from fastapi.testclient import TestClient
 
 from app.core.auth import PARTICIPANT_COOKIE
 from tests.support.crowd import configure, visit
-from tests.support.hf import card, check_tables, load, unzipped
-from tests.support.studies import Player
+from tests.support.hf import CONFIGS, SHARE, card, check_tables, consent, export, load, unzipped
 from tests.support.web import ADMIN, csrf_token
-
-SHARE = "/api/participants/me/share-consent"
-
-
-def consent(player: Player, share: Any) -> Any:
-    return player.client.put(SHARE, json={"share": share}, headers=player.headers)
 
 
 def shares(client: TestClient, study_id: int) -> dict[int, bool]:
     listed = client.get(f"/api/studies/{study_id}/participants", headers=ADMIN).json()
     return {p["id"]: p["share_consent"] for p in listed}
-
-
-def export(client: TestClient, study_id: int, query: str = "") -> Any:
-    return client.get(f"/api/studies/{study_id}/export/dataset.zip{query}", headers=ADMIN)
 
 
 def test_share_consent_is_off_by_default_strict_and_revocable(client, study, invite) -> None:
@@ -101,9 +90,7 @@ def test_the_dataset_loads_with_only_those_who_agreed(
     assert not ids & {p["participant"] for p in people}
     meta = card(folder)
     assert meta["license"] == "mit"
-    assert [c["config_name"] for c in meta["configs"]] == list(
-        ("labels", "candidates", "participants", "trees")
-    )
+    assert [c["config_name"] for c in meta["configs"]] == list(CONFIGS)
     assert "Verma" in (folder / "README.md").read_text()
 
     again = unzipped(export(client, study_id, "?license=mit").content, tmp_path / "again")
