@@ -203,12 +203,7 @@ GRAPH_RULES: dict[str, tuple[str, Callable[[Graph], list[Any]]]] = {
     "the engine imports up a layer only where named": ("engine", unnamed_upward),
     "the app's imports make no circle": ("app", cycles),
 }
-#: The circles left in app/ (issue 43 removes them; then drop the mark).
-APP_CIRCLES = "app.recruiting.events <-> app.recruiting.service (events.py imports LinkKind)"
-XFAIL = {"the app's imports make no circle": pytest.mark.xfail(strict=False, reason=APP_CIRCLES)}
-
-
-@pytest.mark.parametrize("rule", [pytest.param(r, marks=XFAIL.get(r, ())) for r in GRAPH_RULES])
+@pytest.mark.parametrize("rule", GRAPH_RULES)
 def test_the_graph_rule_holds(rule: str) -> None:
     package, breaks = GRAPH_RULES[rule]
     assert not breaks(import_graph(package))

@@ -6,8 +6,9 @@ from typing import Annotated, Any
 
 from fastapi import APIRouter, Request, Response
 from fastapi.responses import JSONResponse
+from sqlalchemy.orm import Session
 
-from app.core.errors import ForbiddenError
+from app.core.errors import ConflictError, ForbiddenError
 from app.core.json_types import IntParam
 from app.http.deps import DbId, ResearcherDep, RuntimeDep, SessionDep, ViewerDep
 from app.http.member_auth import InviteTokenDep, ParticipantDep
@@ -21,12 +22,17 @@ from app.labelling.schemas import (
     LabelIn,
     MeOut,
     NextMatchOut,
+    OutcomeOut,
     PairOut,
     UndoOut,
+    WithdrawIn,
 )
+from app.models import Participant
 from app.recruiting import members
+from app.recruiting import service as recruiting
+from app.recruiting.seats import MemberEndedError
 from app.runtime import Runtime
-from app.studies import gold, participants
+from app.studies import crowd, gold, participants
 from app.studies import service as studies
 from app.studies.api import participant_out
 from app.studies.schemas import ExclusionIn, ParticipantOut, ProgressOut
@@ -53,6 +59,28 @@ def me(person: ParticipantDep, session: SessionDep) -> MeOut:
         progress=progress_out(progress),
         finished=progress.finished,
         can_undo=labelling.can_undo(session, participant=person),
+    )
+
+
+@router.post(
+    "/me/withdraw",
+    responses={410: {"description": "They withdrew before, or their time is over."}},
+)
+def withdraw(body: WithdrawIn, person: ParticipantDep, session: SessionDep) -> OutcomeOut:
+    """Withdraw from the study (``{"withdraw": true}``: it cannot be undone): the seat is
+    freed, and the labels are kept but left out of trees, pooling, exports and the dataset.
+    Returns the open link's code for it."""
+    row = participants.get_participant(session, participant_id=person.id)
+    if row.finished_at is not None:
+        raise ConflictError("a finished participant cannot withdraw here; ask the researcher")
+    try:
+        shown = recruiting.withdraw(session, crowd.LINK, member=row)
+    except ConflictError as exc:
+        raise MemberEndedError(exc.detail) from None
+    return OutcomeOut(
+        outcome="withdrawn",
+        code=shown.code if shown else None,
+        redirect_url=shown.redirect_url if shown else None,
     )
 
 
@@ -217,7 +245,14 @@ def set_exclusion(
     person = participants.set_exclusion(
         session, participant_id=participant_id, excluded=body.excluded, reason=body.reason
     )
-    return participant_out(request, person, participants.progress(session, participant=person))
+    return _participant_out(request, session, person)
+
+
+def _participant_out(request: Request, session: Session, person: Participant) -> ParticipantOut:
+    link = recruiting.settings(session, crowd.LINK, person.study_id)
+    return participant_out(
+        request, person, participants.progress(session, participant=person), link
+    )
 
 
 @router.get("/{participant_id}")
@@ -225,7 +260,7 @@ def get_participant(
     participant_id: DbId, request: Request, session: SessionDep, _: ResearcherDep
 ) -> ParticipantOut:
     person = participants.get_participant(session, participant_id=participant_id)
-    return participant_out(request, person, participants.progress(session, participant=person))
+    return _participant_out(request, session, person)
 
 
 @router.get("/{participant_id}/tree")

@@ -38,12 +38,12 @@ from sqlalchemy.orm import Session
 from app.core.errors import NotFoundError
 from app.labelling.dashboard_sql import ROWS, SNAPSHOT
 from app.labelling.quality import flags_of, is_fast
-from app.models import utcnow
+from app.models import as_utc, utcnow
 from app.studies.crowd import DEFAULT_SPEED_THRESHOLD_MS
 from app.studies.gold import GoldScore
 from app.studies.participants import n_matches
 
-Status = Literal["not_started", "labelling", "finished"]
+Status = Literal["not_started", "labelling", "finished", "withdrawn", "timed_out"]
 #: Bumped when the dashboard's body changes shape, so that no old ETag matches a new body.
 FORMAT = 1
 
@@ -65,6 +65,8 @@ class Snapshot:
     finished: int
     excluded: int
     excluded_ids: int
+    withdrawn: int
+    timed_out: int
     gold_answers: int
     checks: int
     link_joined: int | None
@@ -89,6 +91,7 @@ def snapshot(session: Session, *, study_id: int, now: datetime | None = None) ->
     now = now or utcnow()
     params = {
         "sid": study_id,
+        "now": now,
         "minute_ago": now - timedelta(minutes=1),
         "five_ago": now - timedelta(minutes=5),
     }
@@ -132,7 +135,8 @@ class LiveParticipant:
 @dataclass(frozen=True)
 class Counts:
     """How many participants are where: ``joined`` is all of them (invited or by the open
-    link); ``declined`` counts declined consents on the open link."""
+    link); ``declined`` counts declined consents on the open link, ``withdrawn`` those who
+    withdrew after joining, ``timed_out`` those past the link's time limit unfinished."""
 
     joined: int
     not_started: int
@@ -140,6 +144,8 @@ class Counts:
     finished: int
     declined: int
     excluded: int
+    withdrawn: int
+    timed_out: int
 
 
 @dataclass(frozen=True)
@@ -172,7 +178,8 @@ def dashboard(
     snap = known or snapshot(session, study_id=study_id, now=now)
     rules = _Rules(snap.speed_threshold_ms or DEFAULT_SPEED_THRESHOLD_MS, snap.gold_gate)
     total = n_matches(snap.n_candidates)
-    people = [_live(row, total, rules) for row in session.execute(ROWS, {"sid": study_id})]
+    rows = session.execute(ROWS, {"sid": study_id})
+    people = [_live(row, total, rules, now) for row in rows]
     return Dashboard(
         study_id,
         snap.etag,
@@ -197,6 +204,8 @@ def _counts(people: list[LiveParticipant], declined: int) -> Counts:
         sum(p.status == "finished" for p in people),
         declined,
         sum(p.excluded for p in people),
+        sum(p.status == "withdrawn" for p in people),
+        sum(p.status == "timed_out" for p in people),
     )
 
 
@@ -206,11 +215,17 @@ class _Rules:
     gate: float | None
 
 
-def _live(row: Row[Any], total: int, rules: _Rules) -> LiveParticipant:
+def _live(row: Row[Any], total: int, rules: _Rules, now: datetime) -> LiveParticipant:
     """A participant's row of :data:`~app.labelling.dashboard_sql.ROWS`, with their flags."""
     median = _median(row.times)
-    done, finished = int(row.done), row.finished_at is not None
-    status: Status = "finished" if finished else "labelling" if done else "not_started"
+    done = int(row.done)
+    status: Status = "labelling" if done else "not_started"
+    if row.withdrawn_at is not None:
+        status = "withdrawn"
+    elif row.finished_at is not None:
+        status = "finished"
+    elif row.deadline_at is not None and as_utc(row.deadline_at) <= now:
+        status = "timed_out"
     return LiveParticipant(
         id=row.id,
         name=row.name,

@@ -18,6 +18,7 @@ from sqlalchemy import (
     ColumnElement,
     String,
     Subquery,
+    and_,
     bindparam,
     case,
     cast,
@@ -60,6 +61,14 @@ def _labels_now() -> Subquery:
     )
 
 
+#: A participant past their time limit, unfinished and not withdrawn, at ``now``.
+_TIMED_OUT = and_(
+    Participant.deadline_at <= bindparam("now"),
+    Participant.finished_at.is_(None),
+    Participant.withdrawn_at.is_(None),
+)
+
+
 def _people_now() -> Subquery:
     return (
         select(
@@ -70,6 +79,9 @@ def _people_now() -> Subquery:
             # with the count, which participants are excluded (one excluded, another
             # included again between two polls changes the sum)
             _count_if(Participant.excluded.is_(True), Participant.id).label("excluded_ids"),
+            _count_if(Participant.withdrawn_at.is_not(None)).label("withdrawn"),
+            # time passing changes who is timed out, with no row changed: counted at `now`
+            _count_if(_TIMED_OUT).label("timed_out"),
         )
         .where(Participant.study_id == _SID)
         .subquery()
@@ -172,6 +184,8 @@ def _rows_statement() -> Any:
             Participant.external_id,
             Participant.excluded,
             Participant.finished_at,
+            Participant.withdrawn_at,
+            Participant.deadline_at,
             func.coalesce(labels.c.done, 0).label("done"),
             func.coalesce(labels.c.left, 0).label("left"),
             func.coalesce(labels.c.sided, 0).label("sided"),

@@ -46,7 +46,8 @@ from app.labelling.dataset_card import (
 )
 from app.labelling.dataset_preferences import preferences
 from app.labelling.quality import quality
-from app.models import Participant, Study
+from app.models import Participant, Study, utcnow
+from app.recruiting.seats import kept_in_data
 from app.studies.images import image_file
 from app.studies.service import get_study, list_candidates
 from engine.errors import InputError
@@ -79,14 +80,15 @@ class Export:
 
 
 def sharing(session: Session, *, study_id: int) -> list[Participant]:
-    """The study's participants who agreed to share their labels and are not excluded."""
+    """The study's participants who agreed to share their labels and are in the data (not
+    excluded, withdrawn or timed out: :func:`app.recruiting.seats.kept_in_data`)."""
     return list(
         session.scalars(
             select(Participant)
             .where(
                 Participant.study_id == study_id,
                 Participant.share_consent.is_(True),
-                Participant.excluded.is_(False),
+                *kept_in_data(include_excluded=False, now=utcnow()),
             )
             .order_by(Participant.id)
         )

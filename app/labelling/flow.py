@@ -25,7 +25,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 from datetime import datetime
-from typing import Any
+from typing import Any, NoReturn
 
 from sqlalchemy import Connection
 from sqlalchemy.exc import IntegrityError
@@ -38,6 +38,7 @@ from app.labelling import flow_sql as sql
 from app.labelling.shape import BracketShape, shape_of
 from app.models import as_utc, utcnow
 from app.recruiting.members import STUDY
+from app.recruiting.seats import MemberEndedError
 from app.studies.gold import GoldPair, due_gold
 from app.studies.participants import ParticipantKey, Progress
 from app.studies.sides import a_on_left, a_wins_tie
@@ -205,8 +206,8 @@ def _submit(
     with_next: bool,
 ) -> LabelResult:
     now, pid, match_id = utcnow(), participant.id, decision.match_id
-    if conn.execute(sql.LOCK, {"pid": pid}).rowcount == 0:
-        raise AuthError(STUDY.unknown)
+    if conn.execute(sql.LOCK, {"pid": pid, "now": now}).rowcount == 0:
+        _locked_out(conn, pid)
     row = conn.execute(sql.MATCH_ROW, {"pid": pid, "mid": match_id}).one_or_none()
     if row is None:
         raise NotFoundError(f"match {match_id} not found among this participant's matches")
@@ -237,6 +238,23 @@ def _submit(
         _next(conn, participant, progress, with_next),
         decision.tie,
     )
+
+
+def _locked_out(conn: Connection, pid: int) -> NoReturn:
+    """Say why the label's lock matched nobody.
+
+    Raises:
+        AuthError: no such participant.
+        MemberEndedError: they withdrew, or their time is over (a time limit, or the gate).
+    """
+    row = conn.execute(sql.LOCKED_OUT, {"pid": pid}).one_or_none()
+    if row is None:
+        raise AuthError(STUDY.unknown)
+    if row.withdrawn_at is not None:
+        raise MemberEndedError("you withdrew from this study: it takes no more labels from you")
+    if row.gate_stopped_at is not None:
+        raise MemberEndedError("this study has ended for you: it takes no more labels from you")
+    raise MemberEndedError("your time for this study is over: it takes no more labels from you")
 
 
 def _insert_label(

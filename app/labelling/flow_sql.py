@@ -8,6 +8,7 @@ from sqlalchemy import BindParameter, bindparam, func, insert, select, update
 from sqlalchemy.orm import aliased
 
 from app.models import Label, Match, Member, Participant
+from app.recruiting.seats import within_time
 
 PID: BindParameter[int] = bindparam("pid")
 MID: BindParameter[int] = bindparam("mid")
@@ -21,10 +22,15 @@ OPEN = (
 )
 OPEN_AND_DONE = OPEN.add_columns(DONE)
 #: The first statement of a label's transaction: takes the participant's lock.
+#: Matches only a participant who may still label: not withdrawn, not past their time.
 LOCK = (
     update(Member)
-    .where(Member.id == PID, Member.collection_kind == "study")
+    .where(Member.id == PID, Member.collection_kind == "study", within_time(bindparam("now")))
     .values(finished_at=Member.finished_at)
+)
+#: Why :data:`LOCK` matched nobody.
+LOCKED_OUT = select(Participant.withdrawn_at, Participant.gate_stopped_at).where(
+    Participant.id == PID
 )
 _sibling, _sibling_label = aliased(Match), aliased(Label)
 #: The winner of the slot whose winner meets this match's (slots 2k and 2k + 1 pair up).

@@ -25,7 +25,11 @@ from sqlalchemy.orm import Session
 
 from app.core import csv_export
 from app.labelling.quality import quality
-from app.models import DisagreementPair, Label, Match, Participant, as_utc
+from app.models import DisagreementPair, Label, Match, OpenLink, Participant, as_utc, utcnow
+from app.recruiting import seats
+from app.recruiting import service as recruiting
+from app.recruiting.seats import kept_in_data
+from app.studies import crowd
 from app.studies.service import get_study
 
 COLUMNS = (
@@ -49,6 +53,8 @@ COLUMNS = (
     "gold_right",
     "gold_asked",
     "excluded",
+    "outcome",
+    "code",
 )
 People = dict[int, dict[str, Any]]
 """Participant id -> the columns that describe them, not the label: ``flags``,
@@ -66,6 +72,7 @@ def records(
     """Every label of the study, in label order, as :data:`COLUMNS` dicts; excluded
     participants' labels only with ``include_excluded``."""
     get_study(session, study_id=study_id)
+    link, now = recruiting.settings(session, crowd.LINK, study_id), utcnow()
     people: People = {
         q.participant.id: {
             "flags": q.flags,
@@ -73,6 +80,7 @@ def records(
             "gold_right": q.gold.right,
             "gold_asked": q.gold.asked,
             "excluded": q.participant.excluded,
+            **_outcome(q.participant, link, now),
         }
         for q in quality(session, study_id=study_id).participants
     }
@@ -108,8 +116,17 @@ def records(
 
 def _kept(study_id: int, include_excluded: bool) -> list[ColumnElement[bool]]:
     """The conditions on ``Participant`` of the labels exported."""
-    mine = Participant.study_id == study_id
-    return [mine] if include_excluded else [mine, Participant.excluded.is_(False)]
+    return [
+        Participant.study_id == study_id,
+        *kept_in_data(include_excluded=include_excluded, now=utcnow()),
+    ]
+
+
+def _outcome(person: Participant, link: OpenLink | None, now: datetime) -> dict[str, Any]:
+    """The participant's outcome and the open link's code for it (issue 45 §2)."""
+    failed_gate = person.gate_stopped_at is not None
+    result = seats.outcome(person, link, now, failed_gate=failed_gate)
+    return {"outcome": result.name, "code": result.code}
 
 
 def _pair_records(
@@ -227,6 +244,8 @@ def to_parquet(rows: list[dict[str, Any]]) -> bytes:
             ("gold_right", pa.int64()),
             ("gold_asked", pa.int64()),
             ("excluded", pa.bool_()),
+            ("outcome", pa.string()),
+            ("code", pa.string()),
         ]
     )
     flat = [{**r, "external_ids": json.dumps(r["external_ids"], sort_keys=True)} for r in rows]

@@ -22,10 +22,11 @@ from app.http.rendering import PageRoute, RedirectTo, is_https, redirect, render
 from app.labelling import check as crowd_check
 from app.labelling import dataset, disagreement, practice
 from app.models import Participant
-from app.recruiting import members
+from app.recruiting import members, seats
 from app.recruiting import service as recruiting
 from app.studies import crowd, participants
 from app.studies import service as studies
+from engine.errors import InputError
 
 router = APIRouter(route_class=PageRoute, include_in_schema=False)
 
@@ -35,6 +36,25 @@ LABEL = "/participate/label"
 THANKS = "/participate/thanks"
 PAIRS = "/participate/pairs"
 SHARE = "/participate/share"
+WITHDRAW = "/participate/withdraw"
+ENDED = "/participate/ended"
+#: What a participant who can do nothing more is told, by outcome.
+ENDED_TEXT = {
+    "withdrawn": (
+        "You withdrew",
+        "You withdrew from this study. Your answers are kept apart and will not be used.",
+    ),
+    "timed_out": (
+        "Your time is over",
+        "The time for this study ran out before you finished, so your place was given to "
+        "someone else. Thank you for your time.",
+    ),
+    "failed_gate": (
+        "This study has ended for you",
+        "Some of your answers to the check pairs did not match theirs, so the study stopped "
+        "here. Thank you for your time.",
+    ),
+}
 
 
 def where_next(progress: participants.Progress) -> str:
@@ -60,6 +80,10 @@ def invite_link(token: str, request: Request, session: SessionDep) -> RedirectRe
 
 
 def _context(session: Session, person: Participant) -> dict[str, Any]:
+    """What every page of the bracket shows; a participant who has ended goes to
+    :data:`ENDED` instead."""
+    if _outcome(session, person)[0].ended:
+        raise RedirectTo(ENDED)
     study = studies.get_study(session, study_id=person.study_id)
     return {
         "study": study,
@@ -99,6 +123,43 @@ def label_page(request: Request, session: SessionDep, person: PageParticipant) -
     if context["progress"].finished:
         raise RedirectTo(THANKS)
     return render(request, "label.html", context)
+
+
+def _outcome(session: Session, person: Participant) -> tuple[seats.Outcome, seats.Ending | None]:
+    failed_gate = person.gate_stopped_at is not None
+    return recruiting.outcome(session, crowd.LINK, member=person, failed_gate=failed_gate)
+
+
+@router.get(WITHDRAW)
+def withdraw_page(request: Request, session: SessionDep, person: PageParticipant) -> Response:
+    """Ask before withdrawing: what it means, and the way back."""
+    context = _context(session, person)
+    if context["progress"].finished:
+        raise RedirectTo(THANKS)
+    return render(request, "withdraw.html", context)
+
+
+@router.post(WITHDRAW, dependencies=[CsrfChecked])
+def withdraw(session: SessionDep, person: PageParticipant, fields: FormFields) -> Response:
+    """Withdraw (their seat is freed, their labels left out of everything), then the page
+    with the open link's code for it; only the form's own button withdraws."""
+    if fields.get("decision") != "withdraw":
+        raise InputError("withdrawing takes the form's Withdraw button (decision=withdraw)")
+    recruiting.withdraw(session, crowd.LINK, member=person)
+    return redirect(ENDED)
+
+
+@router.get(ENDED)
+def ended(request: Request, session: SessionDep, person: PageParticipant) -> Response:
+    """The last page of a participant who withdrew, ran out of time or was stopped by the
+    gold gate: what happened, and their code and way back to the platform if any."""
+    result, shown = _outcome(session, person)
+    if not result.ended:
+        raise RedirectTo(where_next(participants.progress(session, participant=person)))
+    title, text = ENDED_TEXT[result.name]
+    name = studies.get_study(session, study_id=person.study_id).name
+    context = {"header_name": name, "title": title, "text": text, "ending": shown}
+    return render(request, "crowd_message.html", context)
 
 
 @router.get(THANKS)

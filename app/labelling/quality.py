@@ -19,7 +19,7 @@ from sqlalchemy.orm import Session
 from app.db import writing
 from app.labelling.check import agreement_by_participant
 from app.labelling.gate import GateStanding, below_gate
-from app.models import CrowdSettings, Label, Match, Participant
+from app.models import CrowdSettings, Label, Match, Participant, utcnow
 from app.recruiting import events
 from app.recruiting import service as recruiting
 from app.studies import gold
@@ -257,6 +257,7 @@ def apply_gate(session: Session, *, study_id: int, participant_id: int | None = 
     with writing(session):
         for s in newly:
             s.participant.excluded, s.participant.exclusion_reason = True, s.gate_reason
+            _stop_mid_study(s)
         for s in flagged:  # participant.flagged, once per participant (issue 29 §3)
             _gate_event(session, study_id, s)
     return [s.participant.id for s in newly]
@@ -278,6 +279,20 @@ def _gate_event(session: Session, study_id: int, q: GateStanding) -> None:
     events.flagged(
         session, LINK, member_id=q.participant.id, owner_id=study_id, by="gold_gate", data=data
     )
+
+
+#: The fewest failed gold items the gate stops a participant mid-study after (as platforms'
+#: attention-check rules require: never on one slip).
+STOP_AFTER_FAILED = 2
+
+
+def _stop_mid_study(q: GateStanding) -> None:
+    """End an unfinished participant the gate excludes after enough failed gold items: their
+    time is over now (the label path refuses them), and their outcome is ``failed_gate``."""
+    person = q.participant
+    if person.finished_at is None and q.gold.asked - q.gold.right >= STOP_AFTER_FAILED:
+        now = utcnow()
+        person.gate_stopped_at, person.deadline_at = now, now
 
 
 def _gated(q: GateStanding) -> bool:

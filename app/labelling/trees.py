@@ -8,7 +8,8 @@ from sqlalchemy.orm import Session
 from app.core import csv_export
 from app.core.errors import ConflictError
 from app.labelling.service import results_of
-from app.models import Label, Match, Participant, as_utc
+from app.models import Label, Match, Participant, as_utc, utcnow
+from app.recruiting.seats import kept_in_data
 from app.studies.participants import get_participant
 from app.studies.service import engine_candidates_of, first_round, get_study
 from engine.treefile import TreeDocument, make_document
@@ -77,7 +78,7 @@ def study_trees(
     """``(participant id, tree)`` of every participant of the study who has finished;
     excluded participants' only with ``include_excluded``, as in every export."""
     get_study(session, study_id=study_id)
-    kept = [] if include_excluded else [Participant.excluded.is_(False)]
+    kept = kept_in_data(include_excluded=include_excluded, now=utcnow())
     finished = session.scalars(
         select(Participant.id)
         .where(Participant.study_id == study_id, Participant.finished_at.is_not(None), *kept)
@@ -90,7 +91,7 @@ def labels_csv(session: Session, *, study_id: int, include_excluded: bool = Fals
     """Every label of the study as CSV (header :data:`LABEL_COLUMNS`), in label order;
     excluded participants' labels only with ``include_excluded`` (they are never deleted)."""
     get_study(session, study_id=study_id)
-    kept = [] if include_excluded else [Participant.excluded.is_(False)]
+    kept = kept_in_data(include_excluded=include_excluded, now=utcnow())
     rows = session.execute(
         select(
             Match.participant_id,

@@ -77,6 +77,12 @@ class Member(Base):
     via_link: Mapped[bool] = mapped_column(Boolean, default=False)
     #: Agreed to have their labels shared in a public dataset (under a salted hash of id).
     share_consent: Mapped[bool] = mapped_column(Boolean, default=False)
+    #: When a member who joined through a timed link runs out of time (``None``: never).
+    deadline_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), default=None)
+    #: When they withdrew: their answers are kept, and left out of everything.
+    withdrawn_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), default=None)
+    #: When their seat on the open link was given back (set once: a seat is freed once).
+    seat_freed_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), default=None)
 
     @validates("token")
     def _hash_token(self, _key: str, token: str) -> str:
@@ -100,6 +106,10 @@ class OpenLink(Base):
             "AND declines >= 0",
             name="counts",
         ),
+        CheckConstraint(
+            "time_limit_min IS NULL OR (time_limit_min >= 1 AND time_limit_min <= 10080)",
+            name="time_limit",
+        ),
         Index("uq_open_links_collection", "collection_kind", "collection_id", unique=True),
     )
     __mapper_args__ = {"polymorphic_on": "collection_kind"}
@@ -116,3 +126,7 @@ class OpenLink(Base):
     consent_text: Mapped[str | None] = mapped_column(Text, default=None)
     completion_code: Mapped[str | None] = mapped_column(String(100), default=None)
     redirect_url: Mapped[str | None] = mapped_column(String(500), default=None)
+    #: Minutes a member has from joining to finishing (``None``: no limit); at most a week.
+    time_limit_min: Mapped[int | None] = mapped_column(Integer, default=None)
+    #: The code of a visitor who declines consent or a member who withdraws.
+    decline_code: Mapped[str | None] = mapped_column(String(100), default=None)

@@ -128,6 +128,8 @@ class Participant(Member):
     #: excludes); their labels are kept.
     excluded: Mapped[bool] = mapped_column(Boolean, default=False)
     exclusion_reason: Mapped[str | None] = mapped_column(String(200), default=None)
+    #: When the gold gate stopped them mid-study (after 2 or more failed gold items).
+    gate_stopped_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), default=None)
     #: Their study (the member's collection).
     study_id = synonym("collection_id")
 
@@ -190,6 +192,9 @@ class CrowdSettings(OpenLink):
     gold_gate: Mapped[float | None] = mapped_column(Float, default=None)
     #: Whether the gate also excludes the participants it flags.
     gate_excludes: Mapped[bool] = mapped_column(Boolean, default=False)
+    #: The code of a participant the gate stops (it excludes them after 2 or more failed gold
+    #: items).
+    gate_code: Mapped[str | None] = mapped_column(String(100), default=None)
     #: The study whose link this is.
     study_id = synonym("collection_id")
 

@@ -17,9 +17,9 @@ from app.core.json_types import IntParam
 from app.core.rows import from_row
 from app.http.deps import MAX_DB_ID, ResearcherDep, SessionDep
 from app.recruiting import service as recruiting
+from app.recruiting.kinds import LinkKind
 from app.recruiting.links import LinkOptions
 from app.recruiting.schemas import OpenLinkIn
-from app.recruiting.service import LinkKind
 
 
 @dataclass(frozen=True)

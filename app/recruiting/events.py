@@ -12,16 +12,14 @@ the one that makes the change, and costs one indexed query when nobody listens.
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from sqlalchemy import Connection, func, select
 from sqlalchemy.orm import Session
 
 from app.models import Member, OpenLink
+from app.recruiting.kinds import LinkKind
 from app.webhooks.outbox import Data, Owner, emit, webhook_ids
-
-if TYPE_CHECKING:  # the service writes declines through this module
-    from app.recruiting.service import LinkKind
 
 DB = Session | Connection
 

@@ -40,6 +40,9 @@ from engine.errors import InputError
 
 DEFAULT_EXTERNAL_PARAMS = ("PROLIFIC_PID", "STUDY_ID", "SESSION_ID")
 MAX_PARTICIPANTS = 100_000
+#: The longest time limit an open link takes: a week, in minutes (Prolific's longest study
+#: time is shorter; set the link's limit at or below the platform's).
+MAX_TIME_LIMIT_MIN = 10_080
 MAX_EXTERNAL_CHARS = 200
 _PARAM_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]{0,63}")
 #: Where an open link may send people: an http(s) URL (the API documents this pattern, and
@@ -86,6 +89,8 @@ class LinkOptions:
     consent_text: str | None = None
     completion_code: str | None = None
     redirect_url: str | None = None
+    time_limit_min: int | None = None
+    decline_code: str | None = None
 
 
 def check_options(options: LinkOptions) -> None:
@@ -102,10 +107,13 @@ def check_options(options: LinkOptions) -> None:
         REDIRECT_URL_PATTERN, options.redirect_url
     ):
         raise InputError("redirect_url must be an http(s) URL")
+    if options.time_limit_min is not None and not 1 <= options.time_limit_min <= MAX_TIME_LIMIT_MIN:
+        raise InputError(f"time_limit_min must be in 1..{MAX_TIME_LIMIT_MIN} (minutes)")
     check_text(
         consent_text=options.consent_text,
         completion_code=options.completion_code,
         redirect_url=options.redirect_url,
+        decline_code=options.decline_code,
     )
 
 
@@ -143,7 +151,7 @@ def find(session: Session, model: type[Link], *, slug: str, what: str) -> Link:
     return row
 
 
-def check_open(link: CrowdSettings | SurveyCrowdSettings, *, what: str) -> None:
+def check_open(link: OpenLink, *, what: str) -> None:
     """Refuse a new person on a closed link, as Prolific does with a paused or completed study:
     closing stops new people joining, and those already in can finish.
 
@@ -236,7 +244,7 @@ def _same_attempt(params: list[str], ids: dict[str, str], stored: dict[str, str]
     )
 
 
-def is_full(link: CrowdSettings | SurveyCrowdSettings) -> bool:
+def is_full(link: OpenLink) -> bool:
     return link.joined >= link.max_participants
 
 

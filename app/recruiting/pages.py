@@ -26,10 +26,11 @@ from app.http.deps import SessionDep
 from app.http.ratelimit import client_address
 from app.http.rendering import PageRoute, is_https, redirect, render
 from app.models import CrowdSettings, SurveyCrowdSettings
+from app.recruiting import seats
 from app.recruiting import service as recruiting
-from app.recruiting.links import DEFAULT_EXTERNAL_PARAMS, check_open, is_full
+from app.recruiting.kinds import Link, LinkKind
+from app.recruiting.links import DEFAULT_EXTERNAL_PARAMS, check_open
 from app.recruiting.members import MemberRow
-from app.recruiting.service import Link, LinkKind
 from engine.errors import InputError
 
 T = TypeVar("T")
@@ -63,12 +64,20 @@ def query(request: Request) -> dict[str, str]:
     return dict(parse_qsl(raw, keep_blank_values=True, errors="surrogateescape"))
 
 
-def message(request: Request, name: str, title: str, text: str, status_code: int = 200) -> Response:
-    """A plain page under the study's or survey's ``name``: full, declined, ..."""
+def message(
+    request: Request,
+    name: str,
+    title: str,
+    text: str,
+    status_code: int = 200,
+    ending: seats.Ending | None = None,
+) -> Response:
+    """A plain page under the study's or survey's ``name``: full, declined, ...; ``ending``:
+    the code and way back to the platform it shows."""
     return render(
         request,
         "crowd_message.html",
-        {"header_name": name, "title": title, "text": text},
+        {"header_name": name, "title": title, "text": text, "ending": ending},
         status_code=status_code,
     )
 
@@ -100,7 +109,7 @@ def link_form(fields: dict[str, str]) -> dict[str, Any]:
     """The open-link fields of a researcher's form, as the API's body would hold them."""
     text = {
         k: fields.get(k, "").strip() or None
-        for k in ("consent_text", "completion_code", "redirect_url")
+        for k in ("consent_text", "completion_code", "redirect_url", "decline_code")
     }
     params = [p.strip() for p in fields.get("external_params", "").split(",") if p.strip()]
     return {
@@ -163,7 +172,7 @@ def open_link_router(pages: LinkPages[Any, Any]) -> APIRouter:
         person = _returning(kind, request, session, link, ids)
         if person is None:
             check_open(link, what=kind.members.noun)
-            if is_full(link):
+            if not recruiting.has_room(session, link):
                 return pages.full(request, session, link)
             if link.consent_text:
                 name, action = pages.name(session, link), kind.open_path(link.slug)
@@ -178,7 +187,9 @@ def open_link_router(pages: LinkPages[Any, Any]) -> APIRouter:
         link = recruiting.open_link(session, kind, slug)
         if fields.get("decision") != "agree":
             recruiting.decline(session, kind, link=link)
-            return message(request, pages.name(session, link), "You declined", DECLINED)
+            ending = seats.ending(link, seats.Outcome("withdrawn", link.decline_code))
+            name = pages.name(session, link)
+            return message(request, name, "You declined", DECLINED, ending=ending)
         ids = recruiting.external_ids(link, fields)
         share = pages.share_label is not None and fields.get("share") == "on"
         person = _returning(kind, request, session, link, ids)

@@ -10,6 +10,7 @@ from app.core.json_types import JsonInt
 from app.recruiting.links import (
     DEFAULT_EXTERNAL_PARAMS,
     MAX_PARTICIPANTS,
+    MAX_TIME_LIMIT_MIN,
     REDIRECT_URL_PATTERN,
     LinkOptions,
 )
@@ -33,13 +34,30 @@ class OpenLinkIn(BaseModel):
         "a returning person.",
     )
     consent_text: str | None = Field(None, min_length=1, max_length=20_000)
-    completion_code: str | None = Field(None, min_length=1, max_length=100)
+    completion_code: str | None = Field(
+        None, min_length=1, max_length=100, description="The code of a member who finished."
+    )
+    decline_code: str | None = Field(
+        None,
+        min_length=1,
+        max_length=100,
+        description="The code of a visitor who declines consent or a member who withdraws.",
+    )
+    time_limit_min: JsonInt | None = Field(
+        None,
+        ge=1,
+        le=MAX_TIME_LIMIT_MIN,
+        description="Minutes a member has from joining to finishing; past it they are timed "
+        "out (no code) and their seat is freed. Set it at or below the platform's own "
+        "maximum time (null: no limit).",
+    )
     redirect_url: str | None = Field(
         None,
         min_length=1,
         max_length=500,
         pattern=REDIRECT_URL_PATTERN,
-        description="An http(s) URL to send people to.",
+        description="An http(s) URL to send people to when they end, with their outcome's "
+        "code in place of {code} (e.g. https://app.prolific.com/submissions/complete?cc={code}).",
     )
 
     def options(self, kind: type[Options] = LinkOptions) -> Options:  # type: ignore[assignment]

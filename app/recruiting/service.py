@@ -11,64 +11,21 @@ and the external ids are :mod:`app.recruiting.links`; whom a cookie names is
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from dataclasses import dataclass
-from typing import Generic, TypeVar
-
-from sqlalchemy import ColumnElement, and_, select
+from sqlalchemy import select
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from app.core.auth import new_token
-from app.core.errors import NotFoundError
+from app.core.errors import ConflictError, NotFoundError
 from app.db import writing
 from app.models import CrowdSettings, OpenLink, SurveyCrowdSettings
-from app.recruiting import events
+from app.models.base import utcnow
+from app.recruiting import events, seats
 from app.recruiting import links as open_links
-from app.recruiting.links import LinkFullError, LinkOptions
-from app.recruiting.members import CollectionKind, MemberRow
-
-Link = TypeVar("Link", CrowdSettings, SurveyCrowdSettings)
-
-
-@dataclass(frozen=True)
-class LinkKind(Generic[Link, MemberRow]):
-    """A kind of collection's open link: its members, table and path, and what joining takes."""
-
-    members: CollectionKind[MemberRow]
-    link: type[Link]
-    #: The link's path is this prefix and its slug (``/s/``, ``/q/``).
-    prefix: str
-    #: The error raised when every seat is taken.
-    full_error: type[LinkFullError]
-    #: Refuses (raises) a collection that cannot take people now: a study not ready yet.
-    check_collection: Callable[[Session, int], object]
-    #: Adds a new member inside the join's write transaction (a participant's first round
-    #: of matches is made with them).
-    stage: Callable[[Session, MemberRow], None]
-
-    @property
-    def full(self) -> tuple[str, str]:
-        """What a visitor is told when every seat is taken: a title and a sentence."""
-        noun = self.members.noun
-        return (
-            f"This {noun} is full",
-            f"This {noun} has all the {self.members.people} it needs. Thank you for your interest.",
-        )
-
-    def open_path(self, slug: str) -> str:
-        """The path of the open link ``slug``."""
-        return f"{self.prefix}{slug}"
-
-    def open_url(self, base_url: object, slug: str) -> str:
-        """The open link ``slug`` under ``base_url`` (a request's, e.g. ``http://host/``)."""
-        return str(base_url).rstrip("/") + self.open_path(slug)
-
-    def owner_is(self, owner_id: int) -> ColumnElement[bool]:
-        """The condition that selects the link row of collection ``owner_id``."""
-        return and_(
-            OpenLink.collection_kind == self.members.noun, OpenLink.collection_id == owner_id
-        )
+from app.recruiting.kinds import Link, LinkKind
+from app.recruiting.links import LinkOptions
+from app.recruiting.members import MemberRow
+from engine.errors import InputError
 
 
 def settings(session: Session, kind: LinkKind[Link, MemberRow], owner_id: int) -> Link | None:
@@ -99,6 +56,8 @@ def configure(
         NotFoundError, ConflictError: no such collection, or it cannot take people now.
     """
     open_links.check_options(options)
+    if options.time_limit_min is not None and not kind.timed:
+        raise InputError(f"time_limit_min is for a study's open link, not a {kind.members.noun}'s")
     kind.check_collection(session, owner_id)
     return open_links.save(
         session,
@@ -168,10 +127,11 @@ def join(
         LinkFullError: ``kind.full_error``, when the link has its largest number of people.
     """
     open_links.check_open(link, what=kind.members.noun)
-    owner_id = link.collection_id
+    owner_id, now = link.collection_id, utcnow()
     kind.check_collection(session, owner_id)
     person = kind.members.member(
         collection_id=owner_id,
+        deadline_at=seats.deadline(link, now),
         token=new_token(),
         external_id=ids.get(link.external_params[0]),
         external_ids=ids or None,
@@ -181,6 +141,7 @@ def join(
     try:
         with writing(session):
             full = kind.full_error(": ".join(kind.full))
+            seats.free_expired_seats(session, link, now)
             open_links.take_seat(session, kind.owner_is(owner_id), full=full)
             kind.stage(session, person)
     except IntegrityError:  # the same external id joined at the same moment: resume it
@@ -189,6 +150,17 @@ def join(
             raise
         return existing
     return person
+
+
+def has_room(session: Session, link: OpenLink) -> bool:
+    """Whether ``link`` has a seat for a newcomer, once the seats of members past their time
+    are given back (a write only when it is full and has a time limit)."""
+    if not open_links.is_full(link) or link.time_limit_min is None:
+        return not open_links.is_full(link)
+    with writing(session):
+        seats.free_expired_seats(session, link, utcnow())
+    session.refresh(link)
+    return not open_links.is_full(link)
 
 
 def decline(session: Session, kind: LinkKind[Link, MemberRow], *, link: Link) -> None:
@@ -200,11 +172,41 @@ def decline(session: Session, kind: LinkKind[Link, MemberRow], *, link: Link) ->
         events.declined(session, kind, owner_id=owner_id)
 
 
+def outcome(
+    session: Session,
+    kind: LinkKind[Link, MemberRow],
+    *,
+    member: MemberRow,
+    failed_gate: bool = False,
+) -> tuple[seats.Outcome, seats.Ending | None]:
+    """What became of ``member`` (:func:`app.recruiting.seats.outcome`), and the code and
+    redirect they are shown for it (``None`` while in progress, or for an invited member)."""
+    link = settings(session, kind, member.collection_id) if member.via_link else None
+    result = seats.outcome(member, link, utcnow(), failed_gate=failed_gate)
+    return result, seats.ending(link, result)
+
+
 def completion(
     session: Session, kind: LinkKind[Link, MemberRow], *, member: MemberRow
-) -> Link | None:
-    """The link whose completion code and redirect a finished open-link member gets; ``None``
-    before they finish, or for an invited member."""
-    if not member.via_link or member.finished_at is None:
-        return None  # the code is what a crowd platform pays against
-    return settings(session, kind, member.collection_id)
+) -> seats.Ending | None:
+    """The code and redirect a finished open-link member gets; ``None`` before they finish,
+    or for an invited member (the code is what a crowd platform pays against)."""
+    result, shown = outcome(session, kind, member=member)
+    return shown if result.name == "finished" else None
+
+
+def withdraw(
+    session: Session, kind: LinkKind[Link, MemberRow], *, member: MemberRow
+) -> seats.Ending | None:
+    """``member`` withdraws (:func:`app.recruiting.seats.withdraw`): their seat is freed and
+    their answers left out of everything; the code and redirect they are shown.
+
+    Raises:
+        ConflictError: they finished, ran out of time, or withdrew before.
+    """
+    link = settings(session, kind, member.collection_id)
+    with writing(session):
+        if not seats.withdraw(session, member, link, utcnow()):
+            raise ConflictError(f"this {kind.members.person} can no longer withdraw here")
+    session.refresh(member)
+    return outcome(session, kind, member=member)[1]

@@ -23,10 +23,12 @@ from app.http.deps import (
 from app.http.files import attachment
 from app.http.urls import image_url, invite_url
 from app.labelling import trees
-from app.models import Participant
+from app.models import OpenLink, Participant, utcnow
+from app.recruiting import seats
+from app.recruiting import service as recruiting
 from app.runs import power
 from app.runs.experiments import DEFAULT_SEEDS, MAX_SEEDS, MIN_SEEDS
-from app.studies import participants
+from app.studies import crowd, participants
 from app.studies import service as studies
 from app.studies.images import MEDIA_TYPE, ImageSize, image_file
 from app.studies.schemas import (
@@ -167,22 +169,31 @@ def _created(request: Request, person: Participant) -> ParticipantCreated:
 def list_participants(
     study_id: DbId, request: Request, session: SessionDep, _: ResearcherDep
 ) -> list[ParticipantOut]:
-    """Participants with their progress and invite links."""
+    """Participants with their progress, invite links, outcomes and codes."""
+    link = recruiting.settings(session, crowd.LINK, study_id)
     return [
-        participant_out(request, s.participant, s.progress)
+        participant_out(request, s.participant, s.progress, link)
         for s in participants.list_participants(session, study_id=study_id)
     ]
 
 
 def participant_out(
-    request: Request, person: Participant, progress: participants.Progress
+    request: Request,
+    person: Participant,
+    progress: participants.Progress,
+    link: OpenLink | None,
 ) -> ParticipantOut:
+    """A participant as the researcher sees them; ``link``: their study's open link."""
+    failed_gate = person.gate_stopped_at is not None
+    result = seats.outcome(person, link, utcnow(), failed_gate=failed_gate)
     return from_row(
         ParticipantOut,
         person,
         invite_url=invite_url(request, person.token),
         progress=ProgressOut(done=progress.done, total=progress.total),
         finished=progress.finished,
+        outcome=result.name,
+        code=result.code,
     )
 
 

@@ -18,6 +18,7 @@ from sqlalchemy.orm import Session
 
 from app.models import CrowdSettings, Participant, Study
 from app.recruiting import service as recruiting
+from app.recruiting.kinds import LinkKind
 from app.recruiting.links import (
     DEFAULT_EXTERNAL_PARAMS,
     MAX_PARTICIPANTS,
@@ -46,6 +47,7 @@ class CrowdOptions(LinkOptions):
     speed_threshold_ms: int = DEFAULT_SPEED_THRESHOLD_MS
     gold_gate: float | None = None
     gate_excludes: bool = False
+    gate_code: str | None = None
 
 
 def _stage(session: Session, person: Participant) -> None:
@@ -54,13 +56,14 @@ def _stage(session: Session, person: Participant) -> None:
     stage_participants(session, study=session.get_one(Study, person.study_id), people=[person])
 
 
-LINK = recruiting.LinkKind(
+LINK = LinkKind(
     members=STUDY,
     link=CrowdSettings,
     prefix="/s/",
     full_error=StudyFullError,
     check_collection=lambda session, study_id: get_ready_study(session, study_id=study_id),
     stage=_stage,
+    timed=True,
 )
 
 

@@ -81,9 +81,16 @@ def _options(fields: dict[str, str]) -> crowd.CrowdOptions:
             "speed_threshold_ms": whole(fields, "speed_threshold_ms"),
             "gold_gate": _share(fields, "gold_gate"),
             "gate_excludes": fields.get("gate_excludes") == "on",
+            "gate_code": fields.get("gate_code", "").strip() or None,
+            "time_limit_min": _optional_whole(fields, "time_limit_min"),
         },
     )
     return body.options(crowd.CrowdOptions)
+
+
+def _optional_whole(fields: dict[str, str], name: str) -> int | None:
+    """An optional whole-number field: ``None`` when left empty."""
+    return whole(fields, name) if fields.get(name, "").strip() else None
 
 
 def _share(fields: dict[str, str], name: str) -> float | None:

@@ -26,7 +26,15 @@ class CrowdIn(OpenLinkIn):
     gate_excludes: StrictBool = Field(
         False,
         description="Also exclude the participants the gate flags from pooling and exports "
-        "(their labels are kept; off: flags only).",
+        "(their labels are kept; off: flags only). A participant it flags after 2 or more "
+        "failed gold items is stopped, and given gate_code.",
+    )
+    gate_code: str | None = Field(
+        None,
+        min_length=1,
+        max_length=100,
+        description="The code of a participant the gate stops (e.g. one the researcher "
+        "reviews by hand).",
     )
 
 

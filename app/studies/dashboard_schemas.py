@@ -17,6 +17,10 @@ class LiveCountsOut(BaseModel):
     finished: int = Field(description="Bracket finished.")
     declined: int = Field(description="Declined consent on the open link (0 without one).")
     excluded: int = Field(description="Left out of pooling and exports (labels kept).")
+    withdrawn: int = Field(0, description="Withdrew after joining (labels kept, never used).")
+    timed_out: int = Field(
+        0, description="Past the open link's time limit, unfinished (their seats freed)."
+    )
 
 
 class LiveParticipantOut(BaseModel):
@@ -25,7 +29,7 @@ class LiveParticipantOut(BaseModel):
     participant_id: int
     name: str | None
     external_id: str | None
-    status: Literal["not_started", "labelling", "finished"]
+    status: Literal["not_started", "labelling", "finished", "withdrawn", "timed_out"]
     done: int = Field(description="Bracket matches decided.")
     total: int = Field(description="Matches in the bracket (N - 1).")
     median_response_ms: float | None = Field(

@@ -16,6 +16,7 @@ from pydantic import (
 from app.core.json_types import JsonFloat, JsonInt, UtcDatetime
 from app.core.limits import MAX_INSTRUCTIONS_CHARS, MAX_NAME_CHARS, MAX_SEED
 from app.models import StudyStatus
+from app.recruiting.seats import OutcomeName
 from app.studies.participants import MAX_BATCH
 from app.studies.service import StudySpec
 from engine.candidates import MAX_CANDIDATES
@@ -167,6 +168,18 @@ class ParticipantOut(ParticipantCreated):
         description="Agreed that their labels may be shared in a public dataset, under a "
         "pseudonym (PUT /api/participants/me/share-consent).",
     )
+    outcome: OutcomeName = Field(
+        "in_progress",
+        description="What became of them: withdrawn and timed-out participants are left out "
+        "of trees, pooling, exports and the dataset (timed-out ones included on request).",
+    )
+    code: str | None = Field(
+        None, description="The open link's code for their outcome (null: none, or invited)."
+    )
+    deadline_at: UtcDatetime | None = Field(
+        None, description="When their time runs out (the open link's time limit)."
+    )
+    withdrawn_at: UtcDatetime | None = None
 
 
 #: The exports' query parameter: also the labels of excluded participants.

@@ -84,7 +84,7 @@ def my_survey(session: SessionDep, person: RespondentDep) -> dict[str, Any]:
         "answered": done,
         "total": total,
         "finished": person.finished_at is not None,
-        "completion_code": link.completion_code if link else None,
+        "completion_code": link.code if link else None,
         "redirect_url": link.redirect_url if link else None,
     }
 

@@ -13,7 +13,7 @@ from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
 from app.models import SurveyCrowdSettings, SurveyRespondent
-from app.recruiting import service as recruiting
+from app.recruiting.kinds import LinkKind
 from app.recruiting.links import LinkFullError
 from app.recruiting.members import SURVEY
 from app.surveys.service import get_survey
@@ -23,7 +23,7 @@ class SurveyFullError(LinkFullError):
     """The survey's open link reached its largest number of respondents."""
 
 
-LINK = recruiting.LinkKind(
+LINK = LinkKind(
     members=SURVEY,
     link=SurveyCrowdSettings,
     # /q/ (questionnaire), apart from the studies' /s/: each kind of link has its own table.

@@ -235,6 +235,10 @@ function choose(side) {
   if (side !== "tie") $(side === "a" ? "pick-a" : "pick-b").classList.add("chosen");
   act(async () => {
     const result = await answer(match, side, responseMs);
+    if (result.status === 410) {  // withdrew, or out of time: the page says which
+      window.location.assign($("labelling").dataset.endedUrl);
+      return undefined;
+    }
     if (result.status === 409) {
       say("That pair was already decided (in another window?).");
       return undefined;

@@ -300,7 +300,10 @@ def test_exports_have_one_row_per_label(client, four) -> None:
         "gold_right",
         "gold_asked",
         "excluded",
+        "outcome",
+        "code",
     }
+    assert {(r["outcome"], r["code"]) for r in mine} == {("finished", None)}  # no code set
     assert {r["kind"] for r in mine} == {"bracket"}  # this study asks no disagreement pairs
     assert all(r["response_ms"] == 500 and r["shown_at"] < r["labelled_at"] for r in mine)
     assert all(r["side"] == ("left" if r["winner"] == r["left"] else "right") for r in mine)

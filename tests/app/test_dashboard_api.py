@@ -56,6 +56,8 @@ def test_counts_move_as_people_join_label_finish_and_decline(client, make_study,
         "finished": 0,
         "declined": 0,
         "excluded": 0,
+        "withdrawn": 0,
+        "timed_out": 0,
     }
     assert (empty["participants"], empty["labels"], empty["max_participants"]) == ([], 0, 50)
     first = invite(sid)

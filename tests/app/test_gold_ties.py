@@ -62,6 +62,24 @@ def _walk(player: Player, gold_answer: Callable[[dict[str, Any]], int]) -> list[
     return seen
 
 
+def _walk_until_stopped(player: Player, gold_answer: Callable[[dict[str, Any]], int]) -> int:
+    """:func:`_walk`, until the bracket is finished or the study stops the player (410);
+    returns the labels stored."""
+    labelled = 0
+    while (match := player.next_match()) is not None:
+        if match["gold"] is not None:
+            sent = player.answer_gold(match["gold"]["item_id"], gold_answer(match))
+            assert sent.status_code == 201, sent.text
+            continue
+        sent = player.label(match["match_id"], match["a"]["candidate_id"])
+        if sent.status_code == 410:
+            assert "this study has ended for you" in sent.json()["detail"]
+            return labelled
+        assert sent.status_code == 201, sent.text
+        labelled += 1
+    return labelled
+
+
 def _quality_of(client: TestClient, study_id: int, participant_id: int) -> dict[str, Any]:
     q = client.get(f"/api/studies/{study_id}/quality", headers=ADMIN).json()
     return next(p for p in q["participants"] if p["participant_id"] == participant_id)
@@ -147,7 +165,11 @@ def test_the_gate_flags_a_careless_participant_and_excludes_only_when_asked(
     configure(client, sid, gold_gate=0.9, gate_excludes=excludes)
     wrong = {g["id"]: ({g["a"], g["b"]} - {g["answer"]}).pop() for g in gold_items}
     careless = invite(sid)
-    _walk(careless, lambda m: wrong[m["gold"]["item_id"]])
+    labelled = _walk_until_stopped(careless, lambda m: wrong[m["gold"]["item_id"]])
+    # an excluding gate stops them after their second failed gold item; flags only: never
+    assert (labelled < N - 1) is excludes
+    person = client.get(f"/api/participants/{careless.id}", headers=ADMIN).json()
+    assert person["outcome"] == ("failed_gate" if excludes else "finished")
     mine = _quality_of(client, sid, careless.id)
     # 0 of 2 right: the exact 95% upper bound is 1 - 0.025 ** (1 / 2) = 0.842 < 0.9
     assert mine["gold_interval"][1] == pytest.approx(1 - 0.025**0.5)
@@ -162,7 +184,7 @@ def test_the_gate_flags_a_careless_participant_and_excludes_only_when_asked(
             r["participant_id"] == str(careless.id) for r in csv.DictReader(io.StringIO(text))
         )
 
-    assert rows("?include_excluded=true") == N - 1  # kept
+    assert rows("?include_excluded=true") == labelled  # kept
     assert rows() == (0 if excludes else N - 1)  # left out of the export when excluded
     configure(client, sid, gold_gate=None, gate_excludes=False)
 

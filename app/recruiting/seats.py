@@ -1,0 +1,202 @@
+"""Seats on an open link and what became of each member (issue 45 §1-2), for studies and
+surveys alike.
+
+A member who joins through an open link takes a seat (:func:`app.recruiting.links.take_seat`).
+The seat is given back once, by whichever comes first: they withdraw (:func:`withdraw`), or
+they pass the link's time limit without finishing (:func:`free_expired_seats`, run by the
+next join, in its transaction). Each is one ``UPDATE ... WHERE seat_freed_at IS NULL`` on the
+members and one on the link's ``joined``, so two joins at once free a seat once, and the
+link's CHECK still holds ``joined <= max_participants``. A member past their time can do
+nothing more (the label path refuses them in the statement that takes their lock), so seats
+in use never outnumber seats.
+
+Every member ends with an :class:`Outcome`, and the link maps each to a code the platform
+knows: finished (``completion_code``), withdrawn or declined (``decline_code``), stopped by
+the gold gate (``gate_code``, studies only); timed out gets none (the platform times them
+out itself).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from datetime import datetime, timedelta
+from typing import Any, Literal, cast
+from urllib.parse import quote
+
+from sqlalchemy import ColumnElement, CursorResult, and_, or_, update
+from sqlalchemy.orm import Session
+
+from app.core.errors import ServiceError
+from app.models import Member, OpenLink, Participant, as_utc
+
+OutcomeName = Literal["in_progress", "finished", "withdrawn", "failed_gate", "timed_out"]
+OUTCOMES: tuple[OutcomeName, ...] = (
+    "in_progress",
+    "finished",
+    "withdrawn",
+    "failed_gate",
+    "timed_out",
+)
+
+
+class MemberEndedError(ServiceError):
+    """The member withdrew, or their time is over: they can do nothing more here (410)."""
+
+    status_code = 410
+    title = "This study has ended for you"
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """What became of a member, and the code they are given for it (``None``: no code)."""
+
+    name: OutcomeName
+    code: str | None
+
+    @property
+    def ended(self) -> bool:
+        """Whether they can do nothing more but read their outcome."""
+        return self.name in ("withdrawn", "failed_gate", "timed_out")
+
+
+@dataclass(frozen=True)
+class Ending:
+    """What a member who came through an open link is shown as they end: their outcome's
+    code, and where to go back to the platform (``None``: nowhere)."""
+
+    code: str | None
+    redirect_url: str | None
+
+
+def ending(link: OpenLink | None, result: Outcome) -> Ending | None:
+    """The code and redirect of ``result`` on ``link``. The redirect URL takes the code in
+    place of ``{code}`` (Prolific's ``...?cc={code}``); one without it is the finishers' own
+    (their return to the platform), as before codes per outcome."""
+    if link is None or result.name == "in_progress":
+        return None
+    url, code = link.redirect_url, result.code
+    if url is not None and "{code}" in url:
+        url = url.replace("{code}", quote(code, safe="")) if code is not None else None
+    elif result.name != "finished":
+        url = None
+    return Ending(code, url)
+
+
+def deadline(link: OpenLink, now: datetime) -> datetime | None:
+    """When a member joining ``link`` at ``now`` runs out of time (``None``: no limit)."""
+    return None if link.time_limit_min is None else now + timedelta(minutes=link.time_limit_min)
+
+
+def timed_out(member: Member, now: datetime) -> bool:
+    """Whether ``member`` passed their deadline without finishing or withdrawing."""
+    return (
+        member.deadline_at is not None
+        and member.finished_at is None
+        and member.withdrawn_at is None
+        and as_utc(member.deadline_at) <= now
+    )
+
+
+def within_time(now: Any) -> ColumnElement[bool]:
+    """The condition a member who may still act meets: not withdrawn, not past their time
+    (``now``: a datetime or a bound parameter)."""
+    return and_(
+        Member.withdrawn_at.is_(None),
+        Member.deadline_at.is_(None) | (Member.deadline_at > now),
+    )
+
+
+def kept_in_data(*, include_excluded: bool, now: datetime) -> list[ColumnElement[bool]]:
+    """The conditions on a member whose answers go into trees, pooling, exports and the
+    dataset: never one who withdrew; one excluded (by the researcher or the gate) or timed
+    out only with ``include_excluded``."""
+    always: list[ColumnElement[bool]] = [Member.withdrawn_at.is_(None)]
+    if include_excluded:
+        return always
+    in_time = or_(
+        Member.finished_at.is_not(None), Member.deadline_at.is_(None), Member.deadline_at > now
+    )
+    return [*always, in_time, Participant.excluded.is_(False)]
+
+
+def outcome(
+    member: Member, link: OpenLink | None, now: datetime, *, failed_gate: bool = False
+) -> Outcome:
+    """``member``'s outcome, and its code on ``link`` (only members who came through the link
+    get codes: the codes are what a platform pays or returns against)."""
+    name: OutcomeName
+    if member.withdrawn_at is not None:
+        name = "withdrawn"
+    elif failed_gate:
+        name = "failed_gate"
+    elif member.finished_at is not None:
+        name = "finished"
+    else:
+        name = "timed_out" if timed_out(member, now) else "in_progress"
+    return Outcome(name, _code(link, name) if member.via_link else None)
+
+
+def _code(link: OpenLink | None, name: OutcomeName) -> str | None:
+    if link is None:
+        return None
+    codes: dict[OutcomeName, str | None] = {
+        "finished": link.completion_code,
+        "withdrawn": link.decline_code,
+        "failed_gate": getattr(link, "gate_code", None),  # a study link's own option
+    }
+    return codes.get(name)
+
+
+def free_expired_seats(session: Session, link: OpenLink, now: datetime) -> int:
+    """Give back the seats of the link's members past their time, inside the caller's write
+    transaction; how many."""
+    if link.time_limit_min is None:
+        return 0
+    expired = and_(
+        _members_of(link),
+        Member.finished_at.is_(None),
+        Member.withdrawn_at.is_(None),
+        Member.deadline_at <= now,
+    )
+    return _free(session, link, expired, now)
+
+
+def withdraw(session: Session, member: Member, link: OpenLink | None, now: datetime) -> bool:
+    """Mark ``member`` withdrawn and give back their seat, inside the caller's write
+    transaction; whether they were still in (a finished member cannot withdraw here).
+    Their answers are kept, and left out of everything."""
+    still_in = and_(Member.id == member.id, Member.finished_at.is_(None), within_time(now))
+    if _rowcount(session.execute(_update(Member).where(still_in).values(withdrawn_at=now))) == 0:
+        return False
+    if link is not None:
+        _free(session, link, and_(_members_of(link), Member.id == member.id), now)
+    return True
+
+
+def _members_of(link: OpenLink) -> ColumnElement[bool]:
+    """The members who hold a seat of ``link``."""
+    return and_(
+        Member.collection_kind == link.collection_kind,
+        Member.collection_id == link.collection_id,
+        Member.via_link.is_(True),
+        Member.seat_freed_at.is_(None),
+    )
+
+
+def _free(session: Session, link: OpenLink, members: ColumnElement[bool], now: datetime) -> int:
+    freed = _rowcount(session.execute(_update(Member).where(members).values(seat_freed_at=now)))
+    if freed:
+        session.execute(
+            _update(OpenLink).where(OpenLink.id == link.id).values(joined=OpenLink.joined - freed)
+        )
+    return freed
+
+
+def _update(model: type[Member] | type[OpenLink]) -> Any:
+    """An UPDATE that leaves the session's objects alone (SQLite's naive datetimes cannot be
+    compared in Python with an aware ``now``; callers refresh what they show)."""
+    return update(model).execution_options(synchronize_session=False)
+
+
+def _rowcount(result: Any) -> int:
+    return cast(CursorResult[Any], result).rowcount

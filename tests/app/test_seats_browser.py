@@ -1,0 +1,246 @@
+"""A real browser through an open link's seats, time limit and per-outcome codes (issue 45
+§1-2), on a desktop and on a phone. The researcher sets the link up with the study page's
+form (consent text, a decline code, a time limit, a redirect URL with ``{code}``). Then:
+
+1. a visitor declines consent: the declined page shows the decline code and the way back to
+   the platform with the code in the URL;
+2. a visitor's time runs out (their deadline moved into the past in the server's database,
+   as a clock moving on): their next pick lands on "Your time is over", with no code; the
+   open link, visited again with the same platform ids (in the same browser and another),
+   shows that page again and takes no second seat;
+3. a visitor joins (the timed-out seat is freed for them), decides one match, follows
+   "Withdraw from this study", confirms, and lands on the ended page with the decline code;
+   the bracket sends them back there, and their seat is free again;
+4. the study page's dashboard counts the withdrawn and the timed-out participant.
+
+axe-core checks every page once it is settled (screenshots: /tmp/acv_screens).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from datetime import timedelta
+from pathlib import Path
+
+import httpx
+import pytest
+from playwright.sync_api import Browser, Locator, Page, Response, expect
+from sqlalchemy import update
+
+from app.db import make_engine
+from app.models import Member, utcnow
+from app.settings import SQLITE_FILE
+from tests.support.a11y import assert_accessible
+from tests.support.browser import (
+    ADMIN_TOKEN,
+    DESKTOP,
+    PHONE,
+    fits_width,
+    new_page,
+    wait_for_match,
+    wait_until_still,
+)
+from tests.support.labelling import wait_until_prepared
+
+pytestmark = pytest.mark.browser
+COMPLETION, DECLINE = "C0MPL3TE", "D3CL1NE"
+TIME_LIMIT_MIN = 30
+#: What Chromium logs for the one label POST refused with 410 (the timed-out pick).
+GONE = "status of 410"
+#: What the confirm form's POST answering other than its redirect means (it answered 500 on
+#: SQLite while app/recruiting/seats.py's UPDATEs synchronized the session by evaluating
+#: ``deadline_at > now`` in Python: SQLite's naive datetimes against an aware ``now``).
+WITHDRAW_FAILED = "POST /participate/withdraw answered {} (see the server log), not its 303"
+
+
+def settled(page: Page, what: str) -> None:
+    """axe-core on ``page`` once nothing on it animates; it fits the window's width."""
+    wait_until_still(page)
+    assert fits_width(page), f"{what}: wider than the window"
+    assert_accessible(page, what)
+
+
+def set_up_link(page: Page, base: str, study_id: int, platform: str) -> str:
+    """Fill the study page's open-link form; returns the open link it then shows."""
+    page.goto(f"{base}/login#token={ADMIN_TOKEN}")
+    page.wait_for_url(f"{base}/studies")
+    page.goto(f"{base}/studies/{study_id}")
+    page.check("#crowd-enabled")
+    page.fill("#max_participants", "5")
+    page.fill("#consent_text", "We store your choices and your Prolific id, nothing else.")
+    page.fill("#completion_code", COMPLETION)
+    page.fill("#decline_code", DECLINE)
+    page.fill("#time_limit_min", str(TIME_LIMIT_MIN))
+    page.fill("#redirect_url", f"{platform}/submissions/complete?cc={{code}}")
+    page.click("text=Save open link")
+    page.wait_for_url(f"{base}/studies/{study_id}#crowd")
+    expect(page.locator("#decline_code")).to_have_value(DECLINE)
+    expect(page.locator("#time_limit_min")).to_have_value(str(TIME_LIMIT_MIN))
+    settled(page, "study page with the open link's codes and time limit")
+    return page.inner_text("#open-link")
+
+
+def ids(pid: str) -> str:
+    """Prolific's query parameters for one attempt of ``pid``."""
+    return f"?PROLIFIC_PID={pid}&STUDY_ID=st&SESSION_ID=se-{pid}"
+
+
+def join(page: Page, base: str, link: str, pid: str) -> str:
+    """Consent as ``pid`` and start the bracket; the first match's id, once settled."""
+    page.goto(link + ids(pid))
+    expect(page.locator("#consent-text")).to_contain_text("Prolific id")
+    page.click("#agree")
+    page.wait_for_url(f"{base}/participate")
+    page.click("#start")
+    page.wait_for_url(f"{base}/participate/label")
+    return wait_for_match(page)
+
+
+def joined(api: httpx.Client, study_id: int) -> int:
+    """Seats of the open link in use now."""
+    return api.get(f"/api/studies/{study_id}/crowd").json()["joined"]
+
+
+def time_runs_out(log: Path, study_id: int, pid: str) -> None:
+    """Move ``pid``'s deadline a minute into the past in the server's database (the
+    ``server`` fixture's SQLite file sits beside its log), as the clock passing it would."""
+    engine = make_engine(f"sqlite:///{log.parent / SQLITE_FILE}")
+    try:
+        with engine.begin() as conn:
+            moved = conn.execute(
+                update(Member)
+                .where(
+                    Member.collection_kind == "study",
+                    Member.collection_id == study_id,
+                    Member.external_id == pid,
+                    Member.deadline_at.is_not(None),  # the link gave them a time limit
+                )
+                .values(deadline_at=utcnow() - timedelta(minutes=1))
+            )
+            assert moved.rowcount == 1
+    finally:
+        engine.dispose()
+
+
+def withdraw_post(base: str) -> Callable[[Response], bool]:
+    """Whether a response is the confirm form's POST (its 303, before the redirect)."""
+    url = f"{base}/participate/withdraw"
+    return lambda response: response.url == url and response.request.method == "POST"
+
+
+def expect_ended(page: Page, title: str, code: str | None, platform: str) -> None:
+    """The ended page: ``title``, and ``code`` with the way back (or neither)."""
+    expect(page.locator("h1")).to_have_text(title)
+    if code is None:
+        expect(page.locator("#completion-code")).to_have_count(0)
+        expect(page.locator("#complete-link")).to_have_count(0)
+    else:
+        expect(page.locator("#completion-code")).to_have_text(code)
+        link = f"{platform}/submissions/complete?cc={code}"
+        expect(page.locator("#complete-link")).to_have_attribute("href", link)
+
+
+def live_status(page: Page, pid: str) -> Locator:
+    """The status cell of ``pid``'s row in the dashboard's table."""
+    return page.locator("#live-table tbody tr", has_text=pid).locator("td").first
+
+
+@pytest.mark.parametrize("viewport", [DESKTOP, PHONE], ids=["desktop", "phone"])
+def test_decline_time_out_withdraw_and_the_dashboard(
+    server,
+    browser: Browser,
+    api: httpx.Client,
+    screens: Path,
+    platform: str,
+    viewport: dict[str, int],
+) -> None:
+    base, log = server
+    where = "on a phone" if viewport == PHONE else "on a desktop"
+    errors: list[str] = []
+    created = api.post(
+        "/api/studies",
+        json={"name": "Seats study", "env_id": "Hopper-v5", "n_candidates": 4, "seed": 3},
+    )
+    assert created.status_code == 201, created.text
+    study_id = wait_until_prepared(api, created.json()["id"])["id"]
+    _, researcher = new_page(browser, errors, viewport=viewport)
+    link = set_up_link(researcher, base, study_id, platform)
+    assert link.startswith(f"{base}/s/")
+
+    # (1) Declining consent: the decline code, and the way back with the code in its URL.
+    _, d = new_page(browser, errors, viewport=viewport)
+    d.goto(link + ids("decliner"))
+    expect(d.locator("#consent-text")).to_contain_text("Prolific id")
+    settled(d, f"consent page {where}")
+    d.click("#decline")
+    expect_ended(d, "You declined", DECLINE, platform)
+    settled(d, f"declined page with its code {where}")
+    d.screenshot(path=screens / f"seats-declined-{viewport['width']}.png", full_page=True)
+    d.click("#complete-link")
+    d.wait_for_url(f"{platform}/submissions/complete?cc={DECLINE}")
+    expect(d.locator("h1")).to_have_text("Submission complete")
+
+    # (2) Out of time: the next pick is refused (410) and the page says so, with no code.
+    _, t = new_page(browser, errors, viewport=viewport)
+    join(t, base, link, "late")
+    time_runs_out(log, study_id, "late")
+    t.click("#pick-a")
+    t.wait_for_url(f"{base}/participate/ended")
+    expect_ended(t, "Your time is over", None, platform)
+    settled(t, f"ended page after the time ran out {where}")
+    t.screenshot(path=screens / f"seats-timed-out-{viewport['width']}.png", full_page=True)
+    gone = [e for e in errors if GONE in e]
+    assert len(gone) == 1, errors  # Chromium logs the refused pick's status; nothing else
+    errors[:] = [e for e in errors if GONE not in e]
+    seats_before = joined(api, study_id)
+    t.goto(link + ids("late"))  # the same browser, by the same platform ids
+    t.wait_for_url(f"{base}/participate/ended")
+    expect_ended(t, "Your time is over", None, platform)
+    _, again = new_page(browser, errors, viewport=viewport)  # another browser, same ids
+    again.goto(link + ids("late"))
+    again.wait_for_url(f"{base}/participate/ended")
+    expect_ended(again, "Your time is over", None, platform)
+    settled(again, f"ended page on coming back after the time {where}")
+    assert joined(api, study_id) <= seats_before  # never a second seat
+
+    # (3) Withdrawing after a label: a confirm page, then the ended page with the code.
+    _, w = new_page(browser, errors, viewport=viewport)
+    first = join(w, base, link, "withdrawer")
+    assert joined(api, study_id) == 1  # the late one's seat was freed by this join
+    settled(w, f"labelling page with the withdraw link {where}")
+    w.click("#pick-a")
+    wait_for_match(w, first)
+    w.click("#withdraw-link")
+    w.wait_for_url(f"{base}/participate/withdraw")
+    expect(w.locator("h1")).to_have_text("Withdraw from this study?")
+    expect(w.locator("#keep-going")).to_have_attribute("href", "/participate/label")
+    settled(w, f"withdraw confirm page {where}")
+    with w.expect_response(withdraw_post(base)) as posted:
+        w.click("#withdraw")
+    assert posted.value.status == 303, WITHDRAW_FAILED.format(posted.value.status)
+    w.wait_for_url(f"{base}/participate/ended")
+    expect_ended(w, "You withdrew", DECLINE, platform)
+    settled(w, f"ended page after withdrawing {where}")
+    w.screenshot(path=screens / f"seats-withdrew-{viewport['width']}.png", full_page=True)
+    w.goto(f"{base}/participate/label")
+    w.wait_for_url(f"{base}/participate/ended")
+    expect_ended(w, "You withdrew", DECLINE, platform)
+    assert joined(api, study_id) == 0  # the withdrawer's seat is free again
+
+    # (4) The dashboard counts the withdrawn and the timed-out participant.
+    researcher.goto(f"{base}/studies/{study_id}#live")
+    counts = researcher.locator("#live-counts")
+    expect(counts.locator('[data-count="joined"]')).to_have_text("2")
+    expect(counts.locator('[data-count="declined"]')).to_have_text("1")
+    expect(counts.locator('[data-count="withdrawn"]')).to_have_text("1")
+    expect(counts.locator('[data-count="timed_out"]')).to_have_text("1")
+    expect(counts.locator('[data-count="finished"]')).to_have_text("0")
+    expect(counts).to_contain_text("1 withdrew")
+    expect(counts).to_contain_text("1 timed out")
+    expect(live_status(researcher, "late")).to_have_text("timed out")
+    expect(live_status(researcher, "withdrawer")).to_have_text("withdrawn")
+    settled(researcher, f"study page with the withdrawn and timed-out counts {where}")
+    researcher.locator("#dashboard").screenshot(
+        path=screens / f"seats-dashboard-{viewport['width']}.png"
+    )
+    assert errors == []
