@@ -24,7 +24,10 @@ throwaway cluster), prepares a study and invites ``--participants`` people, then
 Then every acknowledged (2xx) label must be stored with its winner, once. The last line is
 JSON: participants, think_ms, workers, database, labels_sent, labels_stored, lost,
 duplicates, errors_5xx, labels_per_s, p50_ms and p99_ms (of every labelling request: labels
-and next-match), ceiling_rps and ratio_vs_ceiling (labelling requests/s over the ceiling).
+and next-match), ceiling_rps and ratio_vs_ceiling (labelling requests/s over the ceiling),
+and the flash crowd's floor (issue 45 §5): first_next_p99_ms (each participant's first
+next-match), healthz_burst_p99_ms (as many ``/healthz`` requests as participants, sent in the
+same instant on new connections, before the crowd) and first_next_vs_floor, their ratio.
 
 With ``--dashboards N``, N researchers' dashboards poll ``GET /api/studies/{id}/dashboard``
 every 2 s (with ``If-None-Match``, as ``static/js/dashboard.js`` does) all along.
@@ -165,7 +168,10 @@ class Tally:
     transport_errors: int = 0
     unexpected: list[str] = field(default_factory=list)
     acked: dict[int, int] = field(default_factory=dict)
-    ms: dict[str, list[float]] = field(default_factory=lambda: {"label": [], "next": []})
+    #: Latencies by request: labels, next-match, and each participant's first next-match.
+    ms: dict[str, list[float]] = field(
+        default_factory=lambda: {"label": [], "next": [], "first_next": []}
+    )
     dashboard_polls: int = 0
 
 
@@ -197,10 +203,10 @@ async def _call(
 
 
 async def _next(
-    client: aiohttp.ClientSession, tally: Tally, headers: dict[str, str]
+    client: aiohttp.ClientSession, tally: Tally, headers: dict[str, str], kind: str = "next"
 ) -> dict | None:
     status, data = await _call(
-        client, tally, "next", "GET", "/api/participants/me/next-match", headers
+        client, tally, kind, "GET", "/api/participants/me/next-match", headers
     )
     if status not in (200, 204):
         tally.unexpected.append(f"next-match answered {status}")
@@ -244,7 +250,7 @@ async def participant(
     headers = {"Authorization": f"Bearer {token}"}
     t0 = time.perf_counter()
     await asyncio.sleep(pace.start_s)
-    match = await _next(client, tally, headers)
+    match = await _next(client, tally, headers, "first_next")
     for k in range(2 * n_matches):
         if match is None or time.monotonic() > deadline:
             return
@@ -289,6 +295,27 @@ async def _ceiling(base: str, seconds: float, loops: int) -> float:
         t0 = time.perf_counter()
         await asyncio.gather(*(loop() for _ in range(loops)))
         return count / (time.perf_counter() - t0)
+
+
+async def _floor(base: str, count: int) -> list[float]:
+    """Latencies (ms) of ``count`` ``/healthz`` requests sent in the same instant, each on a
+    new connection, as a flash crowd's first requests are: the HTTP floor a flash crowd's
+    first ``next-match`` is compared with (issue 45 §5)."""
+    connector = aiohttp.TCPConnector(limit=count, force_close=True)
+    async with aiohttp.ClientSession(base, connector=connector) as client:
+        start = asyncio.Event()
+
+        async def one() -> float:
+            await start.wait()
+            t0 = time.perf_counter()
+            async with client.get("/healthz") as response:
+                await response.read()
+            return (time.perf_counter() - t0) * 1000
+
+        tasks = [asyncio.create_task(one()) for _ in range(count)]
+        await asyncio.sleep(0.1)  # every task waiting on the event
+        start.set()
+        return list(await asyncio.gather(*tasks))
 
 
 def paces(args: argparse.Namespace) -> list[Pace]:
@@ -363,12 +390,15 @@ def summary(
     seconds: float,
     ceiling_rps: float,
     stored: list[tuple[int, int]],
+    floor_ms: list[float],
 ) -> dict:
     """The JSON line."""
     per_match = Counter(mid for mid, _ in stored)
     winners = dict(stored)
     lost = sum(winners.get(mid) != w for mid, w in tally.acked.items())
-    every = tally.ms["label"] + tally.ms["next"]
+    every = tally.ms["label"] + tally.ms["next"] + tally.ms["first_next"]
+    first_p99 = float(np.percentile(tally.ms["first_next"], 99)) if tally.ms["first_next"] else None
+    floor_p99 = float(np.percentile(floor_ms, 99))
     pct = (lambda q: round(float(np.percentile(every, q)), 1)) if every else (lambda q: None)
     rps = len(every) / seconds
     return {
@@ -392,6 +422,9 @@ def summary(
         "max_ms": round(max(every), 1) if every else None,
         "ceiling_rps": round(ceiling_rps, 1),
         "ratio_vs_ceiling": round(rps / ceiling_rps, 3),
+        "first_next_p99_ms": None if first_p99 is None else round(first_p99, 1),
+        "healthz_burst_p99_ms": round(floor_p99, 1),
+        "first_next_vs_floor": None if first_p99 is None else round(first_p99 / floor_p99, 3),
     }
 
 
@@ -421,6 +454,7 @@ def main() -> None:
         study_id, tokens = prepare(base, args.candidates, args.participants)
         run_id = start_training(base, study_id) if args.training else None
         ceiling_rps = asyncio.run(_ceiling(base, CEILING_S, min(CEILING_LOOPS, args.participants)))
+        floor_ms = asyncio.run(_floor(base, args.participants))
         tally, seconds = asyncio.run(crowd(base, study_id, tokens, args))
         stored = stored_labels(base, study_id)
         if run_id is not None:
@@ -436,7 +470,11 @@ def main() -> None:
         f"{tally.transport_errors}; unexpected answers {len(tally.unexpected)} "
         f"{tally.unexpected[:3]}"
     )
-    print(json.dumps(summary(args, tally, seconds, ceiling_rps, stored)))
+    print(
+        f"healthz burst: {len(floor_ms)} at once, p50 {np.percentile(floor_ms, 50):.1f} ms, "
+        f"p99 {np.percentile(floor_ms, 99):.1f} ms"
+    )
+    print(json.dumps(summary(args, tally, seconds, ceiling_rps, stored, floor_ms)))
 
 
 if __name__ == "__main__":
