@@ -16,6 +16,7 @@ from app.labelling import dataset_api, matches_api, pair_pages, practice_api, pr
 from app.labelling import pages as participant_pages
 from app.runs import (
     advisors_api,
+    agents_api,
     checkpoint_api,
     compare_pages,
     experiment_pages,
@@ -48,6 +49,7 @@ for _router in (
     runs_api.router,
     checkpoint_api.router,
     advisors_api.router,
+    agents_api.router,
     experiments_api.router,
     surveys_api.router,
     study_crowd_api.link_router,

@@ -203,6 +203,8 @@ GRAPH_RULES: dict[str, tuple[str, Callable[[Graph], list[Any]]]] = {
     "the engine imports up a layer only where named": ("engine", unnamed_upward),
     "the app's imports make no circle": ("app", cycles),
 }
+
+
 @pytest.mark.parametrize("rule", GRAPH_RULES)
 def test_the_graph_rule_holds(rule: str) -> None:
     package, breaks = GRAPH_RULES[rule]

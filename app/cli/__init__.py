@@ -12,6 +12,7 @@ from engine.mujoco_gl import check_mujoco_gl
 def _register_commands() -> None:
     """Import the command modules, which register their commands (and import mujoco)."""
     from app.cli import (  # noqa: F401
+        agents,
         experiment,
         export,
         quality,

@@ -15,6 +15,7 @@ from app.cli.serve import cli_runtime
 from app.models import RunStatus
 from app.runs import experiments
 from app.runs.experiments import DEFAULT_PILOT_SEEDS, DEFAULT_SEEDS, ExperimentSpec
+from app.runs.imported import is_external
 from app.runs.spec import RunSpec
 from engine.judges import DEFAULT_JUDGE
 
@@ -72,13 +73,15 @@ def create(
 
 @experiment_cli.command("list")
 def list_(study: Annotated[int | None, Opt(help="Only this study's.")] = None) -> None:
-    """One line per experiment: id, study, algo, seeds, runs succeeded."""
+    """One line per experiment: id, study, algo (``external``: imported policies), seeds, runs
+    succeeded."""
     with cli_runtime() as runtime, runtime.sessions() as session:
         for experiment in experiments.list_experiments(session, study_id=study):
             members = experiments.members(session, experiment_id=experiment.id)
             done = sum(run.status == RunStatus.SUCCEEDED for _, run in members)
+            algo = "external" if is_external(experiment) else experiment.spec.get("algo")
             typer.echo(
-                f"{experiment.id}\tstudy {experiment.study_id}\t{experiment.spec.get('algo')}\t"
+                f"{experiment.id}\tstudy {experiment.study_id}\t{algo}\t"
                 f"{len(experiment.seeds)} seeds\t{done}/{len(members)} runs succeeded"
             )
 

@@ -4,7 +4,8 @@ The run's row says what to train (config, advice tree or pool of trees, resume f
 :func:`execute_run` calls :func:`engine.rl.runner.train` in the run directory, stores every
 metrics row and saved checkpoint as rows (:mod:`app.runs.run_state`), judges every checkpoint
 once and stores the result as the checkpoint's artefact (:mod:`app.runs.artefacts`; the web
-tier only reads it), polls for a cancel (or for the run being taken away, e.g. marked
+tier only reads it; an imported policy is judged instead of trained,
+:mod:`app.runs.imported_judge`), polls for a cancel (or for the run being taken away, e.g. marked
 ``interrupted`` after a restart) after every update, and sets the final state. A stop always
 writes a checkpoint first (``train`` does), so an interrupted or cancelled run can resume.
 """
@@ -28,6 +29,7 @@ from app.jobs import queue
 from app.jobs.settings import run_dir
 from app.models import Run, RunStatus
 from app.runs import artefacts, run_state
+from app.runs.imported import is_imported
 from engine.errors import InputError
 
 log = logging.getLogger(__name__)
@@ -92,7 +94,13 @@ class _Job:
                 if row.resume:  # a run trained before run state rows: its earlier rows first
                     with self.sessions() as session:
                         run_state.import_folder(session, run_id=self.run_id, out=out)
-                _train(row, out, self.progress, self.should_stop, self.judge_checkpoint(row, out))
+                if is_imported(row):  # a policy from elsewhere: judged, never trained
+                    if not self.judge_imported(out.parent):
+                        return "lost"
+                else:
+                    _train(
+                        row, out, self.progress, self.should_stop, self.judge_checkpoint(row, out)
+                    )
         except Exception as exc:  # any failure must end up on the run, not in a log only
             log.error("run %d failed:\n%s", self.run_id, traceback.format_exc())
             return self._finish(RunStatus.FAILED, error_text(exc))
@@ -125,6 +133,21 @@ class _Job:
             )  # fmt: skip
         if not ours:
             self.reason = self.reason or "lost"
+
+    def judge_imported(self, runs_root: Path) -> bool:
+        """Judge an imported policy (:mod:`app.runs.imported_judge`); whether the run was
+        still ours when its report was stored (a cancel or a stop meanwhile stores nothing,
+        and the run ends as :attr:`reason` says)."""
+        from app.runs.imported_judge import judge_imported  # torch, MuJoCo, onnxruntime
+
+        owner = queue.ours(self.run_id, self.worker)
+        return judge_imported(
+            self.sessions,
+            run_id=self.run_id,
+            runs_root=runs_root,
+            owner=owner,
+            should_stop=self.should_stop,
+        )
 
     def judge_checkpoint(self, row: Run, out: Path) -> Callable[[int, Path], None] | None:
         """The ``on_checkpoint`` hook: store the checkpoint's artefact (runs with advice)."""

@@ -20,7 +20,7 @@ from __future__ import annotations
 import logging
 import re
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from sqlalchemy import select
 from sqlalchemy.exc import IntegrityError
@@ -30,6 +30,9 @@ from app.core.errors import PendingError
 from app.models import CheckpointArtefact, Run, RunStatus
 from engine.errors import InputError
 from engine.treefile import TreeDocument, tree_from_json
+
+if TYPE_CHECKING:  # torch loads with the report, in executor processes only
+    from engine.rl.report import CheckpointReport
 
 log = logging.getLogger(__name__)
 #: ``checkpoints/step_<timesteps>.pt``, as :mod:`engine.rl.checkpoint` writes them.
@@ -106,9 +109,16 @@ def compute(
     ``[{"participant_id", "judges": {judge: conformance JSON}}]`` (``advice`` is then the
     pooled verdict, which the body's own conformance is to).
     """
-    from engine.rl.report import checkpoint_report, members_conformance
+    from engine.rl.report import checkpoint_report
 
-    report = checkpoint_report(out, step, advice=advice)
+    return report_json(checkpoint_report(out, step, advice=advice), pool)
+
+
+def report_json(report: CheckpointReport, pool: list[dict[str, Any]] | None) -> dict[str, Any]:
+    """A checkpoint's report as stored, with each pooled participant's conformance (see
+    :func:`compute`); also the body of an imported policy's report."""
+    from engine.rl.report import members_conformance
+
     body = report.to_json()
     if pool:
         per_member = members_conformance(report, [tree_from_json(m["tree"]) for m in pool])

@@ -20,10 +20,12 @@ from app.models import Run
 from app.runs import comparison, experiment_notes, run_state
 from app.runs import report as run_report
 from app.runs import service as runs
+from app.runs.imported import is_imported
+from app.runs.imported_schemas import NOT_SEEN
 from app.runs.schemas import Judge, RunOut
 from app.studies import service as studies
 from engine.errors import InputError
-from engine.judges import DEFAULT_JUDGE, judge_name
+from engine.judges import DEFAULT_JUDGE, VERDICT_JUDGES, judge_name
 
 router = APIRouter(route_class=PageRoute, include_in_schema=False, dependencies=[ResearcherPage])
 JUDGE_LABELS = (
@@ -54,6 +56,9 @@ def compare_page(
     steps = run_state.checkpoint_steps(session, run_id=run_id)
     selected = checkpoint if checkpoint in steps else (steps[-1] if steps else None)
     shown = judge or comparison.shown_judge(session, run_id=run_id, step=selected)
+    imported = is_imported(run)
+    if imported and judge_name(shown) not in VERDICT_JUDGES:  # it has no reward or critic
+        shown = DEFAULT_JUDGE
     return render(
         request,
         "compare.html",
@@ -66,7 +71,8 @@ def compare_page(
             "image_template": thumb_template(run.study_id).removesuffix("?size=thumb"),
             "others": len(runs.same_advice_runs(session, run=run)),
             "judge": judge_name(shown),
-            "judges": JUDGE_LABELS,
+            "judges": [j for j in JUDGE_LABELS if not imported or j[0] in VERDICT_JUDGES],
+            "not_seen": NOT_SEEN,
         },
     )
 
@@ -101,7 +107,8 @@ def _run_context(session: Session, run: Run, shown: list[int], judge: str) -> di
 
 
 def _latest(session: Session, run: Run) -> dict[str, Any]:
-    """A run with its metrics at its latest judged checkpoint (None before the first one)."""
+    """A run with its metrics at its latest judged checkpoint (None before the first one; an
+    imported policy's never: it has no ``shaped`` judge, which this table shows)."""
     try:
         curve = comparison.conformance_curve(session, run_id=run.id, judge="shaped")
     except (PendingError, InputError):  # not judged yet, or never by this judge: no metrics

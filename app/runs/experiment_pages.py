@@ -1,4 +1,6 @@
-"""The experiment page: its runs by role and seed, live, and the verdict for a judge.
+"""The experiment page: its runs by role and seed, live, and the verdict for a judge. An
+external experiment's runs are imported policies, shown with their declared training settings
+beside the words that ACV did not see them train.
 
 The page is rendered with the state of the moment; ``static/js/experiment.js`` then polls
 ``/api/experiments/{id}`` and its verdict until every run has ended.
@@ -18,10 +20,14 @@ from app.models import ExperimentRole
 from app.runs import experiments
 from app.runs import service as runs
 from app.runs.compare_pages import JUDGE_LABELS
+from app.runs.external import advice_label as external_advice
+from app.runs.external import external_info
+from app.runs.imported import is_external
+from app.runs.imported_schemas import NOT_SEEN, ImportedOut
 from app.runs.schemas import Judge
 from app.studies import service as studies
 from engine.errors import InputError
-from engine.judges import DEFAULT_JUDGE, judge_name
+from engine.judges import DEFAULT_JUDGE, VERDICT_JUDGES, judge_name
 
 router = APIRouter(route_class=PageRoute, include_in_schema=False, dependencies=[ResearcherPage])
 
@@ -35,7 +41,8 @@ def experiment_page(
 ) -> HTMLResponse:
     experiment = experiments.get_experiment(session, experiment_id=experiment_id)
     members = experiments.members(session, experiment_id=experiment_id)
-    advised = next(run for role, run in members if role == ExperimentRole.ADVISED)
+    advised = next((run for role, run in members if role == ExperimentRole.ADVISED), None)
+    external = is_external(experiment)
     try:
         found = experiments.experiment_verdict(session, experiment_id=experiment_id, judge=judge)
         problem = None
@@ -48,10 +55,15 @@ def experiment_page(
             "experiment": experiment,
             "study": studies.get_study(session, study_id=experiment.study_id),
             "members": members,
-            "advice": runs.advice_label(advised),
-            "algo": advised.algo,
+            "advice": external_advice(experiment)
+            if external or advised is None
+            else runs.advice_label(advised),
+            "algo": None if advised is None else advised.algo,
             "judge": judge_name(judge),
-            "judges": JUDGE_LABELS,
+            "judges": [j for j in JUDGE_LABELS if not external or j[0] in VERDICT_JUDGES],
+            "external": external_info(experiment) if external else None,
+            "imported": {run.id: ImportedOut.of(run) for _, run in members},
+            "not_seen": NOT_SEEN,
             "found": found,
             "problem": problem,
         },

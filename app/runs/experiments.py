@@ -34,9 +34,10 @@ from app.models import (
 )
 from app.runs import artefacts
 from app.runs import service as runs
+from app.runs.imported import is_external, latest_only
 from app.runs.spec import RunSpec
 from engine.errors import InputError
-from engine.judges import JUDGE_COLUMNS, judge_name
+from engine.judges import JUDGE_COLUMNS, VERDICT_JUDGES, judge_name
 from engine.treefile import TreeDocument, tree_from_json
 from engine.verdict import Pair, Verdict, VerdictInputs, advice_scores, bracket_pairs
 from engine.verdict_outcome import verdict
@@ -168,17 +169,24 @@ def experiment_verdict(
     session: Session, *, experiment_id: int, judge: str, step: int | None = None
 ) -> ExperimentVerdict | None:
     """The verdict of ``judge`` at ``step`` (default: the latest step judged in enough runs
-    of every role, :data:`MIN_JUDGED`); None while no such step exists yet.
+    of every role, :data:`MIN_JUDGED`; for an external experiment, each run's own checkpoint,
+    reported as the largest of their steps); None while no such step exists yet.
 
     Raises:
         NotFoundError: no such experiment, or ``step`` is no checkpoint of its runs.
-        InputError: a judge the runs' artefacts do not score.
+        InputError: a judge the runs' artefacts do not score (an external experiment's:
+            any but the verdict judges).
     """
     experiment = get_experiment(session, experiment_id=experiment_id)
+    external = is_external(experiment)
+    if external and judge_name(judge) not in VERDICT_JUDGES:
+        raise InputError(f"imported policies are judged by {' or '.join(VERDICT_JUDGES)} only")
     runs_ = members(session, experiment_id=experiment_id)
     if step is not None:
         _check_step(session, experiment_id, [run.id for _, run in runs_], step)
     judged = _judged_tables(session, runs_)
+    if external and step is None:  # one checkpoint each, at the steps their trainers declare
+        judged = latest_only(judged)
     step = _verdict_step(judged) if step is None else step
     if step is None:
         return None

@@ -14,6 +14,7 @@ from typing import Annotated, Any
 from fastapi import APIRouter, Query, Response
 from fastapi.responses import JSONResponse
 from pydantic import BaseModel, ConfigDict, Field
+from sqlalchemy.orm import Session
 
 from app.core.csv_export import csv_text
 from app.core.json_types import JsonInt, UtcDatetime
@@ -32,6 +33,8 @@ from app.runs.experiments import (
     PILOT_SEED_BASE,
     ExperimentSpec,
 )
+from app.runs.imported import public_spec
+from app.runs.imported_schemas import ImportedOut
 from app.runs.schemas import Judge, RunCreate
 from app.runs.spec import RunSpec
 from app.studies.schemas import ProgressOut
@@ -73,6 +76,9 @@ class ExperimentRunOut(BaseModel):
     seed: int
     status: RunStatus
     progress: ProgressOut
+    imported: ImportedOut | None = Field(
+        None, description="An imported policy's declared settings (null for ACV's own runs)."
+    )
 
 
 class ExperimentOut(BaseModel):
@@ -100,7 +106,8 @@ class VerdictOut(BaseModel):
     verdict: dict[str, Any]
 
 
-def _out(session: SessionDep, experiment: Experiment) -> ExperimentOut:
+def experiment_out(session: Session, experiment: Experiment) -> ExperimentOut:
+    """The experiment's answer (an external one's frozen advice tree left out)."""
     runs = [
         ExperimentRunOut(
             id=run.id,
@@ -109,12 +116,20 @@ def _out(session: SessionDep, experiment: Experiment) -> ExperimentOut:
             seed=run.seed,
             status=run.status,
             progress=ProgressOut(done=run.progress, total=run.timesteps),
+            imported=ImportedOut.of(run),
         )
         for role, run in experiments.members(session, experiment_id=experiment.id)
     ]
     created: datetime = experiment.created_at
     url = f"/api/experiments/{experiment.id}/verdict"
-    return from_row(ExperimentOut, experiment, created_at=created, runs=runs, verdict_url=url)
+    return from_row(
+        ExperimentOut,
+        experiment,
+        spec=public_spec(experiment.spec),
+        created_at=created,
+        runs=runs,
+        verdict_url=url,
+    )
 
 
 @router.post("", status_code=202)
@@ -124,7 +139,7 @@ def create_experiment(
     """Queue the advised runs, and the baseline and pilot runs not trained already (runs of
     the same study, config and seed are reused)."""
     experiment = experiments.create_experiment(session, spec=body.experiment_spec())
-    return _out(session, experiment)
+    return experiment_out(session, experiment)
 
 
 @router.get("")
@@ -133,12 +148,14 @@ def list_experiments(
     _: ResearcherDep,
     study_id: DbId | None = None,
 ) -> list[ExperimentOut]:
-    return [_out(session, e) for e in experiments.list_experiments(session, study_id=study_id)]
+    return [
+        experiment_out(session, e) for e in experiments.list_experiments(session, study_id=study_id)
+    ]
 
 
 @router.get("/{experiment_id}")
 def get_experiment(experiment_id: DbId, session: SessionDep, _: ResearcherDep) -> ExperimentOut:
-    return _out(session, experiments.get_experiment(session, experiment_id=experiment_id))
+    return experiment_out(session, experiments.get_experiment(session, experiment_id=experiment_id))
 
 
 JudgeQuery = Annotated[Judge, Query(description="How the runs score states.")]

@@ -21,6 +21,7 @@ from app.core.resources import TEMPLATES_DIR
 from app.models import Run
 from app.runs import comparison, run_state
 from app.runs.experiment_notes import notes_of_runs
+from app.runs.imported_schemas import ImportedOut
 from app.runs.service import advice_label, advice_of
 from app.studies import service as studies
 from app.studies.images import SPECS, image_file
@@ -131,6 +132,7 @@ def report_context(
         "curve_svg": inline_svg(curve_chart(curve)),
         "learning_svg": inline_svg(learning_chart(run_state.metrics_rows(session, run_id=run.id))),
         "curve": curve,
+        "imported": ImportedOut.of(run),
     }
 
 

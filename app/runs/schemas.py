@@ -9,6 +9,7 @@ from pydantic import BaseModel, ConfigDict, Field, StrictBool
 from app.core.json_types import JsonFloat, JsonInt, UtcDatetime
 from app.core.rows import from_row
 from app.models import Run, RunStatus
+from app.runs.imported_schemas import ImportedOut
 from app.runs.pools import members, weighting_of, weights_of
 from app.runs.service import MAX_TIMESTEPS, advice_label
 from app.runs.spec import PoolWeighting, RunSpec
@@ -132,10 +133,17 @@ class RunOut(BaseModel):
     created_at: UtcDatetime
     started_at: UtcDatetime | None
     finished_at: UtcDatetime | None
+    imported: ImportedOut | None = Field(
+        None,
+        description="A policy trained elsewhere, imported into an external experiment and "
+        "judged by ACV, which did not see it train (null for runs ACV trained).",
+    )
 
     @classmethod
     def of(cls, run: Run) -> RunOut:
-        config = TrainConfig.from_json(run.config)
+        imported = ImportedOut.of(run)
+        # an imported policy's progress is its judging: done once its one checkpoint is stored
+        total = run.timesteps if imported else _budget(TrainConfig.from_json(run.config))
         weights = weights_of(run)
         return from_row(
             cls,
@@ -144,8 +152,14 @@ class RunOut(BaseModel):
             pool_weighting=weighting_of(run),
             pool_weights=None if weights is None else [PoolWeightOut(**vars(w)) for w in weights],
             advice=advice_label(run),
-            progress=ProgressOut(done=run.progress, total=config.num_updates * config.batch_size),
+            progress=ProgressOut(done=run.progress, total=total),
+            imported=imported,
         )
+
+
+def _budget(config: TrainConfig) -> int:
+    """The env steps a run trains: whole updates of ``n_envs x num_steps``."""
+    return config.num_updates * config.batch_size
 
 
 class CheckpointOut(BaseModel):

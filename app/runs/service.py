@@ -22,6 +22,7 @@ from app.db import writing
 from app.jobs.queue import update_if
 from app.models import Run, RunStatus, utcnow
 from app.runs import advice, pools, run_state, shared
+from app.runs.imported import is_imported
 from app.runs.spec import ParticipantAdvice, RunSpec, TeacherAdvice
 from app.studies.service import get_ready_study
 from engine.errors import InputError
@@ -201,7 +202,7 @@ def cancel_run(session: Session, *, run_id: int) -> Run:
 
 def resume_run(session: Session, *, run_id: int) -> Run:
     """Queue an interrupted, failed or cancelled run again, to continue from its latest
-    checkpoint.
+    checkpoint (an imported policy: to be judged again).
 
     Raises:
         ConflictError: the run is queued, running or succeeded, or has no checkpoint.
@@ -211,7 +212,7 @@ def resume_run(session: Session, *, run_id: int) -> Run:
         raise ConflictError(
             f"run {run_id} is {run.status}; only {', '.join(RESUMABLE)} runs can be resumed"
         )
-    if not run_state.checkpoint_steps(session, run_id=run_id):
+    if not run_state.checkpoint_steps(session, run_id=run_id) and not is_imported(run):
         raise ConflictError(f"run {run_id} has no checkpoint to resume from")
     if not update_if(
         session,

@@ -121,9 +121,9 @@
       row("pooled verdict", report.conformance, null));
   }
 
-  const COLUMNS = ["id", "reward", "advice", "z", "shaping", "score", "value", "behaviour",
-    "env_return"];
+  // The table's columns are its header's (an imported policy's has no R, F, z or V).
   function showCandidates(table, report, urls, open) {
+    const columns = [...table.querySelectorAll("th[data-sort]")].map((th) => th.dataset.sort);
     const key = table.dataset.sortKey || "id";
     const sign = table.dataset.sortDir === "desc" ? -1 : 1;
     const rows = [...report.candidates].sort((a, b) => sign * (a[key] - b[key]));
@@ -135,7 +135,7 @@
       link.addEventListener("click", (e) => { e.preventDefault(); open(urls.full(c.id), `#${c.id}`); });
       cell(row, link);
       // env_return is null in reports stored before the return judge
-      for (const col of COLUMNS.slice(1)) cell(row, c[col] === null ? "–" : c[col].toFixed(3));
+      for (const col of columns.slice(1)) cell(row, c[col] === null ? "–" : c[col].toFixed(3));
       return row;
     }));
     for (const th of table.querySelectorAll("th[data-sort]")) {

@@ -18,8 +18,8 @@
       const badge = row.querySelector("[data-status]");
       badge.textContent = run.status;
       badge.className = `badge run-${run.status}`;
-      row.querySelector("[data-progress]").textContent =
-        `${run.progress.done} / ${run.progress.total}`;
+      const progress = row.querySelector("[data-progress]");  // an imported policy has none
+      if (progress) progress.textContent = `${run.progress.done} / ${run.progress.total}`;
     }
   }
 
