@@ -43,7 +43,7 @@ from app.studies.crowd import DEFAULT_SPEED_THRESHOLD_MS
 from app.studies.gold import GoldScore
 from app.studies.participants import n_matches
 
-Status = Literal["not_started", "labelling", "finished", "withdrawn", "timed_out"]
+Status = Literal["not_started", "labelling", "finished", "withdrawn", "failed_gate", "timed_out"]
 #: Bumped when the dashboard's body changes shape, so that no old ETag matches a new body.
 FORMAT = 1
 
@@ -222,6 +222,8 @@ def _live(row: Row[Any], total: int, rules: _Rules, now: datetime) -> LivePartic
     status: Status = "labelling" if done else "not_started"
     if row.withdrawn_at is not None:
         status = "withdrawn"
+    elif row.gate_stopped_at is not None:
+        status = "failed_gate"
     elif row.finished_at is not None:
         status = "finished"
     elif row.deadline_at is not None and as_utc(row.deadline_at) <= now:

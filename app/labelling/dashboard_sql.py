@@ -66,6 +66,7 @@ _TIMED_OUT = and_(
     Participant.deadline_at <= bindparam("now"),
     Participant.finished_at.is_(None),
     Participant.withdrawn_at.is_(None),
+    Participant.gate_stopped_at.is_(None),
 )
 
 
@@ -186,6 +187,7 @@ def _rows_statement() -> Any:
             Participant.finished_at,
             Participant.withdrawn_at,
             Participant.deadline_at,
+            Participant.gate_stopped_at,
             func.coalesce(labels.c.done, 0).label("done"),
             func.coalesce(labels.c.left, 0).label("left"),
             func.coalesce(labels.c.sided, 0).label("sided"),

@@ -27,6 +27,10 @@ router = APIRouter(prefix="/matches", tags=["matches"])
         200: {"description": "The same label was already stored (idempotent).", "model": LabelOut},
         404: {"description": "No such match among this participant's."},
         409: {"description": "The match is already decided the other way."},
+        410: {
+            "description": "The participant withdrew, ran out of time, or was stopped by the "
+            "gold gate: the study takes no more labels from them."
+        },
         422: {
             "description": "The winner did not play this match, or a tie where the study "
             'does not allow "can\'t tell".'

@@ -51,8 +51,8 @@ ENDED_TEXT = {
     ),
     "failed_gate": (
         "This study has ended for you",
-        "Some of your answers to the check pairs did not match theirs, so the study stopped "
-        "here. Thank you for your time.",
+        "Some of your answers to the check pairs were not the expected ones, so the study "
+        "stopped here. Thank you for your time.",
     ),
 }
 

@@ -20,7 +20,7 @@ from app.db import writing
 from app.labelling.check import agreement_by_participant
 from app.labelling.gate import GateStanding, below_gate
 from app.models import CrowdSettings, Label, Match, Participant, utcnow
-from app.recruiting import events
+from app.recruiting import events, seats
 from app.recruiting import service as recruiting
 from app.studies import gold
 from app.studies.crowd import DEFAULT_SPEED_THRESHOLD_MS, LINK, CrowdOptions, configure
@@ -257,7 +257,7 @@ def apply_gate(session: Session, *, study_id: int, participant_id: int | None = 
     with writing(session):
         for s in newly:
             s.participant.excluded, s.participant.exclusion_reason = True, s.gate_reason
-            _stop_mid_study(s)
+            _stop_mid_study(session, s, settings)
         for s in flagged:  # participant.flagged, once per participant (issue 29 §3)
             _gate_event(session, study_id, s)
     return [s.participant.id for s in newly]
@@ -286,13 +286,14 @@ def _gate_event(session: Session, study_id: int, q: GateStanding) -> None:
 STOP_AFTER_FAILED = 2
 
 
-def _stop_mid_study(q: GateStanding) -> None:
-    """End an unfinished participant the gate excludes after enough failed gold items: their
-    time is over now (the label path refuses them), and their outcome is ``failed_gate``."""
+def _stop_mid_study(session: Session, q: GateStanding, link: CrowdSettings) -> None:
+    """End an unfinished participant the gate excludes after enough failed gold items: time
+    over now (the label path refuses them), seat given back, outcome ``failed_gate``."""
     person = q.participant
     if person.finished_at is None and q.gold.asked - q.gold.right >= STOP_AFTER_FAILED:
         now = utcnow()
         person.gate_stopped_at, person.deadline_at = now, now
+        seats.free_seat(session, person, link, now)
 
 
 def _gated(q: GateStanding) -> bool:

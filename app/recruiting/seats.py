@@ -168,9 +168,16 @@ def withdraw(session: Session, member: Member, link: OpenLink | None, now: datet
     still_in = and_(Member.id == member.id, Member.finished_at.is_(None), within_time(now))
     if _rowcount(session.execute(_update(Member).where(still_in).values(withdrawn_at=now))) == 0:
         return False
-    if link is not None:
-        _free(session, link, and_(_members_of(link), Member.id == member.id), now)
+    free_seat(session, member, link, now)
     return True
+
+
+def free_seat(session: Session, member: Member, link: OpenLink | None, now: datetime) -> bool:
+    """Give back ``member``'s seat on ``link`` (once; nothing for an invited member), inside
+    the caller's write transaction; whether it was given back."""
+    if link is None:
+        return False
+    return _free(session, link, and_(_members_of(link), Member.id == member.id), now) > 0
 
 
 def _members_of(link: OpenLink) -> ColumnElement[bool]:

@@ -29,7 +29,7 @@ class LiveParticipantOut(BaseModel):
     participant_id: int
     name: str | None
     external_id: str | None
-    status: Literal["not_started", "labelling", "finished", "withdrawn", "timed_out"]
+    status: Literal["not_started", "labelling", "finished", "withdrawn", "failed_gate", "timed_out"]
     done: int = Field(description="Bracket matches decided.")
     total: int = Field(description="Matches in the bracket (N - 1).")
     median_response_ms: float | None = Field(

@@ -11,7 +11,11 @@ form (consent text, a decline code, a time limit, a redirect URL with ``{code}``
 3. a visitor joins (the timed-out seat is freed for them), decides one match, follows
    "Withdraw from this study", confirms, and lands on the ended page with the decline code;
    the bracket sends them back there, and their seat is free again;
-4. the study page's dashboard counts the withdrawn and the timed-out participant.
+4. the study page's dashboard counts the withdrawn and the timed-out participant;
+5. the researcher adds two check pairs (gold items) and, in the form, a gold gate that excludes
+   with a code of its own; a careless visitor picks the wrong picture of both check pairs, and
+   their next pick lands on "This study has ended for you" with the gate's code (issue 28 §3);
+   their outcome is ``failed_gate``.
 
 axe-core checks every page once it is settled (screenshots: /tmp/acv_screens).
 """
@@ -27,6 +31,7 @@ import pytest
 from playwright.sync_api import Browser, Locator, Page, Response, expect
 from sqlalchemy import update
 
+from app.core.auth import PARTICIPANT_COOKIE
 from app.db import make_engine
 from app.models import Member, utcnow
 from app.settings import SQLITE_FILE
@@ -43,7 +48,13 @@ from tests.support.browser import (
 from tests.support.labelling import wait_until_prepared
 
 pytestmark = pytest.mark.browser
-COMPLETION, DECLINE = "C0MPL3TE", "D3CL1NE"
+COMPLETION, DECLINE, GATE = "C0MPL3TE", "D3CL1NE", "G4T3ST0P"
+#: The check pairs of step 5 (as in tests/app/test_gold_ties.py): a plain one, and an
+#: instructed one (pick the picture with the marker).
+GOLD = [
+    {"kind": "pair", "a": 0, "b": 1, "answer": 1},
+    {"kind": "instructed", "a": 2, "b": 3, "answer": 2},
+]
 TIME_LIMIT_MIN = 30
 #: What Chromium logs for the one label POST refused with 410 (the timed-out pick).
 GONE = "status of 410"
@@ -138,6 +149,56 @@ def expect_ended(page: Page, title: str, code: str | None, platform: str) -> Non
         expect(page.locator("#completion-code")).to_have_text(code)
         link = f"{platform}/submissions/complete?cc={code}"
         expect(page.locator("#complete-link")).to_have_attribute("href", link)
+
+
+def add_gold(api: httpx.Client, study_id: int) -> dict[int, int]:
+    """Add :data:`GOLD` to the study; each item's id with its wrong answer."""
+    wrong = {}
+    for body in GOLD:
+        made = api.post(f"/api/studies/{study_id}/gold", json=body)
+        assert made.status_code == 201, made.text
+        wrong[made.json()["id"]] = ({body["a"], body["b"]} - {body["answer"]}).pop()
+    return wrong
+
+
+def set_gate(page: Page, base: str, study_id: int, link: str) -> None:
+    """Give the open link, in the study page's form, a gold gate that excludes whom it flags
+    (and so stops them after 2 failed check pairs) with :data:`GATE` as their code."""
+    page.goto(f"{base}/studies/{study_id}")
+    page.fill("#gold_gate", "0.9")
+    page.check("#gate_excludes")
+    page.fill("#gate_code", GATE)
+    page.click("text=Save open link")
+    page.wait_for_url(f"{base}/studies/{study_id}#crowd")
+    expect(page.locator("#gold_gate")).to_have_value("0.9")
+    expect(page.locator("#gate_excludes")).to_be_checked()
+    expect(page.locator("#gate_code")).to_have_value(GATE)
+    expect(page.locator("#open-link")).to_have_text(link)  # the same link, the same codes
+    expect(page.locator("#decline_code")).to_have_value(DECLINE)
+
+
+def fail_the_checks(page: Page, shown: str, wrong: dict[int, int]) -> str:
+    """From the match ``shown``: the left picture of each bracket match and the wrong one of
+    each check pair (``wrong``: :func:`add_gold`'s), until every check pair is answered; the
+    bracket match shown then, once settled."""
+    answered = 0
+    while answered < len(wrong):
+        if shown.startswith("gold-"):  # static/js/label.js's key of a check pair
+            loser = f'img[alt="candidate {wrong[int(shown.removeprefix("gold-"))]}"]'
+            page.locator("#match .pick", has=page.locator(loser)).click()
+            answered += 1
+        else:
+            page.click("#pick-a")
+        shown = wait_for_match(page, shown)
+    assert not shown.startswith("gold-"), shown
+    return shown
+
+
+def participant_id(api: httpx.Client, page: Page, study_id: int) -> int:
+    """The id of the participant whose invitation ``page``'s browser holds (its cookie)."""
+    token = next(c["value"] for c in page.context.cookies() if c["name"] == PARTICIPANT_COOKIE)
+    people = api.get(f"/api/studies/{study_id}/participants").json()
+    return next(p["id"] for p in people if p["token"] == token)
 
 
 def live_status(page: Page, pid: str) -> Locator:
@@ -243,4 +304,33 @@ def test_decline_time_out_withdraw_and_the_dashboard(
     researcher.locator("#dashboard").screenshot(
         path=screens / f"seats-dashboard-{viewport['width']}.png"
     )
+
+    # (5) The gold gate: two check pairs answered wrong stop a careless visitor; their next
+    # pick is refused (410) and the page says the study has ended for them, with the code.
+    wrong = add_gold(api, study_id)  # given to those who join from now on
+    set_gate(researcher, base, study_id, link)
+    _, g = new_page(browser, errors, viewport=viewport)
+    last = fail_the_checks(g, join(g, base, link, "careless"), wrong)
+    g.click("#pick-a")
+    g.wait_for_url(f"{base}/participate/ended")
+    expect_ended(g, "This study has ended for you", GATE, platform)
+    expect(g.locator(".card")).to_contain_text("answers to the check pairs were not the")
+    settled(g, f"ended page after the gold gate {where}")
+    g.screenshot(path=screens / f"seats-failed-gate-{viewport['width']}.png", full_page=True)
+    g.goto(link + ids("careless"))  # back from the platform by the same ids
+    g.wait_for_url(f"{base}/participate/ended")
+    expect_ended(g, "This study has ended for you", GATE, platform)
+    gone = [e for e in errors if GONE in e]
+    assert len(gone) == 1, errors  # the refused pick's status; nothing else
+    errors[:] = [e for e in errors if GONE not in e]
+    person = api.get(f"/api/participants/{participant_id(api, g, study_id)}").json()
+    assert (person["outcome"], person["code"]) == ("failed_gate", GATE), person
+    assert person["excluded"] and person["exclusion_reason"].startswith("gold gate: 0 of 2")
+    # 4 candidates: the check pairs come after the 1st and the 2nd match; the 3rd was refused
+    assert person["progress"]["done"] == 2, (last, person)
+    assert joined(api, study_id) == 0  # the stopped visitor's seat is free again
+    researcher.goto(f"{base}/studies/{study_id}")
+    expect(live_status(researcher, "careless")).to_have_text("failed gate")
+    expect(researcher.locator('[data-count="timed_out"]')).to_have_text("1")  # not the gated
+    settled(researcher, f"study page with a participant the gate stopped {where}")
     assert errors == []

@@ -94,9 +94,7 @@ def test_screens_submitted_at_once_finish_the_respondent(client, survey, monkeyp
             assert survey_respond.progress(session, respondent_id=rid) == (2, 2)
             assert person.finished_at is not None, f"respondent {rid} left unfinished"
             link = recruiting.completion(session, survey_crowd.LINK, member=person)
-            assert (link.completion_code if link else None) == (
-                "F2DONE" if person.via_link else None
-            )
+            assert (link.code if link else None) == ("F2DONE" if person.via_link else None)
     listed = client.get(f"/api/surveys/{survey['id']}/respondents", headers=ADMIN).json()
     assert sum(r["finished"] for r in listed) == RESPONDENTS
 
