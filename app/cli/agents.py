@@ -17,6 +17,13 @@ from typing import Annotated
 
 import typer
 
+from app.cli.options import (
+    AdviceParticipantOpt,
+    AdvicePoolOpt,
+    AdviceTeacherOpt,
+    AllParticipantsOpt,
+    PoolWeightingOpt,
+)
 from app.cli.root import cli, fail
 from app.cli.serve import cli_runtime
 from app.jobs.settings import JobSettings
@@ -40,17 +47,11 @@ ACTIVATIONS = ("tanh", "relu")
 @agents_cli.command("experiment")
 def experiment(
     study: Annotated[int, Opt(help="The study whose bracket the advice is over.")],
-    teacher: Annotated[str | None, Opt(help="A simulated teacher's advice.")] = None,
-    participant: Annotated[int | None, Opt(help="A finished participant's advice.")] = None,
-    pool: Annotated[
-        list[int] | None, Opt(help="Pooled advice: a finished participant; give it twice or more.")
-    ] = None,
-    all_participants: Annotated[
-        bool, Opt("--all-participants", help="Pooled advice: every finished participant.")
-    ] = False,
-    pool_weighting: Annotated[
-        str | None, Opt(help="How a pool is averaged: mean or reliability.")
-    ] = None,
+    teacher: AdviceTeacherOpt = None,
+    participant: AdviceParticipantOpt = None,
+    pool: AdvicePoolOpt = None,
+    all_participants: AllParticipantsOpt = False,
+    pool_weighting: PoolWeightingOpt = None,
     seeds: Annotated[int, Opt(help="The most policies per arm, advised and baseline (2..20).")] = (
         DEFAULT_SEEDS
     ),

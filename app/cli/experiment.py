@@ -9,7 +9,15 @@ from typing import Annotated, Any
 
 import typer
 
-from app.cli.options import JsonOpt, NEnvsOpt
+from app.cli.options import (
+    AdviceParticipantOpt,
+    AdvicePoolOpt,
+    AdviceTeacherOpt,
+    AllParticipantsOpt,
+    JsonOpt,
+    NEnvsOpt,
+    PoolWeightingOpt,
+)
 from app.cli.root import cli, fail
 from app.cli.serve import cli_runtime
 from app.models import RunStatus
@@ -28,18 +36,11 @@ cli.add_typer(experiment_cli, name="experiment", no_args_is_help=True)
 def create(
     study: Annotated[int, Opt(help="The study whose bracket the advice is over.")],
     timesteps: Annotated[int, Opt(help="Env steps per run.")],
-    teacher: Annotated[str | None, Opt(help="A simulated teacher's advice.")] = None,
-    participant: Annotated[int | None, Opt(help="A finished participant's advice.")] = None,
-    pool: Annotated[
-        list[int] | None,
-        Opt(help="Pooled advice: a finished participant; give it twice or more."),
-    ] = None,
-    all_participants: Annotated[
-        bool, Opt("--all-participants", help="Pooled advice: every finished participant.")
-    ] = False,
-    pool_weighting: Annotated[
-        str | None, Opt(help="How a pool is averaged: mean or reliability.")
-    ] = None,
+    teacher: AdviceTeacherOpt = None,
+    participant: AdviceParticipantOpt = None,
+    pool: AdvicePoolOpt = None,
+    all_participants: AllParticipantsOpt = False,
+    pool_weighting: PoolWeightingOpt = None,
     algo: Annotated[str, Opt(help="How the advised runs train.")] = "bipars-em",
     seeds: Annotated[int, Opt(help="Evaluation seeds per arm (2..20).")] = DEFAULT_SEEDS,
     pilot_seeds: Annotated[int, Opt(help="Pilot runs (1..10).")] = DEFAULT_PILOT_SEEDS,

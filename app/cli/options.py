@@ -21,3 +21,17 @@ NoiseOpt = Annotated[float, typer.Option(help="Probability of flipping each deci
 NEnvsOpt = Annotated[int, typer.Option(help="Parallel envs per run.")]
 NumStepsOpt = Annotated[int, typer.Option(help="Steps per env per rollout.")]
 JsonOpt = Annotated[bool, typer.Option("--json", help="Print JSON instead of text.")]
+
+#: Where an experiment's advice comes from: one of these (app.runs.spec checks which).
+AdviceTeacherOpt = Annotated[str | None, typer.Option(help="A simulated teacher's advice.")]
+AdviceParticipantOpt = Annotated[int | None, typer.Option(help="A finished participant's advice.")]
+AdvicePoolOpt = Annotated[
+    list[int] | None,
+    typer.Option(help="Pooled advice: a finished participant; give it twice or more."),
+]
+AllParticipantsOpt = Annotated[
+    bool, typer.Option("--all-participants", help="Pooled advice: every finished participant.")
+]
+PoolWeightingOpt = Annotated[
+    str | None, typer.Option(help="How a pool is averaged: mean or reliability.")
+]
