@@ -20,9 +20,10 @@ from typing import Any
 
 import pytest
 import schemathesis
-from hypothesis import HealthCheck, Phase, given, settings
+from hypothesis import HealthCheck, Phase, assume, given, settings
 from hypothesis import strategies as st
 from schemathesis import GenerationMode, checks
+from schemathesis.core.parameters import ParameterLocation
 from schemathesis.generation.drivers import CoverageGenerator
 from schemathesis.generation.feedback import FeedbackSources
 from schemathesis.generation.overrides import Override
@@ -112,6 +113,10 @@ def conformance_failures(
         phases=[Phase.explicit, Phase.generate],
     )
     def run(case: Any) -> None:
+        # A case whose headers break the schema (Authorization left out, say) is no negative
+        # case once each role's real credentials replace them: skipped, not sent.
+        header = case.meta.components.get(ParameterLocation.HEADER) if case.meta else None
+        assume(header is None or header.mode is not GenerationMode.NEGATIVE)
         for headers in role_headers.values():
             calls[-1] += 1
             case.call_and_validate(headers=headers, checks=CHECKS)
