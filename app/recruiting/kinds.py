@@ -7,16 +7,14 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Generic, TypeVar
+from typing import Generic
 
 from sqlalchemy import ColumnElement, and_
 from sqlalchemy.orm import Session
 
-from app.models import CrowdSettings, OpenLink, SurveyCrowdSettings
-from app.recruiting.links import LinkFullError
+from app.models import OpenLink
+from app.recruiting.links import Link, LinkFullError
 from app.recruiting.members import CollectionKind, MemberRow
-
-Link = TypeVar("Link", CrowdSettings, SurveyCrowdSettings)
 
 
 @dataclass(frozen=True)

@@ -30,12 +30,10 @@ from app.models import (
     CrowdSettings,
     Member,
     OpenLink,
-    Participant,
     SurveyCrowdSettings,
-    SurveyRespondent,
 )
 from app.recruiting import members
-from app.recruiting.members import CollectionKind
+from app.recruiting.members import CollectionKind, MemberRow
 from engine.errors import InputError
 
 DEFAULT_EXTERNAL_PARAMS = ("PROLIFIC_PID", "STUDY_ID", "SESSION_ID")
@@ -58,7 +56,6 @@ ALREADY_TOOK_PART = (
 )
 
 Link = TypeVar("Link", CrowdSettings, SurveyCrowdSettings)
-Person = TypeVar("Person", Participant, SurveyRespondent)
 
 
 class LinkFullError(ConflictError):
@@ -190,13 +187,13 @@ def external_ids(params: list[str], query: dict[str, str]) -> dict[str, str]:
 
 def returning(
     session: Session,
-    kind: CollectionKind[Person],
+    kind: CollectionKind[MemberRow],
     *,
     owner_id: int,
     params: list[str],
     ids: dict[str, str],
     token: str | None,
-) -> Person | None:
+) -> MemberRow | None:
     """The member of ``kind`` in the collection ``owner_id`` this visitor already is, or
     ``None`` for a new one.
 
