@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from fastapi import APIRouter
 
+from app.evaluations import api as evaluations_api
+from app.evaluations import evaluator_api
 from app.http import auth_pages, errors
 from app.labelling import api as participants_api
 from app.labelling import crowd_pages as study_link_pages
@@ -58,6 +60,8 @@ for _router in (
     study_dashboard_api.router,
     survey_crowd_api.router,
     webhooks_api.router,
+    evaluations_api.router,
+    evaluator_api.router,
 ):
     api_router.include_router(_router)
 

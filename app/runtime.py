@@ -1,7 +1,7 @@
 """What a running app (or a CLI command) shares: settings, database, renderer, jobs.
 
-Study preparation (sampling and rendering, a few seconds) runs on one background worker
-thread, so ``POST /api/studies`` answers at once with status ``preparing``.
+Study preparation (sampling and rendering, a few seconds) and an evaluation's stimuli run
+on one background worker thread, so ``POST /api/studies`` answers at once with status ``preparing``.
 """
 
 from __future__ import annotations
@@ -18,6 +18,8 @@ from sqlalchemy.orm import Session, sessionmaker
 
 from app.core.auth import ensure_admin_token
 from app.db import make_engine, make_sessions
+from app.evaluations import service as evaluations
+from app.evaluations.stimuli import prepare_evaluation
 from app.jobs.settings import JobSettings
 from app.preflight import check_data_dir
 from app.settings import Settings
@@ -75,18 +77,40 @@ class Runtime:
 
     def prepare_later(self, study_id: int) -> Future:
         """Queue a study's preparation on the background worker."""
+        return self._submit(self.prepare, study_id)
+
+    def prepare_evaluation(self, evaluation_id: int) -> None:
+        """Render an evaluation's stills (then its clips) now, on this thread."""
+        prepare_evaluation(
+            self.sessions,
+            evaluation_id=evaluation_id,
+            renderer=self.renderer,
+            data_dir=self.settings.data_dir,
+            runs_dir=JobSettings().runs_root(self.settings),
+        )
+
+    def prepare_evaluation_later(self, evaluation_id: int) -> Future:
+        """Queue an evaluation's stimuli on the background worker."""
+        return self._submit(self.prepare_evaluation, evaluation_id)
+
+    def _submit(self, job: Callable[[int], None], key: int) -> Future:
         with self._lock:
             if self._jobs is None:
                 self._jobs = ThreadPoolExecutor(max_workers=1, thread_name_prefix="acv-jobs")
             jobs = self._jobs
-        return jobs.submit(self.prepare, study_id)
+        return jobs.submit(job, key)
 
     def resume(self) -> None:
-        """Queue studies left ``preparing`` by an earlier process."""
+        """Queue studies and evaluations left ``preparing`` by an earlier process."""
         with self.sessions() as session:
-            for study_id in preparing_study_ids(session):
-                log.info("resuming preparation of study %d", study_id)
-                self.prepare_later(study_id)
+            study_ids = preparing_study_ids(session)
+            evaluation_ids = evaluations.preparing_ids(session)
+        for study_id in study_ids:
+            log.info("resuming preparation of study %d", study_id)
+            self.prepare_later(study_id)
+        for evaluation_id in evaluation_ids:
+            log.info("resuming preparation of evaluation %d", evaluation_id)
+            self.prepare_evaluation_later(evaluation_id)
 
     def close(self) -> None:
         """Finish queued jobs, stop the renderer and close database connections."""

@@ -23,7 +23,7 @@ ROOT = Path(__file__).resolve().parents[1]
 #: is the runs feature's executor (its queue and executors), on the runs level. ``webhooks``
 #: comes first: every feature writes its events to the webhooks' outbox, in its own
 #: transactions, and the webhooks know no feature.
-FEATURES = ("webhooks", "recruiting", "studies", "labelling", "runs", "surveys")
+FEATURES = ("webhooks", "recruiting", "studies", "labelling", "runs", "surveys", "evaluations")
 LEVEL = {**{f: i for i, f in enumerate(FEATURES)}, "jobs": FEATURES.index("runs")}
 WEB_LIBRARIES = ("fastapi", "starlette", "sqlalchemy", "jinja2", "uvicorn", "alembic", "app")
 #: Route modules: a feature's REST API and pages; only app.routes and other routes use them.
@@ -92,8 +92,9 @@ ENGINE_LAYERS = (
     "verdict verdict_outcome verdict_power verdict_bracket verdict_specificity",
     "rl",  # agents: training with advice, and judging a checkpoint
     # needing a trained policy or runs: informative sampling, the pipeline (it samples in every
-    # mode), policies trained elsewhere, the verdict over runs
-    "informative pipeline policies verdict_runs",
+    # mode), policies trained elsewhere, the verdict over runs, the agent evaluation (its
+    # stimuli are a checkpoint's rollouts)
+    "informative pipeline policies verdict_runs evaluation",
     "validation",
 )
 ENGINE_LAYER = {part: i for i, layer in enumerate(ENGINE_LAYERS) for part in layer.split()}

@@ -13,6 +13,7 @@ def _register_commands() -> None:
     """Import the command modules, which register their commands (and import mujoco)."""
     from app.cli import (  # noqa: F401
         agents,
+        evaluate,
         experiment,
         export,
         quality,

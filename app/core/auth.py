@@ -27,6 +27,7 @@ DATASET_SALT_FILE = "dataset_salt"
 RESEARCHER_COOKIE = "acv_researcher"
 PARTICIPANT_COOKIE = "acv_participant"
 RESPONDENT_COOKIE = "acv_respondent"
+EVALUATOR_COOKIE = "acv_evaluator"
 #: How long a member's browser remembers their invitation, so they can resume.
 #: Shortest admin token accepted: ~190 bits as URL-safe base64, beyond brute force.
 MIN_ADMIN_TOKEN_CHARS = 32

@@ -9,6 +9,8 @@ MAX_NAME_CHARS = 200
 MAX_INSTRUCTIONS_CHARS = 20_000
 #: Seeds are stored as signed 64-bit integers.
 MAX_SEED = 2**63 - 1
+#: Most members invited in one request.
+MAX_BATCH = 500
 
 
 def check_text(**fields: str | None) -> None:

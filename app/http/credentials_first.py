@@ -22,7 +22,7 @@ from starlette.routing import Match
 from starlette.types import ASGIApp, Receive, Scope, Send
 
 from app.http.deps import researcher_gate
-from app.http.member_auth import participant_gate, respondent_gate
+from app.http.member_auth import evaluator_gate, participant_gate, respondent_gate
 
 Gate = Callable[[Request], Awaitable[None]]
 #: The check of each security scheme of the OpenAPI document.
@@ -30,6 +30,7 @@ GATES: dict[str, Gate] = {
     "AdminToken": researcher_gate,
     "InviteToken": participant_gate,
     "SurveyInviteToken": respondent_gate,
+    "EvaluatorInviteToken": evaluator_gate,
 }
 _SAFE_METHODS = frozenset({"GET", "HEAD", "OPTIONS"})
 

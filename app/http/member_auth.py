@@ -1,7 +1,8 @@
-"""Members' credentials as FastAPI dependencies: a study's participants and a survey's
-respondents each send their invite token as ``Authorization: Bearer <token>`` (each kind its
-own security scheme in ``/docs``) or carry the cookie their invite link set; both are
-resolved by the one lookup, :func:`app.recruiting.members.resolve`.
+"""Members' credentials as FastAPI dependencies: a study's participants, a survey's
+respondents and an evaluation's evaluators each send their invite token as
+``Authorization: Bearer <token>`` (each kind its own security scheme in ``/docs``) or carry
+the cookie their invite link set; all are resolved by the one lookup,
+:func:`app.recruiting.members.resolve`.
 
 The ``*_gate`` functions make the same checks on a request whose body is not read yet
 (:mod:`app.http.credentials_first`).
@@ -9,11 +10,13 @@ The ``*_gate`` functions make the same checks on a request whose body is not rea
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Annotated
 
 import anyio.to_thread
 from fastapi import Cookie, Depends, Request
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
+from sqlalchemy.orm import Session
 
 from app.core import auth
 from app.http.deps import (
@@ -23,7 +26,7 @@ from app.http.deps import (
     check_cookie_write,
     invite_bearer,
 )
-from app.models import SurveyRespondent
+from app.models import Evaluator, SurveyRespondent
 from app.recruiting import members
 from app.runtime import Runtime
 
@@ -73,6 +76,41 @@ def _check_participant(runtime: Runtime, token: str | None) -> None:
         members.participant_ref(conn, token=token)
 
 
+def _member(
+    request: Request,
+    session: Session,
+    kind: members.CollectionKind[members.MemberRow],
+    credentials: HTTPAuthorizationCredentials | None,
+    cookie: str | None,
+) -> members.MemberRow:
+    """The member of ``kind`` whose invite token is sent (bearer first, then the cookie),
+    or 401."""
+    token = credentials.credentials if credentials is not None else cookie
+    if credentials is None and cookie:
+        check_cookie_write(request)
+    person = members.member_by_token(session, kind, token=token)
+    session.commit()
+    return person
+
+
+async def _member_gate(
+    request: Request,
+    bearer: HTTPBearer,
+    kind: members.CollectionKind[members.MemberRow],
+    require: Callable[..., object],
+) -> None:
+    """A member kind's dependency ``require``, on a request whose body is not read yet
+    (:mod:`app.http.credentials_first`): a query in a worker thread, once per screen."""
+    credentials = await bearer(request)
+    runtime: Runtime = request.app.state.runtime
+
+    def check(cookie: str | None) -> None:
+        with runtime.sessions() as session:
+            require(request, session, credentials, cookie)
+
+    await anyio.to_thread.run_sync(check, request.cookies.get(kind.cookie))
+
+
 _respondent_bearer = HTTPBearer(
     auto_error=False,
     scheme_name="SurveyInviteToken",
@@ -89,26 +127,39 @@ def require_respondent(
     cookie: RespondentCookie = None,
 ) -> SurveyRespondent:
     """The respondent whose invite token is sent (bearer first, then the cookie), or 401."""
-    token = credentials.credentials if credentials is not None else cookie
-    if credentials is None and cookie:
-        check_cookie_write(request)
-    person = members.member_by_token(session, members.SURVEY, token=token)
-    session.commit()
-    return person
+    return _member(request, session, members.SURVEY, credentials, cookie)
 
 
 RespondentDep = Annotated[SurveyRespondent, Depends(require_respondent)]
 
 
 async def respondent_gate(request: Request) -> None:
-    """:func:`require_respondent`, on a request whose body is not read yet
-    (:mod:`app.http.credentials_first`): a query in a worker thread, once per screen."""
-    credentials = await _respondent_bearer(request)
-    cookie = request.cookies.get(members.SURVEY.cookie)
-    runtime: Runtime = request.app.state.runtime
+    """:func:`require_respondent` before the body is read."""
+    await _member_gate(request, _respondent_bearer, members.SURVEY, require_respondent)
 
-    def check() -> None:
-        with runtime.sessions() as session:
-            require_respondent(request, session, credentials, cookie)
 
-    await anyio.to_thread.run_sync(check)
+_evaluator_bearer = HTTPBearer(
+    auto_error=False,
+    scheme_name="EvaluatorInviteToken",
+    description="An agent evaluation's evaluator's invite token.",
+)
+EvaluatorCredentials = Annotated[HTTPAuthorizationCredentials | None, Depends(_evaluator_bearer)]
+EvaluatorCookie = Annotated[str | None, Cookie(alias=members.EVALUATION.cookie)]
+
+
+def require_evaluator(
+    request: Request,
+    session: SessionDep,
+    credentials: EvaluatorCredentials,
+    cookie: EvaluatorCookie = None,
+) -> Evaluator:
+    """The evaluator whose invite token is sent (bearer first, then the cookie), or 401."""
+    return _member(request, session, members.EVALUATION, credentials, cookie)
+
+
+EvaluatorDep = Annotated[Evaluator, Depends(require_evaluator)]
+
+
+async def evaluator_gate(request: Request) -> None:
+    """:func:`require_evaluator` before the body is read."""
+    await _member_gate(request, _evaluator_bearer, members.EVALUATION, require_evaluator)

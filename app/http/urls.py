@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from fastapi import Request
 
-from app.recruiting.members import STUDY
+from app.recruiting.members import STUDY, CollectionKind, MemberRow
 
 
 def image_url(study_id: int, candidate_id: int, size: str = "full", marker: bool = False) -> str:
@@ -17,5 +17,10 @@ def image_url(study_id: int, candidate_id: int, size: str = "full", marker: bool
 
 
 def invite_url(request: Request, token: str) -> str:
-    """The invite link under the base URL this request came in on."""
-    return str(request.base_url).rstrip("/") + STUDY.invite_path(token)
+    """The participant's invite link under the base URL this request came in on."""
+    return member_invite_url(request, STUDY, token)
+
+
+def member_invite_url(request: Request, kind: CollectionKind[MemberRow], token: str) -> str:
+    """A member's invite link of ``kind`` under the base URL this request came in on."""
+    return str(request.base_url).rstrip("/") + kind.invite_path(token)

@@ -16,6 +16,16 @@ from app.models.base import (
     status_check,
     utcnow,
 )
+from app.models.evaluations import (
+    EVALUATOR_KINDS,
+    STIMULUS_KINDS,
+    Evaluation,
+    EvaluationLink,
+    EvaluationPair,
+    EvaluationRun,
+    EvaluationStimulus,
+    Evaluator,
+)
 from app.models.logins import LoginFailure
 from app.models.people import (
     COLLECTION_KINDS,
@@ -71,6 +81,13 @@ __all__ = [
     "ConsistencyCheck",
     "CrowdSettings",
     "DisagreementPair",
+    "EVALUATOR_KINDS",
+    "Evaluation",
+    "EvaluationLink",
+    "EvaluationPair",
+    "EvaluationRun",
+    "EvaluationStimulus",
+    "Evaluator",
     "Experiment",
     "ExperimentRole",
     "ExperimentRun",
@@ -88,6 +105,7 @@ __all__ = [
     "RunMetric",
     "RunStatus",
     "SURVEY_ASSIGNMENTS",
+    "STIMULUS_KINDS",
     "SURVEY_EXCLUSIONS",
     "Study",
     "StudyStatus",

@@ -28,9 +28,10 @@ from sqlalchemy.orm import Mapped, mapped_column, validates
 
 from app.models.base import Base, utcnow
 
-#: What a member or an open link belongs to: a study (bracket labelling) or a survey.
-COLLECTION_KINDS = ("study", "survey")
-_KIND_CHECK = "collection_kind IN ('study', 'survey')"
+#: What a member or an open link belongs to: a study (bracket labelling), a survey, or an
+#: agent evaluation.
+COLLECTION_KINDS = ("study", "survey", "evaluation")
+_KIND_CHECK = "collection_kind IN ('study', 'survey', 'evaluation')"
 
 
 def token_digest(token: str) -> str:

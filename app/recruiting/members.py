@@ -1,7 +1,8 @@
 """Members of a collection, and the one lookup of their invite tokens.
 
 A *collection* is a study (bracket labelling; its members are participants, invited by
-``/p/<token>``) or a survey (tree reading; respondents, ``/r/<token>``). Both kinds of
+``/p/<token>``), a survey (tree reading; respondents, ``/r/<token>``) or an agent evaluation
+(evaluators, ``/v/<token>``). Both kinds of
 member are known only by an invite token, and :func:`resolve` is the one function that says
 whom a raw token names, for either kind. It makes every check that the two earlier lookups
 (``auth.participant_by_token`` and ``survey_respond.respondent_by_token``) made between them:
@@ -39,14 +40,23 @@ from sqlalchemy.orm import Session
 from app.core import auth
 from app.core.errors import AuthError
 from app.db import engine_of
-from app.models import Member, Participant, Study, Survey, SurveyRespondent, token_digest
+from app.models import (
+    Evaluation,
+    Evaluator,
+    Member,
+    Participant,
+    Study,
+    Survey,
+    SurveyRespondent,
+    token_digest,
+)
 
 #: What invite tokens look like (URL-safe base64); anything else is not looked up at all.
 TOKEN_SHAPE = re.compile(r"[A-Za-z0-9_-]{1,256}")
 #: Members remembered per process (see :func:`resolve`); past this the memory starts over.
 MAX_KNOWN = 100_000
 
-MemberRow = TypeVar("MemberRow", Participant, SurveyRespondent)
+MemberRow = TypeVar("MemberRow", Participant, SurveyRespondent, Evaluator)
 
 
 @dataclass(frozen=True)
@@ -56,7 +66,7 @@ class CollectionKind(Generic[MemberRow]):
     #: The collection's noun (``study``), its table's model, its members' model and noun
     #: (``participant``).
     noun: str
-    collection: type[Study] | type[Survey]
+    collection: type[Study] | type[Survey] | type[Evaluation]
     member: type[MemberRow]
     person: str
     #: Where an invite link points (this prefix and the token), and the cookie it sets.
@@ -98,6 +108,14 @@ SURVEY = CollectionKind(
     person="respondent",
     invite_prefix="/r/",
     cookie=auth.RESPONDENT_COOKIE,
+)
+EVALUATION = CollectionKind(
+    noun="evaluation",
+    collection=Evaluation,
+    member=Evaluator,
+    person="evaluator",
+    invite_prefix="/v/",
+    cookie=auth.EVALUATOR_COOKIE,
 )
 
 
@@ -206,7 +224,9 @@ def member_by_token(
 def is_member_token(db: Session | Connection, *, token: str) -> bool:
     """Whether ``token`` is some member's invite token, of any kind (a credential of another
     role, not a guess)."""
-    return _accepts(db, STUDY, token) or _accepts(db, SURVEY, token)
+    return (
+        _accepts(db, STUDY, token) or _accepts(db, SURVEY, token) or _accepts(db, EVALUATION, token)
+    )
 
 
 def _accepts(db: Session | Connection, kind: CollectionKind[MemberRow], token: str) -> bool:

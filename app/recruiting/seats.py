@@ -97,6 +97,20 @@ def timed_out(member: Member, now: datetime) -> bool:
     )
 
 
+def check_can_act(member: Member, now: datetime) -> None:
+    """Refuse a member who withdrew or ran out of time (the page's or API's early answer;
+    the write itself is guarded by :func:`within_time`).
+
+    Raises:
+        MemberEndedError: they withdrew, or their time is over.
+    """
+    noun = member.collection_kind
+    if member.withdrawn_at is not None:
+        raise MemberEndedError(f"you withdrew from this {noun}: it takes no more answers from you")
+    if timed_out(member, now):
+        raise MemberEndedError(f"your time for this {noun} is over: it takes no more answers")
+
+
 def within_time(now: Any) -> ColumnElement[bool]:
     """The condition a member who may still act meets: not withdrawn, not past their time
     (``now``: a datetime or a bound parameter)."""
@@ -106,17 +120,20 @@ def within_time(now: Any) -> ColumnElement[bool]:
     )
 
 
-def kept_in_data(*, include_excluded: bool, now: datetime) -> list[ColumnElement[bool]]:
+def kept_in_data(
+    *, include_excluded: bool, now: datetime, excluded: Any = Participant.excluded
+) -> list[ColumnElement[bool]]:
     """The conditions on a member whose answers go into trees, pooling, exports and the
     dataset: never one who withdrew; one excluded (by the researcher or the gate) or timed
-    out only with ``include_excluded``."""
+    out only with ``include_excluded``. ``excluded`` is the kind's exclusion column
+    (participants', or evaluators')."""
     always: list[ColumnElement[bool]] = [Member.withdrawn_at.is_(None)]
     if include_excluded:
         return always
     in_time = or_(
         Member.finished_at.is_not(None), Member.deadline_at.is_(None), Member.deadline_at > now
     )
-    return [*always, in_time, Participant.excluded.is_(False)]
+    return [*always, in_time, excluded.is_(False)]
 
 
 def outcome(

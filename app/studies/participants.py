@@ -10,7 +10,7 @@ from sqlalchemy.orm import Session
 
 from app.core.auth import new_token
 from app.core.errors import NotFoundError
-from app.core.limits import check_text
+from app.core.limits import MAX_BATCH, check_text
 from app.db import writing
 from app.models import Label, Match, Participant, Study
 from app.recruiting.members import STUDY
@@ -29,9 +29,6 @@ class ParticipantKey(Protocol):
 
     @property
     def study_id(self) -> int: ...
-
-
-MAX_BATCH = 500
 
 
 @dataclass(frozen=True)

@@ -19,7 +19,7 @@ from sqlalchemy import func, select, update
 from sqlalchemy.orm import Session
 
 from app.core.auth import new_token
-from app.core.limits import check_text
+from app.core.limits import MAX_BATCH, check_text
 from app.db import writing
 from app.models import (
     Survey,
@@ -33,7 +33,6 @@ from app.surveys.service import get_survey, questions_for, stimuli_of
 from engine.errors import InputError
 
 RESPONDENT_COOKIE = SURVEY.cookie
-MAX_BATCH = 500
 
 
 def invite_path(token: str) -> str:

@@ -32,6 +32,7 @@ from app.http.deps import AJAX_HEADER
 from app.models import Experiment, ExperimentRun
 from app.recruiting import members
 from app.webhooks.outbox import Owner, emit
+from tests.support.evaluations import bare_evaluation
 from tests.support.postgres import BACKENDS, empty_database
 from tests.support.runs import TINY, create_run, wait_run
 from tests.support.studies import Player
@@ -51,8 +52,10 @@ RULES: list[tuple[str, str, frozenset[str]]] = [
         r"/api/studies/\{study_id\}/candidates/\{candidate_id\}/image",
         frozenset({A, RESEARCHER}),
     ),  # S1's images: not for B, who is in S2
-    # Survey respondents' own routes: none of these four callers is a respondent.
+    # Survey respondents' and evaluators' own routes: none of these four callers is one (A
+    # and B hold a valid token of another kind, a participant's).
     ("*", r"/api/surveys/me(/.*)?|/survey|/r/\{token\}", frozenset()),
+    ("*", r"/api/evaluators/me(/.*)?|/evaluate(/.*)?|/v/\{token\}", frozenset()),
     ("*", r"/.*", frozenset({RESEARCHER})),  # deny by default
 ]
 #: Routes that take credentials rather than need them (CSRF and rate limits: see
@@ -191,6 +194,10 @@ def world(client: TestClient, study: dict[str, Any], make_study) -> dict[str, An
         "webhook_id": webhook["id"],
         "event_id": event["event_id"],
         "item_id": gold_item["id"],
+        "evaluation_id": bare_evaluation(client, run_id=run_id),
+        "key": "no-such-pair",
+        "side": "left",
+        "kind": "still",
     }
     return {
         "callers": callers,

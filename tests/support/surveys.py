@@ -11,6 +11,7 @@ from fastapi.testclient import TestClient
 
 from app.models import CheckpointArtefact, Run
 from tests.support.browser import ADMIN_TOKEN as SERVER_ADMIN_TOKEN
+from tests.support.evaluations import evaluator_headers
 from tests.support.labelling import label_bracket, wait_until_prepared
 from tests.support.studies import Member, Player
 from tests.support.web import ADMIN
@@ -126,7 +127,7 @@ def paper_answers(
 
 def scheme_headers(client: TestClient, study_id: int) -> dict[str, dict[str, str]]:
     """Headers per security scheme of the API: the researcher, a participant of the study,
-    and a respondent of a new survey over two of its finished participants."""
+    a respondent of a new survey over two of its finished participants, and an evaluator."""
     participant = client.post(f"/api/studies/{study_id}/participants", headers=ADMIN)
     human, other = finished(client, study_id, "a"), finished(client, study_id, "b")
     survey = client.post(
@@ -143,6 +144,7 @@ def scheme_headers(client: TestClient, study_id: int) -> dict[str, dict[str, str
         "AdminToken": ADMIN,
         "InviteToken": {"Authorization": f"Bearer {participant.json()['token']}"},
         "SurveyInviteToken": respondent.headers,
+        "EvaluatorInviteToken": evaluator_headers(client),
     }
 
 

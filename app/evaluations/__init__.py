@@ -1,0 +1,1 @@
+"""Agent evaluations (issue 41): people judge what trained agents do, head to head."""

@@ -1,0 +1,151 @@
+"""``/api/evaluators/me``: an evaluator's side of an agent evaluation, by their invite token.
+
+Blind by construction: a pair is named only by its opaque ``key``, its pictures are served
+under that key and a side (``left``/``right``), only to the evaluator it belongs to, with no
+ETag or Last-Modified (a shared file's validator would tell two pairs showing the same
+agent apart from the rest). No run id, slot, arm, seed or checkpoint is in any answer here.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Literal
+
+from fastapi import APIRouter, Response
+from fastapi import Path as PathParam
+from pydantic import BaseModel
+from sqlalchemy.orm import Session
+
+from app.core.errors import NotFoundError
+from app.evaluations import evaluators
+from app.evaluations import service as evaluations
+from app.evaluations.schemas import AnswerIn, PairOut
+from app.evaluations.stimuli import stimuli_dir
+from app.http.deps import SessionDep, SettingsDep
+from app.http.member_auth import EvaluatorDep
+from app.models import Evaluation, EvaluationPair, EvaluationStimulus, Evaluator, utcnow
+from app.recruiting import seats
+
+router = APIRouter(prefix="/evaluators/me", tags=["evaluators"])
+
+Side = Literal["left", "right"]
+Kind = Literal["still", "clip"]
+PairKey = Annotated[str, PathParam(min_length=1, max_length=32, pattern=r"^[A-Za-z0-9_-]+$")]
+MEDIA_TYPES = {"still": "image/jpeg", "clip": "image/webp"}
+#: The pictures of a pair never change: the browser may keep them, for this evaluator only.
+CACHE = "private, max-age=86400, immutable"
+
+
+class EvaluatorMeOut(BaseModel):
+    """What the evaluator is asked, and how far they are."""
+
+    question: str
+    instructions: str
+    done: int
+    total: int
+    finished: bool
+
+
+@router.get("")
+def me(person: EvaluatorDep, session: SessionDep) -> EvaluatorMeOut:
+    evaluation = evaluations.get_evaluation(session, evaluation_id=person.evaluation_id)
+    progress = evaluators.progress(session, evaluator_id=person.id)
+    return EvaluatorMeOut(
+        question=evaluation.question,
+        instructions=evaluation.instructions,
+        done=progress.done,
+        total=progress.total,
+        finished=progress.finished,
+    )
+
+
+@router.get(
+    "/pairs/next",
+    response_model=PairOut,
+    responses={204: {"description": "Every pair is answered."}},
+)
+def next_pair(person: EvaluatorDep, session: SessionDep) -> PairOut | Response:
+    """The first pair still to answer (204 once none is left)."""
+    seats.check_can_act(person, utcnow())
+    pair = evaluators.next_pair(session, evaluator_id=person.id)
+    if pair is None:
+        return Response(status_code=204)
+    return pair_out(session, person, pair)
+
+
+def pair_out(session: Session, person: Evaluator, pair: EvaluationPair) -> PairOut:
+    """A pair as the evaluator sees it: its key, its place, and its pictures' URLs."""
+    evaluation = evaluations.get_evaluation(session, evaluation_id=person.evaluation_id)
+    kind = shown_kind(evaluation)
+    total = evaluators.progress(session, evaluator_id=person.id).total
+    return PairOut(
+        key=pair.key,
+        position=pair.position,
+        total=total,
+        question=evaluation.question,
+        left=_side(pair.key, "left", kind),
+        right=_side(pair.key, "right", kind),
+    )
+
+
+def shown_kind(evaluation: Evaluation) -> Kind:
+    """Clips once a clip evaluation's clips are rendered; stills until then."""
+    return "clip" if evaluation.stimulus == "clip" and evaluation.clips_ready else "still"
+
+
+def _side(key: str, side: Side, kind: Kind) -> dict[str, str]:
+    base = f"/api/evaluators/me/pairs/{key}/{side}"
+    sides = {"still": f"{base}/still"}
+    if kind == "clip":
+        sides["clip"] = f"{base}/clip"
+    return sides
+
+
+@router.post("/pairs/{key}")
+def answer_pair(
+    key: PairKey, body: AnswerIn, person: EvaluatorDep, session: SessionDep
+) -> EvaluatorMeOut:
+    """Answer one pair: ``left``, ``right`` or ``tie`` (can't tell). Once; the same answer
+    again is accepted, another is a 409."""
+    seats.check_can_act(person, utcnow())
+    evaluation = evaluations.get_evaluation(session, evaluation_id=person.evaluation_id)
+    shown = evaluators.Shown(stimulus=body.stimulus or shown_kind(evaluation), reminder=False)
+    evaluators.answer(
+        session,
+        evaluator=person,
+        key=key,
+        choice=body.choice,
+        response_ms=body.response_ms,
+        shown=shown,
+    )
+    return me(person, session)
+
+
+@router.get(
+    "/pairs/{key}/{side}/{kind}",
+    response_class=Response,
+    responses={200: {"content": {"image/jpeg": {}, "image/webp": {}}}},
+)
+def pair_picture(
+    key: PairKey,
+    side: Side,
+    kind: Kind,
+    person: EvaluatorDep,
+    session: SessionDep,
+    settings: SettingsDep,
+) -> Response:
+    """One side of one of the evaluator's pairs: its still (JPEG) or clip (animated WebP)."""
+    pair = evaluators.pair_by_key(session, evaluator_id=person.id, key=key)
+    slot, window = (
+        (pair.a, pair.window_a) if (side == "left") == pair.a_left else (pair.b, pair.window_b)
+    )
+    stimulus = session.get(EvaluationStimulus, (person.evaluation_id, slot, window))
+    path = (
+        None
+        if stimulus is None
+        else (stimulus.clip_path if kind == "clip" else stimulus.still_path)
+    )
+    if path is None:
+        raise NotFoundError(f"no {kind} of this pair yet")
+    data = (stimuli_dir(settings.data_dir) / Path(path)).read_bytes()
+    return Response(data, media_type=MEDIA_TYPES[kind], headers={"Cache-Control": CACHE})

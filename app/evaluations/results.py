@@ -1,0 +1,132 @@
+"""An evaluation's answer (issue 41 §2): the kept evaluators' answers pooled per run pair,
+tested by :func:`engine.evaluation.stats.evaluate`, and its export.
+
+Kept: evaluators not withdrawn, not excluded, and within their time (the members' rule,
+:func:`app.recruiting.seats.kept_in_data`); an unanswered pair counts nowhere. The interval's
+bootstrap is seeded by the evaluation, so the same answers always read the same.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from sqlalchemy import select
+from sqlalchemy.orm import Session
+
+from app.evaluations import service
+from app.models import EvaluationPair, Evaluator, utcnow
+from app.recruiting import seats
+from engine.evaluation.outcome import EvaluationResult, evaluate
+from engine.evaluation.stats import Answers
+
+#: Columns of an evaluation's answers export, one row per answered pair. Slots, never runs:
+#: the export is the researcher's, but a slot's run is listed beside it (``runs``).
+EXPORT_COLUMNS = (
+    "evaluator_id",
+    "position",
+    "slot_a",
+    "slot_b",
+    "run_a",
+    "run_b",
+    "a_advised",
+    "b_advised",
+    "a_left",
+    "winner_slot",
+    "tie",
+    "chose_left",
+    "response_ms",
+    "stimulus",
+    "reminder",
+    "answered_at",
+)
+
+
+def kept_pairs(session: Session, *, evaluation_id: int) -> list[EvaluationPair]:
+    """The answered pairs of the evaluation's kept evaluators, by evaluator and position."""
+    kept = seats.kept_in_data(include_excluded=False, now=utcnow(), excluded=Evaluator.excluded)
+    query = (
+        select(EvaluationPair)
+        .join(Evaluator, Evaluator.id == EvaluationPair.evaluator_id)
+        .where(
+            Evaluator.evaluation_id == evaluation_id,
+            EvaluationPair.answered_at.is_not(None),
+            *kept,
+        )
+        .order_by(EvaluationPair.evaluator_id, EvaluationPair.position)
+    )
+    return list(session.scalars(query))
+
+
+def answers_of(pairs: list[EvaluationPair]) -> Answers:
+    """The engine's view of answered pairs: a tie counts 1/2 to each side."""
+    return Answers(
+        a=np.array([p.a for p in pairs], dtype=np.int64),
+        b=np.array([p.b for p in pairs], dtype=np.int64),
+        winner_is_a=np.array([_score(p) for p in pairs], dtype=np.float64),
+        chose_left=np.array([bool(p.chose_left) for p in pairs], dtype=bool),
+        evaluator=np.array([p.evaluator_id for p in pairs], dtype=np.int64),
+    )
+
+
+def _score(pair: EvaluationPair) -> float:
+    return 0.5 if pair.tie else float(pair.winner == pair.a)
+
+
+@dataclass(frozen=True)
+class EvaluationAnswer:
+    """The evaluation's result now, with what it rests on."""
+
+    result: EvaluationResult
+    advised: tuple[bool, ...]
+    run_ids: tuple[int, ...]
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            **self.result.to_json(),
+            "slots": [
+                {"slot": s, "run_id": r, "advised": a}
+                for s, (r, a) in enumerate(zip(self.run_ids, self.advised, strict=True))
+            ],
+        }
+
+
+def result(session: Session, *, evaluation_id: int) -> EvaluationAnswer:
+    """The evaluation's answer from its kept evaluators' answers so far."""
+    evaluation = service.get_evaluation(session, evaluation_id=evaluation_id)
+    slots = service.slots(session, evaluation_id=evaluation_id)
+    advised = np.array([s.advised for s in slots], dtype=bool)
+    answers = answers_of(kept_pairs(session, evaluation_id=evaluation_id))
+    rng = np.random.default_rng([evaluation.seed, 2])
+    found = evaluate(answers, advised, rng, evaluation.evaluator_kind)  # type: ignore[arg-type]
+    return EvaluationAnswer(found, tuple(advised.tolist()), tuple(s.run_id for s in slots))
+
+
+def export_rows(session: Session, *, evaluation_id: int) -> list[dict[str, Any]]:
+    """One row per kept answered pair, in :data:`EXPORT_COLUMNS`."""
+    slots = service.slots(session, evaluation_id=evaluation_id)
+    rows = []
+    for pair in kept_pairs(session, evaluation_id=evaluation_id):
+        a, b = slots[pair.a], slots[pair.b]
+        rows.append(
+            {
+                "evaluator_id": pair.evaluator_id,
+                "position": pair.position,
+                "slot_a": pair.a,
+                "slot_b": pair.b,
+                "run_a": a.run_id,
+                "run_b": b.run_id,
+                "a_advised": a.advised,
+                "b_advised": b.advised,
+                "a_left": pair.a_left,
+                "winner_slot": pair.winner,
+                "tie": pair.tie,
+                "chose_left": pair.chose_left,
+                "response_ms": pair.response_ms,
+                "stimulus": pair.stimulus,
+                "reminder": pair.reminder,
+                "answered_at": pair.answered_at,
+            }
+        )
+    return rows

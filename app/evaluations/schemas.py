@@ -1,0 +1,130 @@
+"""Bodies of the evaluation API (pydantic): strict integers, numbers and booleans."""
+
+from __future__ import annotations
+
+from typing import Annotated, Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from app.core.json_types import JsonFloat, JsonInt, UtcDatetime
+from app.core.limits import MAX_BATCH, MAX_NAME_CHARS
+from app.evaluations import service
+from app.models import StudyStatus
+
+_FORBID = ConfigDict(extra="forbid")
+RunId = Annotated[JsonInt, Field(ge=1, le=2**31 - 1)]
+RunIds = Annotated[
+    list[RunId],
+    Field(min_length=service.MIN_RUNS_PER_ARM, max_length=service.MAX_RUNS_PER_ARM),
+]
+
+
+class EvaluationDesign(BaseModel):
+    """Who answers, what they see, and what the design is sized for."""
+
+    model_config = _FORBID
+    evaluator_kind: Literal["advisor", "others"] = Field(
+        "others",
+        description="'advisor': the person whose tree trained the advised runs, asked which "
+        "agent is closer to what they asked for; 'others': people shown the study's "
+        "instructions, asked which agent follows them better.",
+    )
+    stimulus: Literal["still", "clip"] = Field(
+        "clip",
+        description="Clips of each agent moving, or stills (clips fall back to stills "
+        "until they are rendered).",
+    )
+    pairs_per_evaluator: JsonInt = Field(service.DEFAULT_PAIRS, ge=1, le=service.MAX_PAIRS)
+    target_win_rate: JsonFloat = Field(service.DEFAULT_TARGET, gt=0.5, lt=1)
+    name: str | None = Field(None, min_length=1, max_length=MAX_NAME_CHARS)
+
+    def spec(
+        self,
+        advised: list[int] | tuple[int, ...],
+        baseline: list[int] | tuple[int, ...],
+        experiment_id: int | None = None,
+    ) -> service.EvaluationSpec:
+        """The service's spec over these runs."""
+        return service.EvaluationSpec(
+            advised=tuple(advised),
+            baseline=tuple(baseline),
+            evaluator_kind=self.evaluator_kind,
+            stimulus=self.stimulus,
+            pairs_per_evaluator=self.pairs_per_evaluator,
+            target_win_rate=self.target_win_rate,
+            name=self.name,
+            experiment_id=experiment_id,
+        )
+
+
+class EvaluationCreate(EvaluationDesign):
+    """Any two groups of runs of one env, with the design."""
+
+    advised_run_ids: RunIds
+    baseline_run_ids: RunIds
+
+
+class EvaluationOut(BaseModel):
+    """An evaluation as the researcher sees it (never shown to evaluators)."""
+
+    model_config = ConfigDict(from_attributes=True)
+    id: int
+    name: str
+    env_id: str
+    experiment_id: int | None
+    evaluator_kind: str
+    question: str
+    advisor_id: int | None
+    show_bracket: bool
+    stimulus: str
+    pairs_per_evaluator: int
+    target_win_rate: float
+    status: StudyStatus
+    clips_ready: bool
+    error: str | None
+    created_at: UtcDatetime
+
+
+class EvaluatorsCreate(BaseModel):
+    """How many evaluators to invite."""
+
+    model_config = _FORBID
+    count: JsonInt = Field(1, ge=1, le=MAX_BATCH)
+    name: str | None = Field(None, min_length=1, max_length=MAX_NAME_CHARS)
+
+
+class EvaluatorOut(BaseModel):
+    """An evaluator, their invite link and progress."""
+
+    id: int
+    name: str | None
+    invite_url: str
+    done: int
+    total: int
+    finished: bool
+    withdrawn: bool
+    excluded: bool
+
+
+class PairOut(BaseModel):
+    """The evaluator's next pair: only its opaque key and where its pictures are."""
+
+    key: str
+    position: int
+    total: int
+    question: str
+    left: dict[str, Any]
+    right: dict[str, Any]
+
+
+class AnswerIn(BaseModel):
+    """An evaluator's answer to one pair."""
+
+    model_config = _FORBID
+    choice: Literal["left", "right", "tie"]
+    response_ms: JsonInt | None = Field(None, ge=0, le=86_400_000)
+    stimulus: Literal["still", "clip"] | None = Field(
+        None,
+        description="What the page showed (a reduced-motion page shows stills); "
+        "by default what the pair's pictures are now.",
+    )

@@ -1,0 +1,155 @@
+"""An evaluation's stimuli, rendered in the background (issue 41 §1, §3): each slot's run
+rolled out deterministically from its checkpoint (:mod:`engine.evaluation.stimuli`), its
+windows rendered as stills, and, for a clip evaluation, as clips afterwards.
+
+The evaluation is ``ready`` once the stills are stored: evaluators see stills until
+``clips_ready``. Files are named by content hash under the data dir's ``stimuli/`` folder
+and served only under a pair's opaque key (:mod:`app.evaluations.evaluator_api`).
+"""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+from sqlalchemy import delete, update
+from sqlalchemy.orm import Session, sessionmaker
+
+from app.db import writing
+from app.evaluations.service import slots
+from app.jobs.settings import run_dir
+from app.models import Evaluation, EvaluationRun, EvaluationStimulus, StudyStatus
+from engine.evaluation.clips import Stimulus
+from engine.evaluation.stimuli import (
+    StimulusOptions,
+    render_run_clips,
+    render_run_stimuli,
+)
+from engine.render import RenderService
+from engine.rl.checkpoint import find_checkpoint
+
+log = logging.getLogger(__name__)
+
+#: The stills-only options every evaluation renders first (its clips use the same windows).
+STILLS = StimulusOptions(clips=False)
+
+
+def stimuli_dir(data_dir: Path) -> Path:
+    """Where stimuli are stored (content-addressed, shared by evaluations)."""
+    return data_dir / "stimuli"
+
+
+def prepare_evaluation(
+    sessions: sessionmaker[Session],
+    *,
+    evaluation_id: int,
+    renderer: RenderService,
+    data_dir: Path,
+    runs_dir: Path,
+) -> None:
+    """Render a ``preparing`` evaluation's stills, mark it ``ready``, then render its clips
+    (a clip evaluation only) and mark them ready.
+
+    Never raises: a failure is stored on the evaluation (``failed``, ``error``) and logged;
+    clips that fail leave the evaluation on stills, with the error stored.
+    """
+    with sessions() as session:
+        evaluation = session.get(Evaluation, evaluation_id)
+        if evaluation is None or evaluation.status != StudyStatus.PREPARING:
+            return
+        env_id, wants_clips = evaluation.env_id, evaluation.stimulus == "clip"
+        found = slots(session, evaluation_id=evaluation_id)
+    out = stimuli_dir(data_dir)
+    try:
+        stills = {s.slot: _render(s, env_id, runs_dir, out, renderer, clips=False) for s in found}
+        with sessions() as session, writing(session):
+            _store(session, evaluation_id, stills)
+    except Exception as exc:  # any failure must end up on the evaluation, not in a log only
+        log.exception("preparing evaluation %d failed", evaluation_id)
+        _fail(sessions, evaluation_id, exc, status=StudyStatus.FAILED)
+        return
+    if wants_clips:
+        _add_clips(sessions, evaluation_id, found, env_id, runs_dir, out, renderer)
+
+
+def _render(
+    slot: EvaluationRun,
+    env_id: str,
+    runs_dir: Path,
+    out: Path,
+    renderer: RenderService,
+    *,
+    clips: bool,
+) -> list[Stimulus]:
+    checkpoint = find_checkpoint(run_dir(runs_dir, slot.run_id), slot.step)
+    render = render_run_clips if clips else render_run_stimuli
+    return render(checkpoint, env_id, STILLS, out, service=renderer)
+
+
+def _store(session: Session, evaluation_id: int, stills: dict[int, list[Stimulus]]) -> None:
+    """The stills' rows, then ``ready`` (unless another process got there first)."""
+    session.execute(
+        delete(EvaluationStimulus).where(EvaluationStimulus.evaluation_id == evaluation_id)
+    )
+    session.add_all(
+        EvaluationStimulus(
+            evaluation_id=evaluation_id, slot=slot, window=s.window, still_path=s.still
+        )
+        for slot, found in stills.items()
+        for s in found
+    )
+    session.execute(
+        update(Evaluation)
+        .where(Evaluation.id == evaluation_id, Evaluation.status == StudyStatus.PREPARING)
+        .values(status=StudyStatus.READY)
+    )
+
+
+def _add_clips(
+    sessions: sessionmaker[Session],
+    evaluation_id: int,
+    found: list[EvaluationRun],
+    env_id: str,
+    runs_dir: Path,
+    out: Path,
+    renderer: RenderService,
+) -> None:
+    """Render each slot's clips and store their paths; then ``clips_ready``."""
+    try:
+        for slot in found:
+            clips = _render(slot, env_id, runs_dir, out, renderer, clips=True)
+            with sessions() as session, writing(session):
+                for s in clips:
+                    session.execute(
+                        update(EvaluationStimulus)
+                        .where(
+                            EvaluationStimulus.evaluation_id == evaluation_id,
+                            EvaluationStimulus.slot == slot.slot,
+                            EvaluationStimulus.window == s.window,
+                        )
+                        .values(clip_path=s.clip)
+                    )
+        with sessions() as session, writing(session):
+            session.execute(
+                update(Evaluation).where(Evaluation.id == evaluation_id).values(clips_ready=True)
+            )
+    except Exception as exc:  # the evaluation stays on stills; the researcher sees why
+        log.exception("rendering the clips of evaluation %d failed", evaluation_id)
+        _fail(sessions, evaluation_id, exc, status=None)
+
+
+def _fail(
+    sessions: sessionmaker[Session],
+    evaluation_id: int,
+    exc: Exception,
+    *,
+    status: StudyStatus | None,
+) -> None:
+    error = f"{type(exc).__name__}: {exc}".splitlines()[0]
+    values: dict[str, object] = {"error": error}
+    where = [Evaluation.id == evaluation_id]
+    if status is not None:
+        values["status"] = status
+        where.append(Evaluation.status == StudyStatus.PREPARING)
+    with sessions() as session, writing(session):
+        session.execute(update(Evaluation).where(*where).values(values))
