@@ -10,6 +10,7 @@ from __future__ import annotations
 from fastapi import APIRouter
 
 from app.evaluations import api as evaluations_api
+from app.evaluations import crowd as evaluation_crowd
 from app.evaluations import evaluator_api
 from app.http import auth_pages, errors
 from app.labelling import api as participants_api
@@ -62,6 +63,7 @@ for _router in (
     webhooks_api.router,
     evaluations_api.router,
     evaluator_api.router,
+    evaluation_crowd.api_router,
 ):
     api_router.include_router(_router)
 
@@ -84,3 +86,4 @@ for _pages in (
     webhooks_pages,
 ):
     pages_router.include_router(_pages.router)
+pages_router.include_router(evaluation_crowd.pages_router)

@@ -13,11 +13,10 @@ from typing import Annotated, Literal
 
 from fastapi import APIRouter, Response
 from fastapi import Path as PathParam
-from pydantic import BaseModel
 from sqlalchemy.orm import Session
 
-from app.core.errors import NotFoundError
-from app.evaluations import evaluators
+from app.core.errors import ConflictError, NotFoundError
+from app.evaluations import crowd, evaluators
 from app.evaluations import service as evaluations
 from app.evaluations.schemas import AnswerIn, PairOut
 from app.evaluations.stimuli import stimuli_dir
@@ -25,6 +24,8 @@ from app.http.deps import SessionDep, SettingsDep
 from app.http.member_auth import EvaluatorDep
 from app.models import Evaluation, EvaluationPair, EvaluationStimulus, Evaluator, utcnow
 from app.recruiting import seats
+from app.recruiting import service as recruiting
+from app.recruiting.schemas import OutcomeOut, WithdrawIn
 
 router = APIRouter(prefix="/evaluators/me", tags=["evaluators"])
 
@@ -36,8 +37,9 @@ MEDIA_TYPES = {"still": "image/jpeg", "clip": "image/webp"}
 CACHE = "private, max-age=86400, immutable"
 
 
-class EvaluatorMeOut(BaseModel):
-    """What the evaluator is asked, and how far they are."""
+class EvaluatorMeOut(OutcomeOut):
+    """What the evaluator is asked, how far they are, and what became of them (with the open
+    link's code for it)."""
 
     question: str
     instructions: str
@@ -50,12 +52,38 @@ class EvaluatorMeOut(BaseModel):
 def me(person: EvaluatorDep, session: SessionDep) -> EvaluatorMeOut:
     evaluation = evaluations.get_evaluation(session, evaluation_id=person.evaluation_id)
     progress = evaluators.progress(session, evaluator_id=person.id)
+    session.refresh(person)
+    result, shown = recruiting.outcome(session, crowd.LINK, member=person)
     return EvaluatorMeOut(
         question=evaluation.question,
         instructions=evaluation.instructions,
         done=progress.done,
         total=progress.total,
         finished=progress.finished,
+        outcome=result.name,
+        code=shown.code if shown else None,
+        redirect_url=shown.redirect_url if shown else None,
+    )
+
+
+@router.post(
+    "/withdraw",
+    responses={410: {"description": "They withdrew before, or their time is over."}},
+)
+def withdraw(body: WithdrawIn, person: EvaluatorDep, session: SessionDep) -> OutcomeOut:
+    """Withdraw from the evaluation (``{"withdraw": true}``: it cannot be undone): the seat is
+    freed, and the answers are kept but left out of the result and the export. Returns the
+    open link's code for it."""
+    if person.finished_at is not None:
+        raise ConflictError("a finished evaluator cannot withdraw here; ask the researcher")
+    try:
+        shown = recruiting.withdraw(session, crowd.LINK, member=person)
+    except ConflictError as exc:
+        raise seats.MemberEndedError(exc.detail) from None
+    return OutcomeOut(
+        outcome="withdrawn",
+        code=shown.code if shown else None,
+        redirect_url=shown.redirect_url if shown else None,
     )
 
 

@@ -79,6 +79,14 @@ class EvaluationOut(BaseModel):
     stimulus: str
     pairs_per_evaluator: int
     target_win_rate: float
+    needed_evaluators: int | None = Field(
+        description="The fewest evaluators (of pairs_per_evaluator pairs each) that detect "
+        "target_win_rate at 80% power with these runs (simulated; null while preparing, or "
+        "when no number of evaluators does: runs, not answers, limit the design)."
+    )
+    design_power: float | None = Field(
+        description="The simulated power at needed_evaluators (at 100 evaluators when none)."
+    )
     status: StudyStatus
     clips_ready: bool
     error: str | None

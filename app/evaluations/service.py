@@ -41,9 +41,13 @@ QUESTIONS: dict[str, str] = {
     "advisor": "Which one is closer to what you asked for?",
     "others": "Which agent follows the instruction better?",
 }
-#: Pairs per evaluator, by default: :func:`engine.evaluation.power.answers_needed` sizes it.
+#: Pairs per evaluator, and the advised agents' win rate the design is sized for, by default.
+#: Power depends on the total of answers, not on how they are split (engine.evaluation.power:
+#: 20 pairs is one stretch of the round-robin, each of 10 runs shown 4 times). 0.80 is the
+#: smallest win rate 5 runs per arm detect at 80% power with round 1's run spread (about 10
+#: evaluators); 0.65 cannot be, by any number of answers (power levels off near 0.31).
 DEFAULT_PAIRS = 20
-DEFAULT_TARGET = 0.65
+DEFAULT_TARGET = 0.8
 #: Fewest runs per arm: a permutation test over fewer can never reject.
 MIN_RUNS_PER_ARM = 2
 MAX_RUNS_PER_ARM = 20

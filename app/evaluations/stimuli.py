@@ -12,6 +12,7 @@ from __future__ import annotations
 import logging
 from pathlib import Path
 
+import numpy as np
 from sqlalchemy import delete, update
 from sqlalchemy.orm import Session, sessionmaker
 
@@ -20,6 +21,8 @@ from app.evaluations.service import slots
 from app.jobs.settings import run_dir
 from app.models import Evaluation, EvaluationRun, EvaluationStimulus, StudyStatus
 from engine.evaluation.clips import Stimulus
+from engine.evaluation.power import AnswersNeeded, answers_needed
+from engine.evaluation.simulate import RUN_SD
 from engine.evaluation.stimuli import (
     StimulusOptions,
     render_run_clips,
@@ -61,9 +64,10 @@ def prepare_evaluation(
         found = slots(session, evaluation_id=evaluation_id)
     out = stimuli_dir(data_dir)
     try:
+        design = design_size(evaluation, found)
         stills = {s.slot: _render(s, env_id, runs_dir, out, renderer, clips=False) for s in found}
         with sessions() as session, writing(session):
-            _store(session, evaluation_id, stills)
+            _store(session, evaluation_id, stills, design)
     except Exception as exc:  # any failure must end up on the evaluation, not in a log only
         log.exception("preparing evaluation %d failed", evaluation_id)
         _fail(sessions, evaluation_id, exc, status=StudyStatus.FAILED)
@@ -86,8 +90,25 @@ def _render(
     return render(checkpoint, env_id, STILLS, out, service=renderer)
 
 
-def _store(session: Session, evaluation_id: int, stills: dict[int, list[Stimulus]]) -> None:
-    """The stills' rows, then ``ready`` (unless another process got there first)."""
+def design_size(evaluation: Evaluation, found: list[EvaluationRun]) -> AnswersNeeded:
+    """The evaluators the design needs for its target at 80% power: simulated with the
+    smaller arm's runs per arm (conservative), round 1's run spread, and seeded by the
+    evaluation, so it reads the same every time."""
+    k = min(sum(s.advised for s in found), sum(not s.advised for s in found))
+    rng = np.random.default_rng([evaluation.seed, 3])
+    return answers_needed(
+        evaluation.target_win_rate, k, RUN_SD, evaluation.pairs_per_evaluator, rng
+    )
+
+
+def _store(
+    session: Session,
+    evaluation_id: int,
+    stills: dict[int, list[Stimulus]],
+    design: AnswersNeeded,
+) -> None:
+    """The stills' rows and the design's size, then ``ready`` (unless another process got
+    there first)."""
     session.execute(
         delete(EvaluationStimulus).where(EvaluationStimulus.evaluation_id == evaluation_id)
     )
@@ -101,7 +122,11 @@ def _store(session: Session, evaluation_id: int, stills: dict[int, list[Stimulus
     session.execute(
         update(Evaluation)
         .where(Evaluation.id == evaluation_id, Evaluation.status == StudyStatus.PREPARING)
-        .values(status=StudyStatus.READY)
+        .values(
+            status=StudyStatus.READY,
+            needed_evaluators=design.evaluators,
+            design_power=design.power,
+        )
     )
 
 

@@ -22,14 +22,13 @@ from app.labelling.schemas import (
     LabelIn,
     MeOut,
     NextMatchOut,
-    OutcomeOut,
     PairOut,
     UndoOut,
-    WithdrawIn,
 )
 from app.models import Participant
 from app.recruiting import members
 from app.recruiting import service as recruiting
+from app.recruiting.schemas import OutcomeOut, WithdrawIn
 from app.recruiting.seats import MemberEndedError
 from app.runtime import Runtime
 from app.studies import crowd, gold, participants

@@ -5,11 +5,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Annotated
 
-from pydantic import BaseModel, ConfigDict, Field, StrictBool, field_validator
+from pydantic import BaseModel, ConfigDict, Field, StrictBool
 
 from app.core.json_types import JsonInt
 from app.labelling.service import MAX_RESPONSE_MS, BracketCell
-from app.recruiting.seats import OutcomeName
 from app.studies.schemas import ProgressOut
 
 
@@ -23,29 +22,6 @@ class MeOut(BaseModel):
     progress: ProgressOut
     finished: bool
     can_undo: bool
-
-
-class WithdrawIn(BaseModel):
-    """A participant's explicit choice to withdraw (it cannot be undone)."""
-
-    model_config = ConfigDict(extra="forbid")
-
-    withdraw: StrictBool = Field(description="Must be true: withdrawing is final.")
-
-    @field_validator("withdraw")
-    @classmethod
-    def _must_be_true(cls, value: bool) -> bool:
-        if not value:
-            raise ValueError("must be true to withdraw")
-        return value
-
-
-class OutcomeOut(BaseModel):
-    """What became of a participant, and the open link's code and way back for it."""
-
-    outcome: OutcomeName
-    code: str | None = Field(description="The code to give the platform (null: none).")
-    redirect_url: str | None = Field(description="Where to go back to the platform, if set.")
 
 
 class MatchSide(BaseModel):

@@ -75,6 +75,11 @@ class Evaluation(Base):
     pairs_per_evaluator: Mapped[int] = mapped_column(Integer)
     #: The advised agents' win rate the design is sized to detect (80% power).
     target_win_rate: Mapped[float] = mapped_column(Float)
+    #: The design's size for ``target_win_rate`` at 80% power, simulated when it is prepared
+    #: (:func:`engine.evaluation.power.answers_needed`): the fewest evaluators (``None``: no
+    #: number of them reaches it with these runs), and the power reached there.
+    needed_evaluators: Mapped[int | None] = mapped_column(Integer, default=None)
+    design_power: Mapped[float | None] = mapped_column(Float, default=None)
     seed: Mapped[int] = mapped_column(BigInteger)
     #: Evaluators made so far: each new one takes the next index of the pair sequence (the
     #: database increments it atomically).

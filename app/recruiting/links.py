@@ -28,6 +28,7 @@ from app.core.limits import check_text
 from app.db import writing
 from app.models import (
     CrowdSettings,
+    EvaluationLink,
     Member,
     OpenLink,
     SurveyCrowdSettings,
@@ -55,7 +56,7 @@ ALREADY_TOOK_PART = (
     "browser you started in, or open the link from your study platform again."
 )
 
-Link = TypeVar("Link", CrowdSettings, SurveyCrowdSettings)
+Link = TypeVar("Link", CrowdSettings, SurveyCrowdSettings, EvaluationLink)
 
 
 class LinkFullError(ConflictError):

@@ -25,7 +25,7 @@ from app.http.csrf import CsrfChecked, FormFields
 from app.http.deps import SessionDep
 from app.http.ratelimit import client_address
 from app.http.rendering import PageRoute, is_https, redirect, render
-from app.models import CrowdSettings, SurveyCrowdSettings
+from app.models import CrowdSettings, EvaluationLink, SurveyCrowdSettings
 from app.recruiting import seats
 from app.recruiting import service as recruiting
 from app.recruiting.kinds import Link, LinkKind
@@ -85,7 +85,7 @@ def message(
 def consent(
     request: Request,
     name: str,
-    link: CrowdSettings | SurveyCrowdSettings,
+    link: CrowdSettings | SurveyCrowdSettings | EvaluationLink,
     action: str,
     ids: dict[str, str],
     share_label: str | None = None,

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Annotated, TypeVar
 
-from pydantic import BaseModel, ConfigDict, Field, StrictBool
+from pydantic import BaseModel, ConfigDict, Field, StrictBool, field_validator
 
 from app.core.json_types import JsonInt
 from app.recruiting.links import (
@@ -14,6 +14,7 @@ from app.recruiting.links import (
     REDIRECT_URL_PATTERN,
     LinkOptions,
 )
+from app.recruiting.seats import OutcomeName
 
 Options = TypeVar("Options", bound=LinkOptions)
 ParamName = Annotated[str, Field(pattern=r"^[A-Za-z][A-Za-z0-9_]{0,63}$")]
@@ -77,3 +78,39 @@ class SurveyCrowdOut(OpenLinkIn):
     joined: int
     declines: int
     completed: int
+
+
+class EvaluationCrowdOut(OpenLinkIn):
+    """An evaluation's open link with its counts: evaluators who joined through it and
+    declined consents."""
+
+    model_config = ConfigDict(from_attributes=True)
+
+    evaluation_id: int
+    slug: str
+    url: str
+    joined: int
+    declines: int
+
+
+class WithdrawIn(BaseModel):
+    """A member's explicit choice to withdraw (it cannot be undone)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    withdraw: StrictBool = Field(description="Must be true: withdrawing is final.")
+
+    @field_validator("withdraw")
+    @classmethod
+    def _must_be_true(cls, value: bool) -> bool:
+        if not value:
+            raise ValueError("must be true to withdraw")
+        return value
+
+
+class OutcomeOut(BaseModel):
+    """What became of a member, and the open link's code and way back for it."""
+
+    outcome: OutcomeName
+    code: str | None = Field(description="The code to give the platform (null: none).")
+    redirect_url: str | None = Field(description="Where to go back to the platform, if set.")

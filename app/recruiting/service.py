@@ -57,7 +57,7 @@ def configure(
     """
     open_links.check_options(options)
     if options.time_limit_min is not None and not kind.timed:
-        raise InputError(f"time_limit_min is for a study's open link, not a {kind.members.noun}'s")
+        raise InputError(f"a {kind.members.noun}'s open link takes no time_limit_min")
     kind.check_collection(session, owner_id)
     return open_links.save(
         session,

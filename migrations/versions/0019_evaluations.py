@@ -68,6 +68,8 @@ def _create_evaluations() -> None:
         sa.Column("stimulus", sa.String(8), nullable=False),
         sa.Column("pairs_per_evaluator", sa.Integer(), nullable=False),
         sa.Column("target_win_rate", sa.Float(), nullable=False),
+        sa.Column("needed_evaluators", sa.Integer(), nullable=True),
+        sa.Column("design_power", sa.Float(), nullable=True),
         sa.Column("seed", sa.BigInteger(), nullable=False),
         sa.Column("evaluator_counter", sa.Integer(), nullable=False),
         sa.Column("status", sa.String(16), nullable=False),

@@ -43,7 +43,7 @@ EVERYONE = frozenset({ANON, A, B, RESEARCHER})
 #: (method or "*", path pattern, who may use it); first match wins.
 RULES: list[tuple[str, str, frozenset[str]]] = [
     ("GET", r"/|/login|/p/\{token\}|/healthz|/openapi\.json|/docs", EVERYONE),
-    ("*", r"/[sq]/\{slug\}", EVERYONE),  # open links: anyone (CSRF on the consent post)
+    ("*", r"/[sqe]/\{slug\}", EVERYONE),  # open links: anyone (CSRF on the consent post)
     ("*", r"/api/participants/me(/.*)?|/participate(/.*)?", frozenset({A, B})),
     ("*", r"/api/matches/\{match_id\}/label", frozenset({A})),  # A's match
     ("GET", r"/api/participants/\{participant_id\}/tree", frozenset({A, RESEARCHER})),
@@ -177,9 +177,11 @@ def world(client: TestClient, study: dict[str, Any], make_study) -> dict[str, An
     with client.app.state.runtime.sessions() as session, writing(session):
         emit(session, owner=Owner("study", study["id"]), type_="test", subject=None, data=dict)
     [event] = client.get(f"/api/webhooks/{webhook['id']}/events", headers=ADMIN).json()
+    evaluation_id = bare_evaluation(client, run_id=run_id)
     params = {
         "experiment_id": _experiment(client, study_id=study["id"], run_id=run_id),
         "survey_slug": survey_link["slug"],  # ``slug`` in /q/{slug}
+        "evaluation_slug": _evaluation_link(client, evaluation_id),  # and in /e/{slug}
         "study_id": study["id"],
         "candidate_id": 0,
         "participant_id": a.id,
@@ -194,7 +196,7 @@ def world(client: TestClient, study: dict[str, Any], make_study) -> dict[str, An
         "webhook_id": webhook["id"],
         "event_id": event["event_id"],
         "item_id": gold_item["id"],
-        "evaluation_id": bare_evaluation(client, run_id=run_id),
+        "evaluation_id": evaluation_id,
         "key": "no-such-pair",
         "side": "left",
         "kind": "still",
@@ -219,6 +221,18 @@ def _experiment(client: TestClient, *, study_id: int, run_id: int) -> int:
         return experiment.id
 
 
+def _evaluation_link(client: TestClient, evaluation_id: int) -> str:
+    """The open link of the world's evaluation, behind a consent page (its evaluation is
+    still preparing, so nobody can join it; the consent page and a decline work)."""
+    link = client.put(
+        f"/api/evaluations/{evaluation_id}/crowd",
+        headers=ADMIN,
+        json={"enabled": True, "max_participants": 100, "consent_text": "Agree?"},
+    )
+    assert link.status_code == 200, link.text
+    return link.json()["slug"]
+
+
 def _invite(client: TestClient, study_id: int) -> Player:
     body = client.post(f"/api/studies/{study_id}/participants", headers=ADMIN).json()
     return Player(client, body["id"], body["token"], body["invite_url"])
@@ -236,6 +250,8 @@ def _ask(
     params = dict(world["params"])
     if path.startswith("/q/"):  # a survey's open link
         params["slug"] = params["survey_slug"]
+    if path.startswith("/e/"):  # an evaluation's
+        params["slug"] = params["evaluation_slug"]
     url = path.format(**params) + QUERIES.get((method, path), "").format(**params)
     body = BODIES.get((method, path), world["label"] if "label" in path else None)
     headers = {} if cookies else dict(caller.headers)

@@ -62,6 +62,8 @@ def test_an_experiment_becomes_an_evaluation_with_stills_and_clips(client, evalu
     assert evaluation["clips_ready"] and evaluation["error"] is None
     assert evaluation["question"] == "Which agent follows the instruction better?"
     assert evaluation["evaluator_kind"] == "others"
+    # 2 runs per arm: the exact test cannot go below 1/3, so no number of evaluators detects
+    assert evaluation["needed_evaluators"] is None and evaluation["design_power"] == 0
 
 
 def test_an_evaluator_answers_blind_and_the_answer_reads_them(client, evaluation) -> None:
@@ -193,3 +195,51 @@ def _csv(client: TestClient, evaluation: dict[str, Any]) -> str:
     response = client.get(f"/api/evaluations/{evaluation['id']}/answers.csv", headers=ADMIN)
     assert response.status_code == 200, response.text
     return response.text
+
+
+def _join(client: TestClient, slug: str, pid: str) -> dict[str, str]:
+    """A visitor through the open link: the bearer header of the evaluator they became."""
+    visit = TestClient(client.app, follow_redirects=False)
+    response = visit.get(f"/e/{slug}", params={"PROLIFIC_PID": pid})
+    assert response.status_code in (302, 303) and response.headers["location"] == "/evaluate"
+    return {"Authorization": f"Bearer {response.cookies['acv_evaluator']}"}
+
+
+def test_the_open_link_admits_evaluators_with_codes_and_withdrawal(client, evaluation) -> None:
+    """An evaluator who joins through ``/e/<slug>`` and answers every pair gets the
+    completion code; one who withdraws gets the decline code, can answer no more, and their
+    answers are left out of the result and the export."""
+    link = client.put(
+        f"/api/evaluations/{evaluation['id']}/crowd",
+        headers=ADMIN,
+        json={
+            "enabled": True,
+            "max_participants": 10,
+            "completion_code": "DONE-1",
+            "decline_code": "LEFT-1",
+            "time_limit_min": 60,
+        },
+    )
+    assert link.status_code == 200 and link.json()["url"].endswith(f"/e/{link.json()['slug']}")
+    finisher = _join(client, link.json()["slug"], "p-finisher")
+    while (
+        pair := client.get("/api/evaluators/me/pairs/next", headers=finisher)
+    ).status_code == 200:
+        url = f"/api/evaluators/me/pairs/{pair.json()['key']}"
+        assert client.post(url, json={"choice": "right"}, headers=finisher).status_code == 200
+    me = client.get("/api/evaluators/me", headers=finisher).json()
+    assert (me["outcome"], me["code"]) == ("finished", "DONE-1")
+    before = _result(client, evaluation)["n_answers"]
+    leaver = _join(client, link.json()["slug"], "p-leaver")
+    key = client.get("/api/evaluators/me/pairs/next", headers=leaver).json()["key"]
+    url = f"/api/evaluators/me/pairs/{key}"
+    assert client.post(url, json={"choice": "left"}, headers=leaver).status_code == 200
+    assert _result(client, evaluation)["n_answers"] == before + 1
+    unanswered = client.get("/api/evaluators/me/pairs/next", headers=leaver).json()["key"]
+    left = client.post("/api/evaluators/me/withdraw", json={"withdraw": True}, headers=leaver)
+    assert left.status_code == 200 and left.json()["code"] == "LEFT-1"
+    assert _result(client, evaluation)["n_answers"] == before
+    assert client.get("/api/evaluators/me", headers=leaver).json()["outcome"] == "withdrawn"
+    late = f"/api/evaluators/me/pairs/{unanswered}"
+    assert client.post(late, json={"choice": "left"}, headers=leaver).status_code == 410
+    assert client.get("/api/evaluators/me/pairs/next", headers=leaver).status_code == 410
