@@ -28,19 +28,29 @@ def _connection(db: DB) -> Connection:
     return db.connection() if isinstance(db, Session) else db
 
 
-def owner(kind: LinkKind[Any, Any], owner_id: int) -> Owner:
-    """The study or survey ``owner_id`` of ``kind``, as webhooks name it."""
-    return Owner(kind.members.noun, owner_id)  # type: ignore[arg-type]  # "study" or "survey"
+#: The kinds of collection webhooks listen to (an agent evaluation has none).
+WEBHOOK_OWNERS = ("study", "survey")
+
+
+def owner(kind: LinkKind[Any, Any], owner_id: int) -> Owner | None:
+    """The study or survey ``owner_id`` of ``kind``, as webhooks name it; ``None`` for a kind
+    no webhook listens to."""
+    noun = kind.members.noun
+    if noun not in WEBHOOK_OWNERS:
+        return None
+    return Owner(noun, owner_id)  # type: ignore[arg-type]  # one of WEBHOOK_OWNERS
 
 
 def declined(db: DB, kind: LinkKind[Any, Any], *, owner_id: int) -> None:
     """A visitor declined consent (nothing about them is stored, so the event carries only
     the count of declines)."""
+    if (own := owner(kind, owner_id)) is None:
+        return
     conn = _connection(db)
     count = select(OpenLink.declines).where(kind.owner_is(owner_id))
     emit(
         conn,
-        owner=owner(kind, owner_id),
+        owner=own,
         type_=f"{kind.members.person}.declined",
         subject=None,
         data=lambda: {"declines": conn.scalar(count)},
@@ -64,7 +74,7 @@ def finished(
     Call it only when the member has just been marked finished, in that transaction.
     """
     conn, own = _connection(db), owner(kind, owner_id)
-    if not webhook_ids(conn, own):
+    if own is None or not webhook_ids(conn, own):
         return
     # The link's row before the webhooks' rows (emit's turn), in the order a decline takes them
     maximum = _locked_maximum(conn, kind, own)
@@ -84,9 +94,11 @@ def flagged(
 ) -> None:
     """``<person>.flagged`` by ``by`` (``finish``, ``gold_gate``), sent once per member and
     ``by`` whatever number of times it is written."""
+    if (own := owner(kind, owner_id)) is None:
+        return
     emit(
         _connection(db),
-        owner=owner(kind, owner_id),
+        owner=own,
         type_=f"{kind.members.person}.flagged",
         subject=f"{member_id}:{by}",
         data=lambda: {f"{kind.members.person}_id": member_id, "by": by} | data,

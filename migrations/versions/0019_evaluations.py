@@ -75,7 +75,6 @@ def _create_evaluations() -> None:
         sa.Column("status", sa.String(16), nullable=False),
         sa.Column("clips_ready", sa.Boolean(), nullable=False),
         sa.Column("error", sa.Text(), nullable=True),
-        sa.Column("webhook_count", sa.Integer(), nullable=False),
         sa.Column("created_at", sa.DateTime(timezone=True), nullable=False),
         sa.ForeignKeyConstraint(
             ["experiment_id"],

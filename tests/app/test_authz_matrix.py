@@ -222,8 +222,7 @@ def _experiment(client: TestClient, *, study_id: int, run_id: int) -> int:
 
 
 def _evaluation_link(client: TestClient, evaluation_id: int) -> str:
-    """The open link of the world's evaluation, behind a consent page (its evaluation is
-    still preparing, so nobody can join it; the consent page and a decline work)."""
+    """The open link of the world's evaluation, behind a consent page."""
     link = client.put(
         f"/api/evaluations/{evaluation_id}/crowd",
         headers=ADMIN,

@@ -13,7 +13,14 @@ from fastapi.testclient import TestClient
 from app.core.auth import new_token
 from app.evaluations.service import QUESTIONS
 from app.jobs.settings import JobSettings, run_dir
-from app.models import Evaluation, EvaluationRun, Evaluator, RunCheckpoint
+from app.models import (
+    Evaluation,
+    EvaluationRun,
+    EvaluationStimulus,
+    Evaluator,
+    RunCheckpoint,
+    StudyStatus,
+)
 from engine.rl.checkpoint import save_checkpoint
 from engine.rl.config import TrainConfig
 from engine.rl.networks import Agent
@@ -83,8 +90,9 @@ def wait_evaluation(
 
 
 def bare_evaluation(client: TestClient, *, run_id: int | None = None) -> int:
-    """An evaluation row that is still preparing (nothing renders), with four slots of
-    ``run_id`` when given: for tests that need an evaluation to name, not to answer."""
+    """An evaluation whose rows are written here (nothing renders): with ``run_id``, four
+    slots of that run, each with one window whose files do not exist, and ready; else still
+    preparing. For tests that need an evaluation to name or join, not to look at."""
     with client.app.state.runtime.sessions() as session, session.begin():
         evaluation = Evaluation(
             name="bare",
@@ -99,17 +107,26 @@ def bare_evaluation(client: TestClient, *, run_id: int | None = None) -> int:
             seed=0,
             evaluator_counter=0,
             clips_ready=False,
-            webhook_count=0,
         )
         session.add(evaluation)
         session.flush()
         if run_id is not None:
-            session.add_all(
-                EvaluationRun(
-                    evaluation_id=evaluation.id, slot=s, run_id=run_id, advised=s < 2, step=0
+            evaluation.status = StudyStatus.READY
+            for slot in range(4):
+                session.add(
+                    EvaluationRun(
+                        evaluation_id=evaluation.id,
+                        slot=slot,
+                        run_id=run_id,
+                        advised=slot < 2,
+                        step=0,
+                    )
                 )
-                for s in range(4)
-            )
+                session.add(
+                    EvaluationStimulus(
+                        evaluation_id=evaluation.id, slot=slot, window=0, still_path="none.jpg"
+                    )
+                )
         return evaluation.id
 
 
