@@ -14,6 +14,7 @@ from torch import nn
 from engine.rl.buffer import Rollout, gae
 from engine.rl.config import TrainConfig
 from engine.rl.networks import Agent
+from engine.rl.optim import flat_step, flat_zero_grad
 
 
 @dataclass(frozen=True)
@@ -103,8 +104,13 @@ def ppo_loss(
     pg_loss = clipped_surrogate(ratio, normalise(mb.advantages), cfg.clip_coef)
     values, true_values = agent.values(mb.obs)
     v_loss = value_loss(values, mb.values, mb.returns, cfg.clip_coef)
-    entropy = agent.actor.entropy()
-    loss = pg_loss - cfg.ent_coef * entropy + cfg.vf_coef * v_loss
+    if cfg.ent_coef:
+        entropy = agent.actor.entropy()
+        loss = pg_loss - cfg.ent_coef * entropy + cfg.vf_coef * v_loss
+    else:  # the same loss and gradients, bit for bit, without the term's graph
+        with torch.no_grad():
+            entropy = agent.actor.entropy()
+        loss = pg_loss + cfg.vf_coef * v_loss
     parts = {"policy_loss": pg_loss, "value_loss": v_loss, "entropy": entropy}
     if agent.z_net is not None:
         tv_loss = value_loss(true_values, mb.true_values, mb.true_returns, cfg.clip_coef)
@@ -129,18 +135,18 @@ def ppo_update(
     for _ in range(cfg.update_epochs):
         for mb in minibatches(batch, cfg.minibatch_size, rng):
             loss, parts = ppo_loss(agent, mb, cfg)
-            optimizer.zero_grad(set_to_none=False)  # keeps flat gradient views in place
+            flat_zero_grad(optimizer)  # keeps flat gradient views in place
             loss.backward()
             clip_grad_norm(params, cfg.max_grad_norm)
-            optimizer.step()
-            history.append(torch.stack(list(parts.values())).detach())
+            flat_step(optimizer)
+            history.append(torch.stack([p.detach() for p in parts.values()]))
     means = torch.stack(history).mean(0).tolist()
     return dict(zip(parts, means, strict=True)) | diagnostics(agent, batch, cfg)
 
 
-@torch.no_grad()
 def clip_grad_norm(params: list[torch.Tensor], max_norm: float) -> None:
-    """``nn.utils.clip_grad_norm_``, with a three-op fast path for one flat parameter."""
+    """``nn.utils.clip_grad_norm_``, with a three-op fast path for one flat parameter (on a
+    gradient, which needs no ``no_grad``: it records no graph)."""
     if len(params) != 1:
         nn.utils.clip_grad_norm_(params, max_norm, foreach=True)
         return
