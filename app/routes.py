@@ -10,8 +10,10 @@ from __future__ import annotations
 from fastapi import APIRouter
 
 from app.evaluations import api as evaluations_api
-from app.evaluations import crowd as evaluation_crowd
+from app.evaluations import crowd_api as evaluation_crowd_api
+from app.evaluations import crowd_pages as evaluation_link_pages
 from app.evaluations import evaluator_api
+from app.evaluations import pages as evaluation_pages
 from app.http import auth_pages, errors
 from app.labelling import api as participants_api
 from app.labelling import crowd_pages as study_link_pages
@@ -63,7 +65,7 @@ for _router in (
     webhooks_api.router,
     evaluations_api.router,
     evaluator_api.router,
-    evaluation_crowd.api_router,
+    evaluation_crowd_api.router,
 ):
     api_router.include_router(_router)
 
@@ -84,6 +86,7 @@ for _pages in (
     study_gold_pages,
     survey_link_pages,
     webhooks_pages,
+    evaluation_pages,
+    evaluation_link_pages,
 ):
     pages_router.include_router(_pages.router)
-pages_router.include_router(evaluation_crowd.pages_router)

@@ -1,7 +1,7 @@
 """Invite tokens stay out of the access log: ``/p/<token>`` is logged as ``/p/***`` (and a
-survey respondent's ``/r/<token>`` as ``/r/***``; the open links of a study ``/s/<slug>`` and
-of a survey ``/q/<slug>`` and their query strings, which carry crowd platforms' participant
-ids, as ``/s/***`` and ``/q/***``).
+survey respondent's ``/r/<token>`` and an evaluator's ``/v/<token>`` alike; the open links of
+a study ``/s/<slug>``, a survey ``/q/<slug>`` and an evaluation ``/e/<slug>`` and their query
+strings, which carry crowd platforms' participant ids, as ``/s/***``, ``/q/***``, ``/e/***``).
 
 An invite token is a participant's only credential, and access logs are kept and shared far
 more widely (journald, docker logs) than the database. uvicorn logs each request on the
@@ -14,7 +14,7 @@ import logging
 import re
 
 ACCESS_LOGGER = "uvicorn.access"
-_INVITE_PATH = re.compile(r"^/([pr])/[^/?#]+|^/([sq])/[^#]*")  # invite and open links
+_INVITE_PATH = re.compile(r"^/([prv])/[^/?#]+|^/([sqe])/[^#]*")  # invite and open links
 
 
 def mask_invite_tokens(path: str) -> str:

@@ -103,6 +103,7 @@ def test_every_form_post_needs_a_csrf_token(client, study) -> None:
     page = logged_in(client)
     ids = {"study_id": study["id"], "run_id": 2**31 - 1, "survey_id": 2**31 - 1, "slug": "no-link"}
     ids["webhook_id"] = ids["item_id"] = ids["participant_id"] = 2**31 - 1
+    ids["evaluation_id"] = ids["experiment_id"] = 2**31 - 1
     for path in routes:
         url = re.sub(r"\{(\w+)\}", lambda m: str(ids[m.group(1)]), path)
         for fields in ({}, {"csrf_token": "forged"}):

@@ -1,0 +1,298 @@
+"""Agent evaluation pages (issue 41): the evaluator's (invite link ``/v/<token>``, the
+instructions, one pair a page as a plain form, thank you) and the researcher's (an
+evaluation's status, design, evaluators and answer; creating one from an experiment).
+
+Blind: an evaluator's page shows a pair's opaque key and its pictures' URLs under it, never
+the evaluation's name (it may list run ids), a run id, slot, arm, seed or checkpoint. The HTML
+shows stills; ``static/js/evaluate.js`` plays the clips with a Pause/Play toggle each (WCAG
+2.2.2), or keeps the stills with a Play control under ``prefers-reduced-motion``.
+"""
+
+from __future__ import annotations
+
+import re
+import time
+from typing import Annotated, Any
+
+from fastapi import APIRouter, Depends, Request, Response
+from fastapi.responses import HTMLResponse, RedirectResponse
+from pydantic import ValidationError
+from sqlalchemy.orm import Session
+
+from app.core.errors import AuthError, ConflictError, NotFoundError, ServiceError
+from app.core.json_types import IntParam, from_form
+from app.core.limits import MAX_BATCH, MAX_NAME_CHARS
+from app.evaluations import crowd, evaluators, results
+from app.evaluations import service as evaluations
+from app.evaluations.api import evaluator_out
+from app.evaluations.evaluator_api import pair_out
+from app.evaluations.schemas import EvaluationDesign
+from app.http import cookies
+from app.http.csrf import CsrfChecked, FormFields
+from app.http.deps import DbId, RuntimeDep, SessionDep
+from app.http.guards import ResearcherPage, page_member
+from app.http.member_auth import EvaluatorCookie
+from app.http.rendering import PageRoute, RedirectTo, is_https, redirect, render
+from app.models import Evaluator
+from app.recruiting import members, seats
+from app.recruiting import service as recruiting
+from engine.errors import InputError
+
+router = APIRouter(route_class=PageRoute, include_in_schema=False)
+
+INSTRUCTIONS = "/evaluate"
+PAIR = "/evaluate/pair"
+THANKS = "/evaluate/thanks"
+ENDED = "/evaluate/ended"
+#: What an evaluator's pages are headed with (never the evaluation's name: it may name runs).
+HEADER = "Agent evaluation"
+ADVISOR_TEXT = (
+    "Earlier you chose between pictures of this body in a bracket. Some of the agents you "
+    "will see learned to move from your choices, others did not; you are not told which."
+)
+ENDED_TEXT = {
+    "withdrawn": ("You withdrew", "You withdrew from this evaluation: it takes no more answers."),
+    "timed_out": ("Your time is over", "The time for this evaluation ran out. Thank you!"),
+    "ended": ("This evaluation has ended for you", "It takes no more answers. Thank you!"),
+}
+#: How the tree verdict and this evaluation can differ, beside the answer.
+TREE_VS_ASKED = (
+    '"Followed your tree" (the verdict on the experiment page) asks whether the agents '
+    'learned the reward made from the tree\'s postures; "does what you asked" (this '
+    "evaluation) asks people who watch the agents, so an agent can follow the tree without "
+    "doing what was meant, and the two answers can differ."
+)
+CHOICES: dict[str, evaluators.Choice] = {"left": "left", "right": "right", "tie": "tie"}
+KEY = re.compile(r"[A-Za-z0-9_-]{1,32}")
+WHOLE = re.compile(r"[0-9]{1,15}")
+MAX_RESPONSE_MS = 86_400_000
+#: The creation form's fields with their defaults, and what each is called on the page.
+_PAIRS = str(evaluations.DEFAULT_PAIRS)
+FORM = {"evaluator_kind": "others", "stimulus": "clip", "pairs_per_evaluator": _PAIRS}
+LABELS = {
+    "evaluator_kind": "Who answers",
+    "stimulus": "What they see",
+    "pairs_per_evaluator": "Pairs per evaluator",
+}
+
+
+@router.get("/v/{token}")
+def invite_link(token: str, request: Request, session: SessionDep) -> RedirectResponse:
+    """Remember the evaluation's invitation in this browser, then the instructions."""
+    try:
+        members.member_by_token(session, members.EVALUATION, token=token)
+    except AuthError:
+        raise NotFoundError(
+            "This evaluation link is not valid. Check that you copied all of it, "
+            "or ask the researcher for a new one."
+        ) from None
+    response = redirect(INSTRUCTIONS)
+    cookies.set_member_cookie(response, members.EVALUATION, token=token, secure=is_https(request))
+    return response
+
+
+def page_evaluator(session: SessionDep, cookie: EvaluatorCookie = None) -> Evaluator:
+    """The evaluator whose invite cookie this browser holds (:func:`page_member`)."""
+    return page_member(
+        session,
+        members.EVALUATION,
+        cookie,
+        lost="This browser has no valid evaluation invitation: open your link (/v/...) again.",
+    )
+
+
+PageEvaluator = Annotated[Evaluator, Depends(page_evaluator)]
+
+
+def _outcome(session: Session, person: Evaluator) -> tuple[seats.Outcome, seats.Ending | None]:
+    """What became of the evaluator, and the open link's code and redirect for it."""
+    return recruiting.outcome(session, crowd.LINK, member=person)
+
+
+def _context(session: Session, person: Evaluator) -> dict[str, Any]:
+    """What every evaluator page shows; one who has ended goes to :data:`ENDED` instead."""
+    if _outcome(session, person)[0].ended:
+        raise RedirectTo(ENDED)
+    evaluation = evaluations.get_evaluation(session, evaluation_id=person.evaluation_id)
+    return {
+        "header_name": HEADER,
+        "kind": evaluation.evaluator_kind,
+        "question": evaluation.question,
+        "instructions": evaluation.instructions,
+        "progress": evaluators.progress(session, evaluator_id=person.id),
+    }
+
+
+def _message(
+    request: Request,
+    title: str,
+    text: str,
+    link: str | None = None,
+    ending: seats.Ending | None = None,
+) -> HTMLResponse:
+    """An evaluator's page with a message, the link on (``link``), an open link's code and
+    way back to the platform (``ending``, a :class:`seats.Ending`)."""
+    context = {"header_name": HEADER, "title": title, "text": text, "link": link, "ending": ending}
+    return render(request, "evaluate_message.html", context)
+
+
+@router.get(INSTRUCTIONS)
+def instructions(request: Request, session: SessionDep, person: PageEvaluator) -> Response:
+    """What the evaluator is asked, and a Start (or Continue) button."""
+    context = _context(session, person)
+    if context["progress"].finished:
+        raise RedirectTo(THANKS)
+    return render(request, "evaluate.html", context | {"advisor_text": ADVISOR_TEXT})
+
+
+@router.get(PAIR)
+def pair_page(request: Request, session: SessionDep, person: PageEvaluator) -> Response:
+    """The next pair still to answer, as a plain form; thank you once none is left."""
+    context = _context(session, person)
+    pair = evaluators.next_pair(session, evaluator_id=person.id)
+    if pair is None:
+        raise RedirectTo(THANKS)
+    shown = pair_out(session, person, pair)
+    context |= {"pair": shown, "shown_at": int(time.time() * 1000)}
+    return render(request, "evaluate_pair.html", context)
+
+
+@router.post(PAIR, dependencies=[CsrfChecked])
+def pair_answer(
+    request: Request, session: SessionDep, person: PageEvaluator, fields: FormFields
+) -> Response:
+    """Store the answer to the pair the form showed (what it showed: ``stimulus``), then
+    the next pair."""
+    key, choice = fields.get("key", ""), CHOICES.get(fields.get("choice", ""))
+    stimulus = fields.get("stimulus", "still")
+    if choice is None:
+        raise InputError("choose the left agent, the right agent, or Can't tell")
+    if stimulus not in ("still", "clip") or not KEY.fullmatch(key):
+        raise InputError("this form is not one of this site's pair pages: reload the page")
+    shown, took = evaluators.Shown(stimulus=stimulus, reminder=False), _response_ms(fields)
+    try:
+        evaluators.answer(
+            session, evaluator=person, key=key, choice=choice, response_ms=took, shown=shown
+        )
+    except seats.MemberEndedError:
+        return redirect(ENDED)
+    except ConflictError:
+        text = "You answered this pair before, with another choice; the first answer is kept."
+        response = _message(request, "Already answered", text, link=PAIR)
+        response.status_code = 409
+        return response
+    return redirect(PAIR)
+
+
+def _response_ms(fields: dict[str, str]) -> int | None:
+    """The time to answer: measured by the page's script, else from when the page was made."""
+    measured = fields.get("response_ms", "")
+    if WHOLE.fullmatch(measured):
+        found = int(measured)
+    elif WHOLE.fullmatch(shown_at := fields.get("shown_at", "")):
+        found = int(time.time() * 1000) - int(shown_at)
+    else:
+        return None
+    return found if 0 <= found <= MAX_RESPONSE_MS else None
+
+
+@router.get(THANKS)
+def thanks(request: Request, session: SessionDep, person: PageEvaluator) -> Response:
+    """Thank you, once every pair is answered."""
+    progress = _context(session, person)["progress"]
+    if not progress.finished:
+        raise RedirectTo(PAIR)
+    text = f"You answered all {progress.total} pairs. You can close this page."
+    ending = recruiting.completion(session, crowd.LINK, member=person)
+    return _message(request, "Thank you!", text, ending=ending)
+
+
+@router.get(ENDED)
+def ended(request: Request, session: SessionDep, person: PageEvaluator) -> Response:
+    """The last page of an evaluator who withdrew or ran out of time."""
+    result, shown = _outcome(session, person)
+    if not result.ended:  # back to where they are
+        progress = evaluators.progress(session, evaluator_id=person.id)
+        raise RedirectTo(THANKS if progress.finished else PAIR if progress.done else INSTRUCTIONS)
+    return _message(request, *ENDED_TEXT.get(result.name, ENDED_TEXT["ended"]), ending=shown)
+
+
+# --- the researcher's pages -----------------------------------------------------------------
+
+
+def experiment_section(session: Session, experiment_id: int) -> dict[str, Any]:
+    """The experiment page's evaluations section: its evaluations and the creation form."""
+    found = evaluations.list_evaluations(session, experiment_id=experiment_id)
+    return {"evaluations": found, "evaluation_values": FORM, "evaluation_error": None}
+
+
+@router.post("/experiments/{experiment_id}/evaluations", dependencies=[ResearcherPage, CsrfChecked])
+def create_evaluation(
+    experiment_id: DbId,
+    request: Request,
+    session: SessionDep,
+    runtime: RuntimeDep,
+    fields: FormFields,
+) -> Response:
+    """Create an evaluation of the experiment's advised against its baseline runs, then its
+    page; a bad design shows the form again with what is wrong."""
+    advised, baseline = evaluations.experiment_arms(session, experiment_id=experiment_id)
+    form = {name: fields.get(name, default) for name, default in FORM.items()}
+    try:
+        spec = _design(form).spec(advised, baseline, experiment_id=experiment_id)
+        evaluation = evaluations.create_evaluation(session, spec=spec)
+    except (InputError, ServiceError) as exc:  # a service error says its own status
+        context = {"experiment_id": experiment_id, "evaluation_values": form}
+        context["evaluation_error"] = getattr(exc, "detail", str(exc))
+        status = getattr(exc, "status_code", 422)
+        return render(request, "evaluation_new.html", context, status_code=status)
+    runtime.prepare_evaluation_later(evaluation.id)
+    return redirect(f"/evaluations/{evaluation.id}")
+
+
+def _design(form: dict[str, str]) -> EvaluationDesign:
+    """The form's design, or :class:`InputError` saying which field is wrong and why."""
+    try:
+        return from_form(EvaluationDesign, {name: value.strip() for name, value in form.items()})
+    except ValidationError as exc:
+        error = exc.errors()[0]
+        where = LABELS.get(str(error["loc"][0]), "The form")
+        raise InputError(f"{where}: {error['msg']}") from None
+
+
+@router.get("/evaluations/{evaluation_id}", dependencies=[ResearcherPage])
+def evaluation_page(
+    evaluation_id: DbId,
+    request: Request,
+    session: SessionDep,
+    invited: Annotated[int, IntParam(ge=0, le=MAX_BATCH)] = 0,
+) -> HTMLResponse:
+    """An evaluation: status, design, evaluators with their links, and the answer so far."""
+    evaluation = evaluations.get_evaluation(session, evaluation_id=evaluation_id)
+    people = evaluators.list_evaluators(session, evaluation_id=evaluation_id)
+    answer = results.result(session, evaluation_id=evaluation_id).to_json()
+    slots = evaluations.slots(session, evaluation_id=evaluation_id)
+    context = {
+        "evaluation": evaluation,
+        "evaluators": [evaluator_out(request, session, p) for p in people],
+        "result": answer,
+        "slots": list(zip(slots, answer["win_rates"], strict=True)),
+        "tree_vs_asked": TREE_VS_ASKED,
+        "invited": invited,
+        "max_batch": MAX_BATCH,
+        "max_name": MAX_NAME_CHARS,
+    }
+    return render(request, "evaluation.html", context)
+
+
+@router.post("/evaluations/{evaluation_id}/evaluators", dependencies=[ResearcherPage, CsrfChecked])
+def invite(evaluation_id: DbId, session: SessionDep, fields: FormFields) -> Response:
+    """Invite evaluators, then the evaluation's page with their links."""
+    count = fields.get("count", "1").strip() or "1"
+    if not WHOLE.fullmatch(count):
+        raise InputError(f"the number of evaluators must be a whole number in 1..{MAX_BATCH}")
+    name = fields.get("name", "").strip()[:MAX_NAME_CHARS] or None
+    people = evaluators.add_evaluators(
+        session, evaluation_id=evaluation_id, count=int(count), name=name
+    )
+    return redirect(f"/evaluations/{evaluation_id}?invited={len(people)}#evaluators")

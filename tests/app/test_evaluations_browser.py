@@ -1,0 +1,254 @@
+"""Agent evaluation in a real browser (issue 41 §1, §3), on a desktop and on a phone: the
+researcher creates an evaluation from the experiment page and invites an evaluator on its
+page; the evaluator labels every pair with the clips playing (by click, arrow key and
+"Can't tell"), pauses a clip (its picture is the still then), and is thanked; a second
+evaluator with reduced motion sees stills with a Play control, and without JavaScript sees
+stills, no toggle, and answers by the plain form. Blind: neither any page's DOM
+nor any request URL holds one of the evaluation's run ids (as a path segment or a query
+value), nor the words "advised" or "baseline". axe-core audits every state.
+
+The server's run worker is off: the runs never train, each advised and baseline run gets a
+real (untrained) checkpoint written into the server's data dir, as its executor would.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+from urllib.parse import parse_qsl, urlsplit
+
+import httpx
+import pytest
+from playwright.sync_api import Browser, Page, expect
+
+from app.db import make_engine, make_sessions
+from app.jobs.settings import run_dir
+from app.models import RunCheckpoint
+from app.settings import SQLITE_FILE
+from tests.support.a11y import assert_accessible
+from tests.support.browser import (
+    ADMIN_TOKEN,
+    DESKTOP,
+    PHONE,
+    fits_width,
+    new_page,
+    wait_until_still,
+)
+from tests.support.evaluations import EXPERIMENT, STEP, write_checkpoint
+from tests.support.labelling import wait_until_prepared
+from tests.support.server import acv_serve, clean_env
+
+pytestmark = pytest.mark.browser
+ADMIN = {"Authorization": f"Bearer {ADMIN_TOKEN}"}
+PAIRS = 4
+#: Clips render after the stills: minutes on a loaded 2-core machine.
+RENDER_MS = 400_000
+URL_ATTRS = re.compile(r'(?:src|href|action|data-still|data-clip)="([^"]*)"')
+#: The pair shown is ready: the script has run, and both pictures show what they should.
+PAIR_READY = """([prev, kind]) => { const f = document.getElementById('pair');
+  if (!f || f.dataset.ready !== 'true' || f.dataset.key === prev) return false;
+  return ['left', 'right'].every(s => { const i = document.getElementById('img-' + s);
+    return i.complete && i.naturalWidth > 0 && i.getAttribute('src') === i.dataset[kind]; }); }"""
+
+
+@pytest.fixture(scope="module")
+def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[str, Path]]:
+    """``acv serve`` without its run worker; yields ``(base URL, data dir)``."""
+    data_dir = tmp_path_factory.mktemp("acv-evaluation-data")
+    env = clean_env(ACV_DATA_DIR=str(data_dir), ACV_ADMIN_TOKEN=ADMIN_TOKEN, ACV_RUN_WORKER="false")
+    with acv_serve(env, data_dir / "server.log") as base:
+        yield base, data_dir
+
+
+@pytest.fixture(scope="module")
+def api(server: tuple[str, Path]) -> Iterator[httpx.Client]:
+    with httpx.Client(base_url=server[0], headers=ADMIN, timeout=60) as client:
+        yield client
+
+
+@pytest.fixture(scope="module")
+def experiment(server: tuple[str, Path], api: httpx.Client) -> dict[str, Any]:
+    """An experiment whose 2 advised and 2 baseline runs each saved a checkpoint."""
+    body = {"name": "Eval study", "env_id": "Hopper-v5", "n_candidates": 5, "seed": 4}
+    study = api.post("/api/studies", json=body | {"instructions": "Stand as tall as you can."})
+    wait_until_prepared(api, study.json()["id"])
+    made = api.post(
+        "/api/experiments",
+        json={"study_id": study.json()["id"], "teacher": "good", "seeds": 2, **EXPERIMENT},
+    )
+    assert made.status_code == 202, made.text
+    data_dir = server[1]
+    engine = make_engine(f"sqlite:///{data_dir / SQLITE_FILE}")
+    try:
+        with make_sessions(engine)() as session:
+            for run in made.json()["runs"]:
+                if run["role"] != "pilot":
+                    write_checkpoint(run_dir(data_dir / "runs", run["id"]), seed=run["id"])
+                    session.add(RunCheckpoint(run_id=run["id"], step=STEP))
+            session.commit()
+    finally:
+        engine.dispose()
+    return made.json()
+
+
+def settled(page: Page, what: str) -> None:
+    """axe-core on ``page`` once nothing on it animates; it fits the window's width."""
+    wait_until_still(page)
+    assert fits_width(page), f"{what}: wider than the window"
+    assert_accessible(page, what)
+
+
+class Blindness:
+    """What an evaluator's browser saw: every request URL and every page's DOM."""
+
+    def __init__(self, page: Page) -> None:
+        self.urls: list[str] = []
+        page.on("request", lambda request: self.urls.append(request.url))
+
+    def check(self, page: Page, run_ids: set[str]) -> None:
+        """No run id in a URL's path segments or query values; no arm's name anywhere."""
+        html = page.content()
+        for url in self.urls + URL_ATTRS.findall(html):
+            parts = urlsplit(url)
+            values = set(parts.path.split("/")) | {v for _, v in parse_qsl(parts.query)}
+            assert not values & run_ids, url
+        for text in (html.lower(), " ".join(self.urls).lower()):
+            assert "advised" not in text and "baseline" not in text
+
+
+def create_and_invite(page: Page, base: str, experiment_id: int, where: str) -> str:
+    """Create an evaluation with the experiment page's form, wait for its clips, invite two
+    evaluators; the evaluation page's URL."""
+    page.goto(f"{base}/login#token={ADMIN_TOKEN}")
+    page.wait_for_url(f"{base}/studies")
+    page.goto(f"{base}/experiments/{experiment_id}")
+    expect(page.locator("#evaluation-pairs")).to_have_value("20")
+    settled(page, f"experiment page with its evaluations section {where}")
+    page.select_option("#evaluation-stimulus", "clip")
+    page.fill("#evaluation-pairs", str(PAIRS))
+    page.click("#create-evaluation")
+    page.wait_for_url(re.compile(rf"{base}/evaluations/\d+$"))
+    url = page.url
+    # the page reloads itself as the stills, then the clips, are ready
+    expect(page.locator("#clips")).to_have_attribute("data-clips", "ready", timeout=RENDER_MS)
+    expect(page.locator("#evaluation-status")).to_have_text("ready")
+    settled(page, f"evaluation page, ready {where}")
+    page.fill("#count", "2")
+    page.click("#invite")
+    page.wait_for_url(f"{url}?invited=2#evaluators")
+    expect(page.locator("#evaluator-table tbody tr")).to_have_count(2)
+    return url
+
+
+def wait_pair(page: Page, previous: str | None, kind: str = "clip") -> str:
+    """Wait until a pair (other than ``previous``) shows ``kind`` on both sides; its key."""
+    page.wait_for_function(PAIR_READY, arg=[previous or "", kind])
+    key = page.get_attribute("#pair", "data-key")
+    assert key
+    return key
+
+
+@pytest.mark.parametrize("viewport", [DESKTOP, PHONE], ids=["desktop", "phone"])
+def test_an_evaluation_from_the_experiment_page_to_its_answer(
+    server, api: httpx.Client, experiment, browser: Browser, screens: Path, viewport
+) -> None:
+    base, _ = server
+    where = "on a phone" if viewport == PHONE else "on a desktop"
+    width = viewport["width"]
+    errors: list[str] = []
+    _, researcher = new_page(browser, errors, viewport=viewport)
+    evaluation_url = create_and_invite(researcher, base, experiment["id"], where)
+    evaluation_id = int(evaluation_url.rsplit("/", 1)[1])
+    links = researcher.locator("#evaluator-table td.invite input")
+    first, second = links.nth(0).input_value(), links.nth(1).input_value()
+    assert first.startswith(f"{base}/v/") and second.startswith(f"{base}/v/")
+    slots = api.get(f"/api/evaluations/{evaluation_id}/result").json()["slots"]
+    run_ids = {str(s["run_id"]) for s in slots}
+    name = api.get(f"/api/evaluations/{evaluation_id}").json()["name"]
+
+    # The evaluator: instructions, then every pair with the clips playing.
+    _, page = new_page(browser, errors, viewport=viewport)
+    seen = Blindness(page)
+    page.goto(first)
+    page.wait_for_url(f"{base}/evaluate")
+    expect(page.locator("#about")).to_have_text("Stand as tall as you can.")
+    expect(page.locator("#question")).to_have_text("Which agent follows the instruction better?")
+    settled(page, f"evaluator instructions {where}")
+    seen.check(page, run_ids)
+    page.click("#start")
+    key = wait_pair(page, None)
+    expect(page.locator("#motion-left")).to_have_text("Pause the left agent")
+    expect(page.locator("#motion-right")).to_be_visible()
+    settled(page, f"a pair with clips playing {where}")
+    page.screenshot(path=screens / f"evaluate-clips-{width}.png", full_page=True)
+    seen.check(page, run_ids)
+    assert name not in page.content()
+
+    # Pausing swaps the clip for its still; playing swaps it back.
+    page.click("#motion-left")
+    still = page.get_attribute("#img-left", "data-still")
+    expect(page.locator("#img-left")).to_have_attribute("src", still or "")
+    expect(page.locator("#motion-left")).to_have_text("Play the left agent")
+    expect(page.locator("#img-right")).to_have_attribute("src", re.compile(r"/clip$"))
+    settled(page, f"a pair with the left clip paused {where}")
+    page.screenshot(path=screens / f"evaluate-paused-{width}.png", full_page=True)
+    page.click("#motion-left")
+    expect(page.locator("#img-left")).to_have_attribute("src", re.compile(r"/clip$"))
+
+    # Labelling: a click, the arrow keys as on the bracket page, and "Can't tell" (T).
+    page.click("#pick-left")
+    key = wait_pair(page, key)
+    page.keyboard.press("ArrowRight")
+    key = wait_pair(page, key)
+    expect(page.locator("#done-count")).to_have_text(f"2 of {PAIRS} answered")
+    settled(page, f"a pair after several decisions {where}")
+    seen.check(page, run_ids)
+    page.keyboard.press("t")
+    wait_pair(page, key)
+    page.click("#tie")
+    page.wait_for_url(f"{base}/evaluate/thanks")
+    expect(page.locator("h1")).to_have_text("Thank you!")
+    settled(page, f"evaluator thank-you page {where}")
+    seen.check(page, run_ids)
+
+    # Reduced motion: stills, each with a Play control that starts its clip.
+    context, calm = new_page(browser, errors, viewport=viewport, reduced_motion="reduce")
+    calm_seen = Blindness(calm)
+    calm.goto(second)
+    calm.click("#start")
+    wait_pair(calm, None, kind="still")
+    expect(calm.locator("#motion-right")).to_have_text("Play the right agent")
+    settled(calm, f"a pair with reduced motion {where}")
+    calm.screenshot(path=screens / f"evaluate-reduced-{width}.png", full_page=True)
+    calm.click("#motion-right")
+    expect(calm.locator("#img-right")).to_have_attribute("src", re.compile(r"/clip$"))
+    expect(calm.locator("#motion-right")).to_have_text("Pause the right agent")
+    calm_seen.check(calm, run_ids)
+    context.close()
+
+    # Without JavaScript: stills and no toggle (a clip could not be paused); the form works.
+    context, plain = new_page(browser, errors, viewport=viewport, java_script_enabled=False)
+    plain.goto(second)
+    plain.click("#start")
+    expect(plain.locator("#motion-left")).to_be_hidden()
+    still = plain.get_attribute("#img-left", "data-still")
+    expect(plain.locator("#img-left")).to_have_attribute("src", still or "")
+    plain.click("#pick-left")
+    expect(plain.locator("#done-count")).to_have_text(f"1 of {PAIRS} answered")
+    context.close()
+
+    # The researcher reads the answer: 5 answers of two evaluators, the tree sentence.
+    found = api.get(f"/api/evaluations/{evaluation_id}/result").json()
+    researcher.goto(evaluation_url)
+    expect(researcher.locator("#counts")).to_have_text(f"{PAIRS + 1} · 2")
+    expect(researcher.locator("#outcome")).to_have_attribute("data-outcome", found["outcome"])
+    expect(researcher.locator("#tree-vs-asked")).to_contain_text("does what you asked")
+    expect(researcher.locator("#answers-csv")).to_be_visible()
+    settled(researcher, f"evaluation page with answers {where}")
+    researcher.screenshot(path=screens / f"evaluation-{width}.png", full_page=True)
+    rows = api.get(f"/api/evaluations/{evaluation_id}/answers.csv").text.splitlines()[1:]
+    assert len(rows) == PAIRS + 1, rows
+    assert sorted(row.count(",clip,") for row in rows) == [0] + [1] * PAIRS  # no-JS: a still
+    assert errors == []
