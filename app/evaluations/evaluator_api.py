@@ -15,7 +15,7 @@ from fastapi import APIRouter, Response
 from fastapi import Path as PathParam
 from sqlalchemy.orm import Session
 
-from app.core.errors import ConflictError, NotFoundError
+from app.core.errors import NotFoundError
 from app.evaluations import crowd, evaluators
 from app.evaluations import service as evaluations
 from app.evaluations.schemas import AnswerIn, PairOut
@@ -74,17 +74,7 @@ def withdraw(body: WithdrawIn, person: EvaluatorDep, session: SessionDep) -> Out
     """Withdraw from the evaluation (``{"withdraw": true}``: it cannot be undone): the seat is
     freed, and the answers are kept but left out of the result and the export. Returns the
     open link's code for it."""
-    if person.finished_at is not None:
-        raise ConflictError("a finished evaluator cannot withdraw here; ask the researcher")
-    try:
-        shown = recruiting.withdraw(session, crowd.LINK, member=person)
-    except ConflictError as exc:
-        raise seats.MemberEndedError(exc.detail) from None
-    return OutcomeOut(
-        outcome="withdrawn",
-        code=shown.code if shown else None,
-        redirect_url=shown.redirect_url if shown else None,
-    )
+    return OutcomeOut.withdrawn(recruiting.withdraw(session, crowd.LINK, member=person))
 
 
 @router.get(

@@ -31,6 +31,7 @@ from app.models import (
     utcnow,
 )
 from app.recruiting import seats
+from app.studies.participants import Progress
 from engine.errors import InputError
 from engine.evaluation.design import evaluator_pairs
 
@@ -116,18 +117,6 @@ def list_evaluators(session: Session, *, evaluation_id: int) -> list[Evaluator]:
     get_evaluation(session, evaluation_id=evaluation_id)
     query = select(Evaluator).where(Evaluator.evaluation_id == evaluation_id)
     return list(session.scalars(query.order_by(Evaluator.id)))
-
-
-@dataclass(frozen=True)
-class Progress:
-    """Pairs answered (``done``) out of the evaluator's pairs (``total``)."""
-
-    done: int
-    total: int
-
-    @property
-    def finished(self) -> bool:
-        return self.done >= self.total
 
 
 def progress(session: Session, *, evaluator_id: int) -> Progress:

@@ -8,7 +8,7 @@ from fastapi import APIRouter, Request, Response
 from fastapi.responses import JSONResponse
 from sqlalchemy.orm import Session
 
-from app.core.errors import ConflictError, ForbiddenError
+from app.core.errors import ForbiddenError
 from app.core.json_types import IntParam
 from app.http.deps import DbId, ResearcherDep, RuntimeDep, SessionDep, ViewerDep
 from app.http.member_auth import InviteTokenDep, ParticipantDep
@@ -29,7 +29,6 @@ from app.models import Participant
 from app.recruiting import members
 from app.recruiting import service as recruiting
 from app.recruiting.schemas import OutcomeOut, WithdrawIn
-from app.recruiting.seats import MemberEndedError
 from app.runtime import Runtime
 from app.studies import crowd, gold, participants
 from app.studies import service as studies
@@ -70,17 +69,7 @@ def withdraw(body: WithdrawIn, person: ParticipantDep, session: SessionDep) -> O
     freed, and the labels are kept but left out of trees, pooling, exports and the dataset.
     Returns the open link's code for it."""
     row = participants.get_participant(session, participant_id=person.id)
-    if row.finished_at is not None:
-        raise ConflictError("a finished participant cannot withdraw here; ask the researcher")
-    try:
-        shown = recruiting.withdraw(session, crowd.LINK, member=row)
-    except ConflictError as exc:
-        raise MemberEndedError(exc.detail) from None
-    return OutcomeOut(
-        outcome="withdrawn",
-        code=shown.code if shown else None,
-        redirect_url=shown.redirect_url if shown else None,
-    )
+    return OutcomeOut.withdrawn(recruiting.withdraw(session, crowd.LINK, member=row))
 
 
 @router.get(

@@ -14,7 +14,7 @@ from app.recruiting.links import (
     REDIRECT_URL_PATTERN,
     LinkOptions,
 )
-from app.recruiting.seats import OutcomeName
+from app.recruiting.seats import Ending, OutcomeName
 
 Options = TypeVar("Options", bound=LinkOptions)
 ParamName = Annotated[str, Field(pattern=r"^[A-Za-z][A-Za-z0-9_]{0,63}$")]
@@ -114,3 +114,12 @@ class OutcomeOut(BaseModel):
     outcome: OutcomeName
     code: str | None = Field(description="The code to give the platform (null: none).")
     redirect_url: str | None = Field(description="Where to go back to the platform, if set.")
+
+    @classmethod
+    def withdrawn(cls, shown: Ending | None) -> OutcomeOut:
+        """A member who just withdrew, with the code and redirect ``shown`` for it."""
+        return cls(
+            outcome="withdrawn",
+            code=shown.code if shown else None,
+            redirect_url=shown.redirect_url if shown else None,
+        )

@@ -202,11 +202,16 @@ def withdraw(
     their answers left out of everything; the code and redirect they are shown.
 
     Raises:
-        ConflictError: they finished, ran out of time, or withdrew before.
+        ConflictError: they finished (only the researcher can take their answers out).
+        MemberEndedError: they ran out of time, or withdrew before.
     """
+    if member.finished_at is not None:
+        raise ConflictError(
+            f"a finished {kind.members.person} cannot withdraw here; ask the researcher"
+        )
     link = settings(session, kind, member.collection_id)
     with writing(session):
         if not seats.withdraw(session, member, link, utcnow()):
-            raise ConflictError(f"this {kind.members.person} can no longer withdraw here")
+            raise seats.MemberEndedError(f"this {kind.members.person} can no longer withdraw here")
     session.refresh(member)
     return outcome(session, kind, member=member)[1]

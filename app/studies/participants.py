@@ -33,7 +33,8 @@ class ParticipantKey(Protocol):
 
 @dataclass(frozen=True)
 class Progress:
-    """Labels given (``done``) out of the bracket's matches (``total = N - 1``)."""
+    """Answers given (``done``) out of all a member is asked (``total``): a participant's
+    labels out of the bracket's ``N - 1`` matches, an evaluator's pairs."""
 
     done: int
     total: int
