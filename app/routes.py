@@ -12,7 +12,8 @@ from fastapi import APIRouter
 from app.evaluations import api as evaluations_api
 from app.evaluations import crowd_api as evaluation_crowd_api
 from app.evaluations import crowd_pages as evaluation_link_pages
-from app.evaluations import evaluator_api
+from app.evaluations import evaluator_api, link_pages, withdraw_pages
+from app.evaluations import export_api as evaluation_export_api
 from app.evaluations import pages as evaluation_pages
 from app.http import auth_pages, errors
 from app.labelling import api as participants_api
@@ -23,6 +24,7 @@ from app.runs import (
     advisors_api,
     agents_api,
     checkpoint_api,
+    clip_api,
     compare_pages,
     experiment_pages,
     experiments_api,
@@ -53,6 +55,7 @@ for _router in (
     matches_api.router,
     runs_api.router,
     checkpoint_api.router,
+    clip_api.router,
     advisors_api.router,
     agents_api.router,
     experiments_api.router,
@@ -66,6 +69,7 @@ for _router in (
     evaluations_api.router,
     evaluator_api.router,
     evaluation_crowd_api.router,
+    evaluation_export_api.router,
 ):
     api_router.include_router(_router)
 
@@ -88,5 +92,7 @@ for _pages in (
     webhooks_pages,
     evaluation_pages,
     evaluation_link_pages,
+    link_pages,
+    withdraw_pages,
 ):
     pages_router.include_router(_pages.router)

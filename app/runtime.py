@@ -77,7 +77,7 @@ class Runtime:
 
     def prepare_later(self, study_id: int) -> Future:
         """Queue a study's preparation on the background worker."""
-        return self._submit(self.prepare, study_id)
+        return self.submit(self.prepare, study_id)
 
     def prepare_evaluation(self, evaluation_id: int) -> None:
         """Render an evaluation's stills (then its clips) now, on this thread."""
@@ -91,9 +91,10 @@ class Runtime:
 
     def prepare_evaluation_later(self, evaluation_id: int) -> Future:
         """Queue an evaluation's stimuli on the background worker."""
-        return self._submit(self.prepare_evaluation, evaluation_id)
+        return self.submit(self.prepare_evaluation, evaluation_id)
 
-    def _submit(self, job: Callable[[int], None], key: int) -> Future:
+    def submit(self, job: Callable[[int], None], key: int) -> Future:
+        """Queue ``job(key)`` on the background worker (one thread: jobs run one at a time)."""
         with self._lock:
             if self._jobs is None:
                 self._jobs = ThreadPoolExecutor(max_workers=1, thread_name_prefix="acv-jobs")

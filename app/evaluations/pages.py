@@ -26,6 +26,7 @@ from app.evaluations import crowd, evaluators, results
 from app.evaluations import service as evaluations
 from app.evaluations.api import evaluator_out
 from app.evaluations.evaluator_api import pair_out
+from app.evaluations.link_pages import link_context
 from app.evaluations.schemas import EvaluationDesign
 from app.http import cookies
 from app.http.csrf import CsrfChecked, FormFields
@@ -55,13 +56,6 @@ ENDED_TEXT = {
     "timed_out": ("Your time is over", "The time for this evaluation ran out. Thank you!"),
     "ended": ("This evaluation has ended for you", "It takes no more answers. Thank you!"),
 }
-#: How the tree verdict and this evaluation can differ, beside the answer.
-TREE_VS_ASKED = (
-    '"Followed your tree" (the verdict on the experiment page) asks whether the agents '
-    'learned the reward made from the tree\'s postures; "does what you asked" (this '
-    "evaluation) asks people who watch the agents, so an agent can follow the tree without "
-    "doing what was meant, and the two answers can differ."
-)
 CHOICES: dict[str, evaluators.Choice] = {"left": "left", "right": "right", "tie": "tie"}
 KEY = re.compile(r"[A-Za-z0-9_-]{1,32}")
 WHOLE = re.compile(r"[0-9]{1,15}")
@@ -109,7 +103,7 @@ def _outcome(session: Session, person: Evaluator) -> tuple[seats.Outcome, seats.
     return recruiting.outcome(session, crowd.LINK, member=person)
 
 
-def _context(session: Session, person: Evaluator) -> dict[str, Any]:
+def context_of(session: Session, person: Evaluator) -> dict[str, Any]:
     """What every evaluator page shows; one who has ended goes to :data:`ENDED` instead."""
     if _outcome(session, person)[0].ended:
         raise RedirectTo(ENDED)
@@ -130,8 +124,7 @@ def _message(
     link: str | None = None,
     ending: seats.Ending | None = None,
 ) -> HTMLResponse:
-    """An evaluator's page with a message, the link on (``link``), an open link's code and
-    way back to the platform (``ending``, a :class:`seats.Ending`)."""
+    """An evaluator's page with a message, a ``link`` on, and an open link's ``ending``."""
     context = {"header_name": HEADER, "title": title, "text": text, "link": link, "ending": ending}
     return render(request, "evaluate_message.html", context)
 
@@ -139,7 +132,7 @@ def _message(
 @router.get(INSTRUCTIONS)
 def instructions(request: Request, session: SessionDep, person: PageEvaluator) -> Response:
     """What the evaluator is asked, and a Start (or Continue) button."""
-    context = _context(session, person)
+    context = context_of(session, person)
     if context["progress"].finished:
         raise RedirectTo(THANKS)
     return render(request, "evaluate.html", context | {"advisor_text": ADVISOR_TEXT})
@@ -148,7 +141,7 @@ def instructions(request: Request, session: SessionDep, person: PageEvaluator) -
 @router.get(PAIR)
 def pair_page(request: Request, session: SessionDep, person: PageEvaluator) -> Response:
     """The next pair still to answer, as a plain form; thank you once none is left."""
-    context = _context(session, person)
+    context = context_of(session, person)
     pair = evaluators.next_pair(session, evaluator_id=person.id)
     if pair is None:
         raise RedirectTo(THANKS)
@@ -199,7 +192,7 @@ def _response_ms(fields: dict[str, str]) -> int | None:
 @router.get(THANKS)
 def thanks(request: Request, session: SessionDep, person: PageEvaluator) -> Response:
     """Thank you, once every pair is answered."""
-    progress = _context(session, person)["progress"]
+    progress = context_of(session, person)["progress"]
     if not progress.finished:
         raise RedirectTo(PAIR)
     text = f"You answered all {progress.total} pairs. You can close this page."
@@ -267,7 +260,7 @@ def evaluation_page(
     session: SessionDep,
     invited: Annotated[int, IntParam(ge=0, le=MAX_BATCH)] = 0,
 ) -> HTMLResponse:
-    """An evaluation: status, design, evaluators with their links, and the answer so far."""
+    """An evaluation: status, design, open link, evaluators and their links, the answer."""
     evaluation = evaluations.get_evaluation(session, evaluation_id=evaluation_id)
     people = evaluators.list_evaluators(session, evaluation_id=evaluation_id)
     answer = results.result(session, evaluation_id=evaluation_id).to_json()
@@ -277,11 +270,12 @@ def evaluation_page(
         "evaluators": [evaluator_out(request, session, p) for p in people],
         "result": answer,
         "slots": list(zip(slots, answer["win_rates"], strict=True)),
-        "tree_vs_asked": TREE_VS_ASKED,
+        "tree_vs_asked": results.TREE_VS_ASKED,
         "invited": invited,
         "max_batch": MAX_BATCH,
         "max_name": MAX_NAME_CHARS,
     }
+    context |= link_context(request, session, evaluation_id)  # the open link and its form
     return render(request, "evaluation.html", context)
 
 

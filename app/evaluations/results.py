@@ -8,7 +8,10 @@ bootstrap is seeded by the evaluation, so the same answers always read the same.
 
 from __future__ import annotations
 
+import io
+import json
 from dataclasses import dataclass
+from datetime import datetime
 from typing import Any
 
 import numpy as np
@@ -16,11 +19,19 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from app.evaluations import service
-from app.models import EvaluationPair, Evaluator, utcnow
+from app.models import EvaluationPair, Evaluator, as_utc, utcnow
 from app.recruiting import seats
 from engine.evaluation.outcome import EvaluationResult, evaluate
 from engine.evaluation.stats import Answers
 
+#: How the tree verdict and an evaluation can differ, said beside the answer wherever both
+#: are shown.
+TREE_VS_ASKED = (
+    '"Followed your tree" (the verdict on the experiment page) asks whether the agents '
+    'learned the reward made from the tree\'s postures; "does what you asked" (this '
+    "evaluation) asks people who watch the agents, so an agent can follow the tree without "
+    "doing what was meant, and the two answers can differ."
+)
 #: Columns of an evaluation's answers export, one row per answered pair. Slots, never runs:
 #: the export is the researcher's, but a slot's run is listed beside it (``runs``).
 EXPORT_COLUMNS = (
@@ -130,3 +141,49 @@ def export_rows(session: Session, *, evaluation_id: int) -> list[dict[str, Any]]
             }
         )
     return rows
+
+
+def _json_value(value: Any) -> Any:
+    """A cell as JSON holds it: a time as ISO 8601 in UTC, anything else as it is."""
+    return as_utc(value).isoformat() if isinstance(value, datetime) else value
+
+
+def to_jsonl(rows: list[dict[str, Any]]) -> str:
+    """:func:`export_rows` as JSON Lines, one object a row in :data:`EXPORT_COLUMNS`'s order
+    (``answered_at`` as ISO 8601 in UTC)."""
+    return "".join(
+        json.dumps({c: _json_value(r.get(c)) for c in EXPORT_COLUMNS}) + "\n" for r in rows
+    )
+
+
+def to_parquet(rows: list[dict[str, Any]]) -> bytes:
+    """:func:`export_rows` as a Parquet file that ``datasets.load_dataset("parquet", ...)``
+    reads: flat typed columns in :data:`EXPORT_COLUMNS`'s order, the same schema when empty."""
+    import pyarrow as pa  # imported here: only this export needs it
+    import pyarrow.parquet as pq
+
+    types = {"stimulus": pa.string(), "answered_at": pa.timestamp("us", tz="UTC")}
+    for name in ("a_advised", "b_advised", "a_left", "tie", "chose_left", "reminder"):
+        types[name] = pa.bool_()
+    schema = pa.schema([(c, types.get(c, pa.int64())) for c in EXPORT_COLUMNS])
+    flat = [
+        {**r, "answered_at": None if r["answered_at"] is None else as_utc(r["answered_at"])}
+        for r in rows
+    ]
+    buffer = io.BytesIO()
+    pq.write_table(pa.Table.from_pylist(flat, schema=schema), buffer)
+    return buffer.getvalue()
+
+
+def notes_of_experiments(session: Session, experiment_ids: list[int]) -> dict[str, Any]:
+    """The agent evaluations of ``experiment_ids``, for pages that show them beside the tree
+    verdict: ``evaluations`` (each its id, experiment and answer's sentence, newest first per
+    experiment) and ``tree_vs_asked`` (:data:`TREE_VS_ASKED`)."""
+    found = []
+    for experiment_id in experiment_ids:
+        for evaluation in service.list_evaluations(session, experiment_id=experiment_id):
+            sentence = str(result(session, evaluation_id=evaluation.id).to_json()["sentence"])
+            found.append(
+                {"id": evaluation.id, "experiment_id": experiment_id, "sentence": sentence}
+            )
+    return {"evaluations": found, "tree_vs_asked": TREE_VS_ASKED}

@@ -30,7 +30,7 @@ from app.models import (
     StudyStatus,
 )
 from app.runs import experiments
-from app.runs.imported import IMPORTED
+from app.runs.imported import is_imported
 from engine.errors import InputError
 
 EvaluatorKind = Literal["advisor", "others"]
@@ -92,8 +92,8 @@ def create_evaluation(session: Session, *, spec: EvaluationSpec) -> Evaluation:
     Raises:
         InputError: a bad design or too few runs per arm.
         NotFoundError: a run that does not exist.
-        ConflictError: runs of different envs, without a checkpoint, imported, or an advisor
-            that is not one participant.
+        ConflictError: runs of different envs, without a checkpoint (an imported run's is
+            its policy), or an advisor that is not one participant.
     """
     _check_design(spec)
     runs = _runs(session, spec.advised + spec.baseline)
@@ -149,12 +149,7 @@ def _runs(session: Session, ids: tuple[int, ...]) -> list[Run]:
     found = {r.id: r for r in session.scalars(select(Run).where(Run.id.in_(ids)))}
     if missing := [i for i in ids if i not in found]:
         raise NotFoundError(f"no run {missing[0]}")
-    runs = [found[i] for i in ids]
-    if imported := [r.id for r in runs if IMPORTED in (r.config or {})]:
-        raise ConflictError(
-            f"run {imported[0]} is an imported policy: only runs trained by ACV are shown yet"
-        )
-    return runs
+    return [found[i] for i in ids]
 
 
 def _one_env(session: Session, runs: list[Run]) -> str:
@@ -166,13 +161,16 @@ def _one_env(session: Session, runs: list[Run]) -> str:
 
 
 def _latest_steps(session: Session, runs: list[Run]) -> dict[int, int]:
-    """Each run's latest saved checkpoint."""
+    """Each run's latest saved checkpoint. An imported run's one policy is stored when it is
+    uploaded, at its declared steps (where its judged checkpoint is recorded too), so it is
+    shown before it is judged."""
     rows = session.execute(
         select(RunCheckpoint.run_id, func.max(RunCheckpoint.step))
         .where(RunCheckpoint.run_id.in_([r.id for r in runs]))
         .group_by(RunCheckpoint.run_id)
     ).all()
     steps = {run_id: int(step) for run_id, step in rows}
+    steps |= {r.id: int(r.timesteps) for r in runs if is_imported(r) and r.id not in steps}
     if without := [r.id for r in runs if r.id not in steps]:
         raise ConflictError(f"run {without[0]} has saved no checkpoint yet")
     return steps

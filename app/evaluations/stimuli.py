@@ -1,6 +1,8 @@
 """An evaluation's stimuli, rendered in the background (issue 41 §1, §3): each slot's run
-rolled out deterministically from its checkpoint (:mod:`engine.evaluation.stimuli`), its
-windows rendered as stills, and, for a clip evaluation, as clips afterwards.
+rolled out deterministically from its checkpoint (:mod:`engine.evaluation.stimuli`), or, for
+a policy imported from elsewhere (issue 44), from its one stored ONNX policy in the judges'
+limited child process (:mod:`engine.evaluation.imported`); its windows rendered as stills,
+and, for a clip evaluation, as clips afterwards. One evaluation may mix both kinds of run.
 
 The evaluation is ``ready`` once the stills are stored: evaluators see stills until
 ``clips_ready``. Files are named by content hash under the data dir's ``stimuli/`` folder
@@ -11,6 +13,7 @@ from __future__ import annotations
 
 import logging
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from sqlalchemy import delete, update
@@ -19,8 +22,11 @@ from sqlalchemy.orm import Session, sessionmaker
 from app.db import writing
 from app.evaluations.service import slots
 from app.jobs.settings import run_dir
-from app.models import Evaluation, EvaluationRun, EvaluationStimulus, StudyStatus
+from app.models import Evaluation, EvaluationRun, EvaluationStimulus, Run, StudyStatus
+from app.runs.imported import imported_of
+from app.runs.imported_judge import children_allowed, load_policy
 from engine.evaluation.clips import Stimulus
+from engine.evaluation.imported import render_imported_clips, render_imported_stimuli
 from engine.evaluation.power import AnswersNeeded, answers_needed
 from engine.evaluation.simulate import RUN_SD
 from engine.evaluation.stimuli import (
@@ -62,10 +68,14 @@ def prepare_evaluation(
             return
         env_id, wants_clips = evaluation.env_id, evaluation.stimulus == "clip"
         found = slots(session, evaluation_id=evaluation_id)
+        policies = imported_policies(session, found)
     out = stimuli_dir(data_dir)
     try:
         design = design_size(evaluation, found)
-        stills = {s.slot: _render(s, env_id, runs_dir, out, renderer, clips=False) for s in found}
+        stills = {
+            s.slot: _render(s, policies, env_id, runs_dir, out, renderer, clips=False)
+            for s in found
+        }
         with sessions() as session, writing(session):
             _store(session, evaluation_id, stills, design)
     except Exception as exc:  # any failure must end up on the evaluation, not in a log only
@@ -73,11 +83,19 @@ def prepare_evaluation(
         _fail(sessions, evaluation_id, exc, status=StudyStatus.FAILED)
         return
     if wants_clips:
-        _add_clips(sessions, evaluation_id, found, env_id, runs_dir, out, renderer)
+        _add_clips(sessions, evaluation_id, found, policies, env_id, runs_dir, out, renderer)
+
+
+def imported_policies(session: Session, found: list[EvaluationRun]) -> dict[int, dict[str, Any]]:
+    """What each imported run of the slots is (its ``config["imported"]``), by run id; ACV's
+    own runs are left out."""
+    runs = (session.get(Run, s.run_id) for s in found)
+    return {run.id: info for run in runs if run is not None and (info := imported_of(run))}
 
 
 def _render(
     slot: EvaluationRun,
+    policies: dict[int, dict[str, Any]],
     env_id: str,
     runs_dir: Path,
     out: Path,
@@ -85,6 +103,14 @@ def _render(
     *,
     clips: bool,
 ) -> list[Stimulus]:
+    """A slot's stimuli: its checkpoint's, or its imported policy's (rolled out in a limited
+    child process, as the judges roll it out)."""
+    info = policies.get(slot.run_id)
+    if info is not None:
+        policy = load_policy(runs_dir, info)
+        render_policy = render_imported_clips if clips else render_imported_stimuli
+        with children_allowed():
+            return render_policy(policy, env_id, STILLS, out, service=renderer)
     checkpoint = find_checkpoint(run_dir(runs_dir, slot.run_id), slot.step)
     render = render_run_clips if clips else render_run_stimuli
     return render(checkpoint, env_id, STILLS, out, service=renderer)
@@ -134,6 +160,7 @@ def _add_clips(
     sessions: sessionmaker[Session],
     evaluation_id: int,
     found: list[EvaluationRun],
+    policies: dict[int, dict[str, Any]],
     env_id: str,
     runs_dir: Path,
     out: Path,
@@ -142,7 +169,7 @@ def _add_clips(
     """Render each slot's clips and store their paths; then ``clips_ready``."""
     try:
         for slot in found:
-            clips = _render(slot, env_id, runs_dir, out, renderer, clips=True)
+            clips = _render(slot, policies, env_id, runs_dir, out, renderer, clips=True)
             with sessions() as session, writing(session):
                 for s in clips:
                     session.execute(

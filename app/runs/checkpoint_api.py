@@ -20,11 +20,12 @@ from fastapi.responses import HTMLResponse
 from sqlalchemy.orm import Session
 
 from app.core.figures import FORMATS
+from app.evaluations import results as evaluation_results
 from app.http.deps import DbId, ResearcherDep, SessionDep, SettingsDep, StepParam
 from app.http.errors import RESPONSES
 from app.http.files import attachment
 from app.models import Run
-from app.runs import comparison
+from app.runs import comparison, experiments
 from app.runs import report as run_report
 from app.runs import service as runs
 from app.runs.compare_schemas import CheckpointReportOut, ConformanceOut, CurvePointOut, TreeJson
@@ -170,8 +171,17 @@ def report(at: AtCheckpointDep, settings: SettingsDep, download: bool = False) -
     study = studies.get_study(session, study_id=run.study_id)
     thumbs = run_report.thumb_paths(session, data_dir=settings.data_dir, study_id=run.study_id)
     step = comparison.pick_checkpoint(session, run_id=run_id, step=at.checkpoint)
+    shown = evaluation_results.notes_of_experiments(
+        session, experiments.experiments_of_run(session, run_id=run_id)
+    )
     html = run_report.report_html(
-        run, session=session, study_name=study.name, step=step, judge=at.judge, thumbs=thumbs
+        run,
+        session=session,
+        study_name=study.name,
+        step=step,
+        judge=at.judge,
+        thumbs=thumbs,
+        evaluations=shown,
     )
     headers = {"Content-Security-Policy": REPORT_CSP}
     if download:

@@ -13,6 +13,7 @@ from fastapi.responses import HTMLResponse
 from sqlalchemy.orm import Session
 
 from app.core.errors import PendingError
+from app.evaluations import results as evaluation_results
 from app.http.deps import DbId, SessionDep, StepParam
 from app.http.guards import ResearcherPage
 from app.http.rendering import PageRoute, render, thumb_template
@@ -96,13 +97,15 @@ def compare_runs_page(run_id: DbId, request: Request, session: SessionDep) -> HT
 
 
 def _run_context(session: Session, run: Run, shown: list[int], judge: str) -> dict[str, Any]:
-    """What both pages show of ``run``: it, its study, whose advice, and the experiment
-    verdicts on the runs ``shown`` by ``judge``."""
+    """What both pages show of ``run``: it, its study, whose advice, the experiment verdicts
+    on the runs ``shown`` by ``judge``, and beside them the experiments' agent evaluations."""
+    notes = experiment_notes.notes_of_runs(session, run_ids=shown, judge=judge)
     return {
         "run": RunOut.of(run),
         "study": studies.get_study(session, study_id=run.study_id),
         "whose": run_report.whose(run),
-        "experiment_notes": experiment_notes.notes_of_runs(session, run_ids=shown, judge=judge),
+        "experiment_notes": notes,
+        **evaluation_results.notes_of_experiments(session, [n.experiment_id for n in notes]),
     }
 
 

@@ -102,7 +102,13 @@ def tree_image(
 
 
 def report_context(
-    run: Run, *, session: Session, step: int, judge: str, thumbs: dict[int, Path]
+    run: Run,
+    *,
+    session: Session,
+    step: int,
+    judge: str,
+    thumbs: dict[int, Path],
+    evaluations: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """Everything ``compare_report.html`` shows; images inline, so the file stands alone.
 
@@ -122,6 +128,7 @@ def report_context(
         "metrics": metrics,
         "verdict": comparison.verdict(view, judge, whose(run)),
         "experiment_notes": notes_of_runs(session, run_ids=[run.id], judge=judge),
+        **(evaluations or {"evaluations": [], "tree_vs_asked": ""}),
         "who": who(run),
         "pairs": rejected_pairs(metrics),
         "judges": view.conformance,
@@ -144,9 +151,16 @@ def report_html(
     step: int,
     judge: str,
     thumbs: dict[int, Path],
+    evaluations: dict[str, Any] | None = None,
 ) -> str:
-    """The self-contained HTML report of a run at a checkpoint (no scripts, no links)."""
-    context = report_context(run, session=session, step=step, judge=judge, thumbs=thumbs)
+    """The self-contained HTML report of a run at a checkpoint (no scripts, no links);
+    ``evaluations``: the agent evaluations of its experiments, shown beside the tree verdict
+    (``evaluations`` and ``tree_vs_asked``, from
+    :func:`app.evaluations.results.notes_of_experiments`: a later feature, which the route
+    asks)."""
+    context = report_context(
+        run, session=session, step=step, judge=judge, thumbs=thumbs, evaluations=evaluations
+    )
     return _templates.get_template(REPORT_TEMPLATE).render(study_name=study_name, **context)
 
 

@@ -29,8 +29,9 @@ seed, arm or checkpoint name.
 from __future__ import annotations
 
 import hashlib
-import io
+from collections.abc import Callable
 from dataclasses import dataclass, replace
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -46,11 +47,11 @@ from engine.evaluation.clips import (
     step_dt,
     window_span,
 )
+from engine.evaluation.window_files import dump_windows, load_windows
 from engine.render import RenderService, RenderSpec
 from engine.render.cache import write_atomically
 from engine.render.views import DEFAULT_SIZE, DEFAULT_VIEW
 from engine.rl.judge_cache import file_digest
-from engine.rl.trained import deterministic_policy, load_agent
 
 #: Episode ``k`` of a run's stimuli resets with ``STIMULUS_SEED0 + k`` (see the module doc).
 STIMULUS_SEED0 = 2**31
@@ -135,7 +136,10 @@ class Episode:
 
 def rollout_states(checkpoint: Path, env_id: str, options: StimulusOptions) -> list[Episode]:
     """The checkpoint's deterministic episodes, one per window, reset from
-    :data:`STIMULUS_SEED0` on (no rendering)."""
+    :data:`STIMULUS_SEED0` on (no rendering). Loads torch here, not on import: an imported
+    policy's rollouts import this module in a child that must not load it."""
+    from engine.rl.trained import deterministic_policy, load_agent
+
     return policy_episodes(deterministic_policy(load_agent(checkpoint)), env_id, options)
 
 
@@ -184,12 +188,24 @@ def run_windows(
 ) -> list[Window]:
     """The run's windows, chosen once per checkpoint content and options and kept in
     ``out_dir/windows`` (so clips rendered after the stills roll nothing out again)."""
-    path = Path(out_dir) / "windows" / f"{_windows_key(checkpoint, env_id, options)}.npz"
+    rollouts = partial(rollout_states, checkpoint, env_id, options)
+    return cached_windows(file_digest(checkpoint), env_id, options, out_dir, rollouts)
+
+
+def cached_windows(
+    digest: str,
+    env_id: str,
+    options: StimulusOptions,
+    out_dir: Path,
+    episodes: Callable[[], list[Episode]],
+) -> list[Window]:
+    """The windows of the policy whose content hash is ``digest``: read from
+    ``out_dir/windows``, else chosen from ``episodes()`` and stored there."""
+    path = Path(out_dir) / "windows" / f"{_windows_key(digest, env_id, options)}.npz"
     if path.is_file():
-        return _load_windows(path)
-    episodes = rollout_states(checkpoint, env_id, options)
-    windows = choose_windows(episodes, options)
-    write_atomically(path, _dump_windows(windows))
+        return load_windows(path)
+    windows = choose_windows(episodes(), options)
+    write_atomically(path, dump_windows(windows))
     return windows
 
 
@@ -260,33 +276,12 @@ def render_candidate_clip(
     return render_windows(env_id, [window], options.spec, out_dir, clips=True, service=service)[0]
 
 
-def _windows_key(checkpoint: Path, env_id: str, options: StimulusOptions) -> str:
-    """What decides the windows: the checkpoint's bytes, the env and the rollout options."""
+def _windows_key(digest: str, env_id: str, options: StimulusOptions) -> str:
+    """What decides the windows: the policy's content hash, the env and the rollout options."""
     o = options
     text = (
-        f"acv-stimulus-windows/{WINDOWS_VERSION}|{file_digest(checkpoint)}|{env_id}|"
+        f"acv-stimulus-windows/{WINDOWS_VERSION}|{digest}|{env_id}|"
         f"{STIMULUS_SEED0}|{o.windows}|{o.clip_s!r}|{o.fps!r}|{o.burn_in_s!r}|{o.max_steps}|"
         f"{o.seed}"
     )
     return hashlib.blake2b(text.encode(), digest_size=20).hexdigest()
-
-
-def _dump_windows(windows: list[Window]) -> bytes:
-    meta = np.array([[len(w.qpos), w.still_frame, w.start] for w in windows], dtype=np.int64)
-    qpos, qvel = (
-        np.concatenate([w.qpos for w in windows]),
-        np.concatenate([w.qvel for w in windows]),
-    )
-    out = io.BytesIO()
-    np.savez(out, meta=meta, frame_ms=[w.frame_ms for w in windows], qpos=qpos, qvel=qvel)
-    return out.getvalue()
-
-
-def _load_windows(path: Path) -> list[Window]:
-    with np.load(path, allow_pickle=False) as data:
-        meta, frame_ms, qpos, qvel = (data[k] for k in ("meta", "frame_ms", "qpos", "qvel"))
-    ends = np.cumsum(meta[:, 0])
-    return [
-        Window(i, qpos[end - n : end], qvel[end - n : end], float(frame_ms[i]), int(f), int(t))
-        for i, ((n, f, t), end) in enumerate(zip(meta, ends, strict=True))
-    ]
