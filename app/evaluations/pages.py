@@ -19,7 +19,7 @@ from fastapi.responses import HTMLResponse, RedirectResponse
 from pydantic import ValidationError
 from sqlalchemy.orm import Session
 
-from app.core.errors import AuthError, ConflictError, NotFoundError, ServiceError
+from app.core.errors import ConflictError, ServiceError
 from app.core.json_types import IntParam, from_form
 from app.core.limits import MAX_BATCH, MAX_NAME_CHARS
 from app.evaluations import crowd, evaluators, results
@@ -28,12 +28,11 @@ from app.evaluations.api import evaluator_out
 from app.evaluations.evaluator_api import pair_out
 from app.evaluations.link_pages import link_context
 from app.evaluations.schemas import EvaluationDesign
-from app.http import cookies
 from app.http.csrf import CsrfChecked, FormFields
 from app.http.deps import DbId, RuntimeDep, SessionDep
-from app.http.guards import ResearcherPage, page_member
+from app.http.guards import ResearcherPage, enter_by_invite, page_member
 from app.http.member_auth import EvaluatorCookie
-from app.http.rendering import PageRoute, RedirectTo, is_https, redirect, render
+from app.http.rendering import PageRoute, RedirectTo, redirect, render
 from app.models import Evaluator
 from app.recruiting import members, seats
 from app.recruiting import service as recruiting
@@ -73,16 +72,14 @@ LABELS = {
 @router.get("/v/{token}")
 def invite_link(token: str, request: Request, session: SessionDep) -> RedirectResponse:
     """Remember the evaluation's invitation in this browser, then the instructions."""
-    try:
-        members.member_by_token(session, members.EVALUATION, token=token)
-    except AuthError:
-        raise NotFoundError(
-            "This evaluation link is not valid. Check that you copied all of it, "
-            "or ask the researcher for a new one."
-        ) from None
-    response = redirect(INSTRUCTIONS)
-    cookies.set_member_cookie(response, members.EVALUATION, token=token, secure=is_https(request))
-    return response
+    return enter_by_invite(
+        request,
+        session,
+        members.EVALUATION,
+        token,
+        link_name="evaluation",
+        next_path=lambda person: INSTRUCTIONS,
+    )
 
 
 def page_evaluator(session: SessionDep, cookie: EvaluatorCookie = None) -> Evaluator:

@@ -3,15 +3,18 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Annotated
 
 from fastapi import Cookie, Depends, Request
+from fastapi.responses import RedirectResponse
 from sqlalchemy.orm import Session
 
 from app.core import auth
-from app.core.errors import AuthError
+from app.core.errors import AuthError, NotFoundError
+from app.http import cookies
 from app.http.deps import ResearcherCookie, RuntimeDep, SessionDep
-from app.http.rendering import RedirectTo, login_url
+from app.http.rendering import RedirectTo, is_https, login_url, redirect
 from app.models import Participant
 from app.recruiting import members
 from app.recruiting.members import CollectionKind, MemberRow
@@ -44,6 +47,33 @@ def page_member(
         return members.member_by_token(session, kind, token=cookie)
     except AuthError:
         raise AuthError(lost) from None
+
+
+def enter_by_invite(
+    request: Request,
+    session: Session,
+    kind: CollectionKind[MemberRow],
+    token: str,
+    *,
+    link_name: str,
+    next_path: Callable[[MemberRow], str],
+) -> RedirectResponse:
+    """A member's invite link (``/p/``, ``/r/``, ``/v/``): remember the invitation in this
+    browser (the kind's cookie) and go on to ``next_path(member)``.
+
+    Raises:
+        NotFoundError: "This ``link_name`` link is not valid ..." for a token nobody holds.
+    """
+    try:
+        person = members.member_by_token(session, kind, token=token)
+    except AuthError:
+        raise NotFoundError(
+            f"This {link_name} link is not valid. Check that you copied all of it, "
+            "or ask the researcher for a new one."
+        ) from None
+    response = redirect(next_path(person))
+    cookies.set_member_cookie(response, kind, token=token, secure=is_https(request))
+    return response
 
 
 def page_participant(session: SessionDep, cookie: ParticipantCookie = None) -> Participant:

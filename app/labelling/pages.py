@@ -13,12 +13,10 @@ from fastapi import APIRouter, Request, Response
 from fastapi.responses import HTMLResponse, RedirectResponse
 from sqlalchemy.orm import Session
 
-from app.core.errors import AuthError, NotFoundError
-from app.http import cookies
 from app.http.csrf import CsrfChecked, FormFields
 from app.http.deps import SessionDep, SettingsDep
-from app.http.guards import PageParticipant
-from app.http.rendering import PageRoute, RedirectTo, is_https, redirect, render, thumb_template
+from app.http.guards import PageParticipant, enter_by_invite
+from app.http.rendering import PageRoute, RedirectTo, redirect, render, thumb_template
 from app.labelling import check as crowd_check
 from app.labelling import dataset, disagreement, practice
 from app.models import Participant
@@ -67,16 +65,14 @@ def where_next(progress: participants.Progress) -> str:
 @router.get("/p/{token}")
 def invite_link(token: str, request: Request, session: SessionDep) -> RedirectResponse:
     """Remember the invitation in this browser and continue where the participant left off."""
-    try:
-        person = members.member_by_token(session, members.STUDY, token=token)
-    except AuthError:
-        raise NotFoundError(
-            "This invite link is not valid. Check that you copied all of it, "
-            "or ask the researcher for a new one."
-        ) from None
-    response = redirect(where_next(participants.progress(session, participant=person)))
-    cookies.set_member_cookie(response, members.STUDY, token=token, secure=is_https(request))
-    return response
+    return enter_by_invite(
+        request,
+        session,
+        members.STUDY,
+        token,
+        link_name="invite",
+        next_path=lambda person: where_next(participants.progress(session, participant=person)),
+    )
 
 
 def _context(session: Session, person: Participant) -> dict[str, Any]:

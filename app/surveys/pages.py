@@ -14,12 +14,10 @@ from fastapi import APIRouter, Request
 from fastapi.responses import HTMLResponse, RedirectResponse
 from sqlalchemy.orm import Session
 
-from app.core.errors import AuthError, NotFoundError
-from app.http import cookies
 from app.http.deps import DbId, SessionDep, SettingsDep
-from app.http.guards import ResearcherPage, page_member
+from app.http.guards import ResearcherPage, enter_by_invite, page_member
 from app.http.member_auth import RespondentCookie
-from app.http.rendering import PageRoute, is_https, redirect, render
+from app.http.rendering import PageRoute, render
 from app.models import Survey, SurveyRespondent
 from app.recruiting import members
 from app.recruiting import service as recruiting
@@ -102,16 +100,9 @@ def survey_page(
 @router.get("/r/{token}")
 def survey_invite(token: str, request: Request, session: SessionDep) -> RedirectResponse:
     """Remember the survey invitation in this browser and continue where they left off."""
-    try:
-        members.member_by_token(session, members.SURVEY, token=token)
-    except AuthError:
-        raise NotFoundError(
-            "This survey link is not valid. Check that you copied all of it, "
-            "or ask the researcher for a new one."
-        ) from None
-    response = redirect(RESPOND)
-    cookies.set_member_cookie(response, members.SURVEY, token=token, secure=is_https(request))
-    return response
+    return enter_by_invite(
+        request, session, members.SURVEY, token, link_name="survey", next_path=lambda _: RESPOND
+    )
 
 
 def _respondent(session: Session, cookie: str | None) -> SurveyRespondent:
