@@ -188,6 +188,7 @@ def pair_out(study_id: int, pair: disagreement.PairView) -> PairOut:
 @router.post(
     "/me/gold/{item_id}/label",
     status_code=201,
+    response_model=GoldLabelOut,
     responses={
         200: {
             "description": "The same answer was already stored (idempotent).",
@@ -198,30 +199,40 @@ def pair_out(study_id: int, pair: disagreement.PairView) -> PairOut:
         422: {"description": "The winner is not one of the pair."},
     },
 )
-def label_gold(
-    item_id: DbId, body: LabelIn, person: ParticipantDep, session: SessionDep, response: Response
-) -> GoldLabelOut:
+async def label_gold(
+    item_id: DbId, body: LabelIn, token: InviteTokenDep, runtime: RuntimeDep
+) -> Response:
     """Store the participant's answer to a gold item shown before a match (issue 28 §1);
     the answer carries the match to decide now."""
-    row, created = gold.answer(
-        session,
-        participant_id=person.id,
-        item_id=item_id,
-        winner=body.winner,
-        response_ms=body.response_ms,
-    )
-    if created:
-        quality.apply_gate(session, study_id=person.study_id, participant_id=person.id)
-    else:
-        response.status_code = 200
-    upcoming = labelling.next_match(session, participant=person)
-    body_next = None if upcoming is None else next_match_body(person.study_id, upcoming)
-    return GoldLabelOut(
-        item_id=item_id,
-        winner=body.winner,
-        created=created,
-        next=None if body_next is None else NextMatchOut.model_validate(body_next),
-    )
+    # Hot path, as a label's (``matches_api.label_match``): one worker-thread hop with a
+    # connection of its own, the answer stored in one short transaction, and the JSON
+    # written without a validation layer (the schema is GoldLabelOut).
+    created, out = await runtime.run_hot(_label_gold, runtime, token, item_id, body)
+    return JSONResponse(out, status_code=201 if created else 200)
+
+
+def _label_gold(
+    runtime: Runtime, token: str | None, item_id: int, body: LabelIn
+) -> tuple[bool, dict[str, Any]]:
+    with runtime.engine.connect() as conn:
+        person = members.participant_ref(conn, token=token)
+        answered = gold.answer(
+            conn,
+            participant_id=person.id,
+            item_id=item_id,
+            winner=body.winner,
+            response_ms=body.response_ms,
+        )
+        upcoming = labelling.next_match(conn, participant=person, done=answered.done)
+    if answered.created:  # the gate reads their standing with this answer
+        quality.gate_after_answer(runtime.sessions, person, answered.standing, answered.gate)
+    out = {
+        "item_id": item_id,
+        "winner": body.winner,
+        "created": answered.created,
+        "next": None if upcoming is None else next_match_body(person.study_id, upcoming),
+    }
+    return answered.created, out
 
 
 @router.put("/{participant_id}/exclusion")

@@ -1,6 +1,8 @@
 """The gold gate's reading of one participant (issue 28 §2): their gold answers against the
-study's gate. :mod:`app.labelling.quality` applies it to a whole study, or to one participant
-after their gold answer at the cost of that participant's answers alone (issue 45 §7)."""
+study's gate. :mod:`app.labelling.quality` applies it to a whole study; after a gold answer,
+the participant's standing is read in the answer's own transaction (their earlier answers
+counted, plus this one: :func:`app.studies.gold.answer`) and the gate does more only when
+it flags them (:func:`app.labelling.quality.gate_after_answer`; issue 45 §7)."""
 
 from __future__ import annotations
 

@@ -10,6 +10,7 @@ agreement and of position bias, and counted per participant."""
 from __future__ import annotations
 
 import statistics
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -25,6 +26,7 @@ from app.recruiting import service as recruiting
 from app.studies import gold
 from app.studies.crowd import DEFAULT_SPEED_THRESHOLD_MS, LINK, CrowdOptions, configure
 from app.studies.gold import GoldScore
+from app.studies.participants import ParticipantKey
 from app.studies.service import get_study
 from app.webhooks.outbox import Owner, webhook_ids
 from engine import agreement
@@ -244,8 +246,9 @@ def apply_gate(session: Session, *, study_id: int, participant_id: int | None = 
     decided on (excluded, or included again: ``exclusion_reason`` set) is left as decided.
     Whom the gate flags gets a ``participant.flagged`` webhook event, in this transaction.
 
-    With ``participant_id`` (after that participant's gold answer), only their standing is
-    read: one participant's gold answers, whatever the study's size (issue 45 §7).
+    With ``participant_id`` (after a gold answer that the gate flags:
+    :func:`gate_after_answer`), only their standing is read: one participant's gold
+    answers, whatever the study's size (issue 45 §7).
     """
     settings = recruiting.settings(session, LINK, study_id)
     if settings is None or settings.gold_gate is None:
@@ -261,6 +264,21 @@ def apply_gate(session: Session, *, study_id: int, participant_id: int | None = 
         for s in flagged:  # participant.flagged, once per participant (issue 29 §3)
             _gate_event(session, study_id, s)
     return [s.participant.id for s in newly]
+
+
+def gate_after_answer(
+    sessions: Callable[[], Session],
+    person: ParticipantKey,
+    standing: GoldScore,
+    gate: float | None,
+) -> None:
+    """The gate after a participant's new gold answer, given their ``standing`` with it and
+    the study's ``gate`` (both read in the answer's transaction): only when the gate flags
+    them (rare) is there anything to do, :func:`apply_gate` to them in a session of its own;
+    otherwise no statement at all (issue 45 §7)."""
+    if below_gate(standing, gate):
+        with sessions() as session:
+            apply_gate(session, study_id=person.study_id, participant_id=person.id)
 
 
 def _standings(

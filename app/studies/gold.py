@@ -23,13 +23,34 @@ from dataclasses import dataclass
 from typing import Any, Literal, cast
 
 import numpy as np
-from sqlalchemy import Connection, CursorResult, bindparam, case, delete, func, select, update
-from sqlalchemy.orm import Session
+from sqlalchemy import (
+    BindParameter,
+    Connection,
+    CursorResult,
+    bindparam,
+    case,
+    delete,
+    func,
+    select,
+    update,
+)
+from sqlalchemy.orm import Session, aliased
 
 from app.core import atomic
 from app.core.errors import ConflictError, NotFoundError
 from app.db import writing
-from app.models import Candidate, GoldAnswer, GoldItem, Label, Participant, Study, as_utc, utcnow
+from app.models import (
+    Candidate,
+    CrowdSettings,
+    GoldAnswer,
+    GoldItem,
+    Label,
+    Member,
+    Participant,
+    Study,
+    as_utc,
+    utcnow,
+)
 from app.studies.service import get_ready_study, get_study
 from app.studies.sides import a_on_left
 from engine.errors import InputError
@@ -214,16 +235,103 @@ def stage_gold(session: Session, *, study: Study, people: Sequence[Participant])
         )
 
 
+PID: BindParameter[int] = bindparam("pid")
+#: The first statement of a gold answer's transaction: the participant's lock, the one a
+#: label takes first too (:mod:`app.labelling.flow`), so that one participant's answers are
+#: stored and counted one at a time. Unlike a label's, it refuses nobody (an answer is kept
+#: whatever the participant's time).
+_LOCK = (
+    update(Member)
+    .where(Member.id == PID, Member.collection_kind == "study")
+    .values(finished_at=Member.finished_at)
+)
+_answered, _answered_item = aliased(GoldAnswer), aliased(GoldItem)
+#: The participant's gold answers so far, and how many of them are right.
+_ASKED = (
+    select(func.count())
+    .select_from(_answered)
+    .where(_answered.participant_id == PID, _answered.winner.is_not(None))
+    .scalar_subquery()
+)
+_RIGHT = (
+    select(func.count())
+    .select_from(_answered)
+    .join(_answered_item, _answered_item.id == _answered.gold_item_id)
+    .where(_answered.participant_id == PID, _answered.winner == _answered_item.answer)
+    .scalar_subquery()
+)
+#: The study's gate (NULL: none, or no open link).
+_GATE = (
+    select(CrowdSettings.gold_gate)
+    .where(
+        CrowdSettings.collection_kind == "study",
+        CrowdSettings.collection_id == Participant.collection_id,
+    )
+    .scalar_subquery()
+)
+#: Everything a gold answer reads, in one ``SELECT`` after the lock: the participant's copy
+#: of the item, the item, when they were last active, how many bracket matches they have
+#: decided, their gold standing before this answer, and the study's gate.
+_ANSWER_ROW = (
+    select(
+        GoldAnswer.position,
+        GoldAnswer.winner,
+        GoldItem.a,
+        GoldItem.b,
+        GoldItem.answer,
+        Participant.last_active_at,
+        Participant.created_at,
+        select(func.count(Label.id)).where(Label.participant_id == PID).scalar_subquery(),
+        _ASKED,
+        _RIGHT,
+        _GATE,
+    )
+    .join(GoldItem, GoldItem.id == GoldAnswer.gold_item_id)
+    .join(Participant, Participant.id == GoldAnswer.participant_id)
+    .where(GoldAnswer.participant_id == PID, GoldAnswer.gold_item_id == bindparam("item"))
+)
+#: Store the answer, only if still open (answers are written once).
+_STORE = (
+    update(GoldAnswer)
+    .where(
+        GoldAnswer.participant_id == PID,
+        GoldAnswer.gold_item_id == bindparam("item"),
+        GoldAnswer.winner.is_(None),
+    )
+    .values(winner=bindparam("winner"), response_ms=bindparam("ms"), answered_at=bindparam("now"))
+)
+_STORED = select(GoldAnswer.winner).where(
+    GoldAnswer.participant_id == PID, GoldAnswer.gold_item_id == bindparam("item")
+)
+_TOUCH = update(Participant).where(Participant.id == PID).values(last_active_at=bindparam("now"))
+
+
+@dataclass(frozen=True)
+class GoldAnswered:
+    """A participant's answer to a gold item: whether it was ``created`` (sending the same
+    answer again is a no-op); ``done``, their decided bracket matches; ``standing``, their
+    gold answers with this one; ``gate``, the study's (None: no gate)."""
+
+    created: bool
+    done: int
+    standing: GoldScore
+    gate: float | None
+
+
 def answer(
-    session: Session,
+    conn: Connection,
     *,
     participant_id: int,
     item_id: int,
     winner: int,
     response_ms: int | None = None,
-) -> tuple[GoldAnswer, bool]:
-    """Store a participant's answer to their copy of gold item ``item_id``; returns the row
-    and whether it was new (sending the same answer again is a no-op).
+) -> GoldAnswered:
+    """Store a participant's answer to their copy of gold item ``item_id``, in one write
+    transaction of four statements (the participant's labelling hot path calls it): take
+    the participant's lock, read the item, their progress, their gold standing and the
+    study's gate in one ``SELECT``, store the answer and mark them active. Their standing
+    is the one read plus this answer: nobody else's answers, and no second read of theirs
+    (issue 45 §7).
 
     Raises:
         NotFoundError: the participant has no such gold item.
@@ -231,50 +339,50 @@ def answer(
         ConflictError: already answered the other way, or not due yet (fewer bracket
             matches decided than its position).
     """
-    row = session.get(GoldAnswer, (participant_id, item_id))
-    if row is None:
-        raise NotFoundError(f"gold item {item_id} is not one of this participant's")
-    item = session.get_one(GoldItem, item_id)
-    if winner not in (item.a, item.b):
-        raise InputError(f"winner must be {item.a} or {item.b}, got {winner}")
-    if row.winner is not None:
-        if row.winner != winner:
-            raise ConflictError(f"gold item {item_id} is already answered")
-        return row, False
-    done = session.scalar(
-        select(func.count(Label.id)).where(Label.participant_id == participant_id)
-    )
-    # shown only once that many matches are decided: no answering ahead
-    if row.position > (done or 0):
-        raise ConflictError(
-            f"gold item {item_id} is not due yet: it comes after {row.position} decided "
-            f"matches, and {done} are decided"
-        )
-    now, participant = utcnow(), session.get_one(Participant, participant_id)
-    if response_ms is None:
-        opened = participant.last_active_at or participant.created_at
-        response_ms = max(0, round((now - as_utc(opened)).total_seconds() * 1000))
-    with writing(session):
-        # only if still open: of two answers sent at once, one is stored and the other sees it
-        result = cast(
-            CursorResult[Any],
-            session.execute(
-                update(GoldAnswer)
-                .where(
-                    GoldAnswer.participant_id == participant_id,
-                    GoldAnswer.gold_item_id == item_id,
-                    GoldAnswer.winner.is_(None),
-                )
-                .values(winner=winner, response_ms=response_ms, answered_at=now)
-                .execution_options(synchronize_session=False)
-            ),
-        )
-        stored = result.rowcount
-        participant.last_active_at = now
-    session.refresh(row)
-    if not stored and row.winner != winner:
+    params = {"pid": participant_id, "item": item_id}
+    with writing(conn):
+        conn.execute(_LOCK, params)
+        row = conn.execute(_ANSWER_ROW, params).one_or_none()
+        if row is None:
+            raise NotFoundError(f"gold item {item_id} is not one of this participant's")
+        position, stored, a, b, right_answer, last_active, created, done, asked, right, gate = row
+        if winner not in (a, b):
+            raise InputError(f"winner must be {a} or {b}, got {winner}")
+        standing = GoldScore(int(right), int(asked))
+        if stored is not None:
+            return _same_answer(item_id, winner, stored, done, standing, gate)
+        # shown only once that many matches are decided: no answering ahead
+        if position > done:
+            raise ConflictError(
+                f"gold item {item_id} is not due yet: it comes after {position} decided "
+                f"matches, and {done} are decided"
+            )
+        now = utcnow()
+        if response_ms is None:
+            opened = last_active or created
+            response_ms = max(0, round((now - as_utc(opened)).total_seconds() * 1000))
+        values = params | {"winner": winner, "ms": response_ms, "now": now}
+        if not cast(CursorResult[Any], conn.execute(_STORE, values)).rowcount:
+            # answered meanwhile (the lock makes this unlikely): the same answer or a conflict
+            return _same_answer(
+                item_id, winner, conn.execute(_STORED, params).scalar(), done, standing, gate
+            )
+        conn.execute(_TOUCH, {"pid": participant_id, "now": now})
+    after = GoldScore(standing.right + int(winner == right_answer), standing.asked + 1)
+    return GoldAnswered(True, done, after, gate)
+
+
+def _same_answer(
+    item_id: int,
+    winner: int,
+    stored: int | None,
+    done: int,
+    standing: GoldScore,
+    gate: float | None,
+) -> GoldAnswered:
+    if stored != winner:
         raise ConflictError(f"gold item {item_id} is already answered")
-    return row, bool(stored)
+    return GoldAnswered(False, done, standing, gate)
 
 
 def scores(
