@@ -152,6 +152,10 @@ def disagreement_pairs(person: ParticipantDep, session: SessionDep) -> list[Pair
     status_code=201,
     responses={
         200: {"description": "The same answer was already stored (idempotent).", "model": PairOut},
+        410: {
+            "description": "The participant withdrew, ran out of time, or was stopped by the "
+            "gold gate: the study takes no more answers from them."
+        },
         404: {"description": "No such pair for this participant (or the bracket is unfinished)."},
         409: {"description": "The pair is already answered the other way."},
         422: {"description": "The winner is not one of the pair."},
@@ -197,6 +201,10 @@ def pair_out(study_id: int, pair: disagreement.PairView) -> PairOut:
         404: {"description": "No such gold item for this participant."},
         409: {"description": "The item is already answered the other way, or not due yet."},
         422: {"description": "The winner is not one of the pair."},
+        410: {
+            "description": "The participant withdrew, ran out of time, or was stopped by the "
+            "gold gate: the study takes no more answers from them."
+        },
     },
 )
 async def label_gold(

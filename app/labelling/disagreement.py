@@ -26,6 +26,7 @@ from app.db import writing
 from app.labelling.flow import MAX_RESPONSE_MS
 from app.labelling.trees import participant_tree
 from app.models import Candidate, DisagreementPair, Study, as_utc, utcnow
+from app.recruiting import seats
 from app.studies.participants import ParticipantKey, progress
 from app.studies.sides import a_on_left
 from engine.disagreement import disagreement_pairs
@@ -82,11 +83,13 @@ def answer(
         NotFoundError: the participant has no such pair (none yet: bracket unfinished).
         InputError: ``winner`` is not one of the pair, or ``response_ms`` is out of range.
         ConflictError: the pair is already answered the other way.
+        MemberEndedError: they withdrew, or their time is over.
     """
     if response_ms is not None and not 0 <= response_ms <= MAX_RESPONSE_MS:
         raise InputError(f"response_ms must be in 0..{MAX_RESPONSE_MS}, got {response_ms}")
     total = len(pairs(session, participant=participant))
     with writing(session):
+        seats.lock_in_time(session, participant.id, utcnow())
         row = session.get(
             DisagreementPair,
             (participant.id, position),

@@ -23,7 +23,7 @@ from datetime import datetime, timedelta
 from typing import Any, Literal, cast
 from urllib.parse import quote
 
-from sqlalchemy import ColumnElement, CursorResult, and_, or_, update
+from sqlalchemy import ColumnElement, Connection, CursorResult, and_, or_, update
 from sqlalchemy.orm import Session
 
 from app.core.errors import ServiceError
@@ -109,6 +109,26 @@ def check_can_act(member: Member, now: datetime) -> None:
         raise MemberEndedError(f"you withdrew from this {noun}: it takes no more answers from you")
     if timed_out(member, now):
         raise MemberEndedError(f"your time for this {noun} is over: it takes no more answers")
+
+
+def lock_in_time(db: Session | Connection, member_id: int, now: datetime) -> None:
+    """Take ``member_id``'s row lock inside the caller's write transaction, if they may still
+    act (:func:`within_time`): the first statement of an answer that is not a label (a gold
+    item, a disagreement pair), as the label's own lock is.
+
+    Raises:
+        MemberEndedError: they withdrew, or their time is over (a time limit, or the gate).
+    """
+    lock = (
+        update(Member)
+        .where(Member.id == member_id, within_time(now))
+        .values(finished_at=Member.finished_at)
+        .execution_options(synchronize_session=False)
+    )
+    if _rowcount(db.execute(lock)) == 0:
+        raise MemberEndedError(
+            "this takes no more answers from you: you withdrew, or your time here is over"
+        )
 
 
 def within_time(now: Any) -> ColumnElement[bool]:

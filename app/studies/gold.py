@@ -45,12 +45,12 @@ from app.models import (
     GoldAnswer,
     GoldItem,
     Label,
-    Member,
     Participant,
     Study,
     as_utc,
     utcnow,
 )
+from app.recruiting import seats
 from app.studies.service import get_ready_study, get_study
 from app.studies.sides import a_on_left
 from engine.errors import InputError
@@ -236,15 +236,6 @@ def stage_gold(session: Session, *, study: Study, people: Sequence[Participant])
 
 
 PID: BindParameter[int] = bindparam("pid")
-#: The first statement of a gold answer's transaction: the participant's lock, the one a
-#: label takes first too (:mod:`app.labelling.flow`), so that one participant's answers are
-#: stored and counted one at a time. Unlike a label's, it refuses nobody (an answer is kept
-#: whatever the participant's time).
-_LOCK = (
-    update(Member)
-    .where(Member.id == PID, Member.collection_kind == "study")
-    .values(finished_at=Member.finished_at)
-)
 _answered, _answered_item = aliased(GoldAnswer), aliased(GoldItem)
 #: The participant's gold answers so far, and how many of them are right.
 _ASKED = (
@@ -338,10 +329,14 @@ def answer(
         InputError: ``winner`` is not one of the pair.
         ConflictError: already answered the other way, or not due yet (fewer bracket
             matches decided than its position).
+        MemberEndedError: they withdrew, or their time is over.
     """
     params = {"pid": participant_id, "item": item_id}
     with writing(conn):
-        conn.execute(_LOCK, params)
+        # the participant's lock, the one a label takes first too (app.labelling.flow): one
+        # participant's answers are stored and counted one at a time, and none once they
+        # withdrew or ran out of time
+        seats.lock_in_time(conn, participant_id, utcnow())
         row = conn.execute(_ANSWER_ROW, params).one_or_none()
         if row is None:
             raise NotFoundError(f"gold item {item_id} is not one of this participant's")

@@ -147,3 +147,21 @@ def test_the_standing_a_gold_answer_reads_is_the_gates_full_reading(
     # the careless one was stopped by the gate after their second failed item
     careless = client.get(f"/api/participants/{player.id}", headers=ADMIN).json()
     assert careless["outcome"] == "failed_gate"
+
+
+def test_a_member_who_withdrew_answers_no_gold_item(
+    client: TestClient, gated: dict[str, Any], invite
+) -> None:
+    """A gold answer takes the label's lock, so a participant who withdrew is refused (410)
+    and nothing of theirs is stored, as for a label."""
+    player = invite(gated["id"])
+    while (match := player.next_match())["gold"] is None:
+        assert player.label(match["match_id"], match["a"]["candidate_id"]).status_code == 201
+    left = client.post(
+        "/api/participants/me/withdraw", json={"withdraw": True}, headers=player.headers
+    )
+    assert left.status_code == 200, left.text
+    with statements(client) as seen:
+        refused = player.answer_gold(match["gold"]["item_id"], match["a"]["candidate_id"])
+    assert refused.status_code == 410, refused.text
+    assert not [s for s in seen if s.lstrip().upper().startswith("INSERT")]
