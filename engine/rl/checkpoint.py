@@ -16,8 +16,6 @@ import zipfile
 from pathlib import Path
 from typing import Any
 
-import torch
-
 from engine.errors import InputError
 
 FORMAT = "acv.checkpoint/1"
@@ -41,6 +39,8 @@ def save_checkpoint(state: dict[str, Any], run_dir: Path, timesteps: int) -> Pat
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".tmp-", suffix=".pt")
     try:
         with os.fdopen(fd, "wb") as f:
+            import torch  # here: finding a checkpoint's path needs no torch (the web process)
+
             torch.save({"format": FORMAT, "timesteps": timesteps, **state}, f)
             f.flush()
             os.fsync(f.fileno())
@@ -93,6 +93,8 @@ def load_checkpoint(path: Path) -> dict[str, Any]:
     if not path.is_file():
         raise InputError(f"no checkpoint file {path}")
     try:
+        import torch  # here, as in save_checkpoint
+
         state = torch.load(path, map_location="cpu", weights_only=True)
     except (
         RuntimeError,

@@ -21,6 +21,7 @@ APP = Path(__file__).resolve().parents[2] / "app"
 
 #: Every operation answering ``text/csv``; a new one must be added here and to a test below.
 CSV_ROUTES = {
+    "/api/evaluations/{evaluation_id}/answers.csv",
     "/api/experiments/{experiment_id}/verdict.csv",
     "/api/runs/{run_id}/conformance.csv",
     "/api/studies/{study_id}/export/labels.{fmt}",

@@ -29,6 +29,7 @@ from schemathesis.generation.feedback import FeedbackSources
 from schemathesis.generation.overrides import Override
 
 from app.http.ratelimit import LoginLimiter
+from tests.support.evaluations import evaluator_headers
 from tests.support.surveys import finished, paper_body
 from tests.support.surveys import invite as invite_respondents
 from tests.support.web import ADMIN
@@ -49,6 +50,7 @@ SCHEME_ROLES = {
     "AdminToken": "researcher",
     "InviteToken": "participant",
     "SurveyInviteToken": "respondent",
+    "EvaluatorInviteToken": "evaluator",
 }
 
 
@@ -81,7 +83,8 @@ def role_headers(client, study) -> dict[str, dict[str, str]]:
 
 @pytest.fixture(scope="module")
 def scheme_headers(client, study, role_headers) -> dict[str, dict[str, str]]:
-    """Bearer headers per security scheme, a survey respondent's included."""
+    """Bearer headers per security scheme, a survey respondent's and an evaluator's
+    included."""
     trees = [
         {"kind": "participant", "participant_id": finished(client, study["id"], side)}
         for side in ("a", "b")
@@ -89,7 +92,10 @@ def scheme_headers(client, study, role_headers) -> dict[str, dict[str, str]]:
     survey = client.post("/api/surveys", headers=ADMIN, json=paper_body(*trees))
     assert survey.status_code == 201, survey.text
     [respondent] = invite_respondents(client, survey.json()["id"])
-    roles = role_headers | {"respondent": respondent.headers}
+    roles = role_headers | {
+        "respondent": respondent.headers,
+        "evaluator": evaluator_headers(client),
+    }
     return {scheme: roles[role] for scheme, role in SCHEME_ROLES.items()}
 
 
