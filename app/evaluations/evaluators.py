@@ -11,10 +11,10 @@ from __future__ import annotations
 
 import secrets
 from dataclasses import dataclass
-from typing import Any, Literal, cast
+from typing import Literal
 
 import numpy as np
-from sqlalchemy import CursorResult, func, select, update
+from sqlalchemy import func, select, update
 from sqlalchemy.orm import Session
 
 from app.core.auth import new_token
@@ -178,22 +178,19 @@ def answer(
     Raises:
         NotFoundError: no such pair of theirs.
         ConflictError: the pair was answered otherwise already.
-        MemberEndedError: they withdrew or ran out of time (checked by the write itself).
+        MemberEndedError: they withdrew or ran out of time (checked by their lock).
     """
     pair = pair_by_key(session, evaluator_id=evaluator.id, key=key)
     tie = choice == "tie"
     chose_left = None if tie else choice == "left"
     winner = None if tie else (pair.a if chose_left == pair.a_left else pair.b)
-    now = utcnow()
-    in_time = select(Member.id).where(Member.id == evaluator.id, seats.within_time(now))
     with writing(session):
-        written = session.execute(
+        # the evaluator's lock, only while they may still act: their answers are stored one
+        # at a time, so the last one sees every other and marks them finished
+        seats.lock_in_time(session, evaluator.id, utcnow())
+        session.execute(
             update(EvaluationPair)
-            .where(
-                EvaluationPair.key == key,
-                EvaluationPair.answered_at.is_(None),
-                EvaluationPair.evaluator_id.in_(in_time),
-            )
+            .where(EvaluationPair.key == key, EvaluationPair.answered_at.is_(None))
             .values(
                 winner=winner,
                 tie=tie,
@@ -201,13 +198,11 @@ def answer(
                 response_ms=response_ms,
                 stimulus=shown.stimulus,
                 reminder=shown.reminder,
-                answered_at=now,
+                answered_at=utcnow(),
             )
         )
         _finish_if_done(session, evaluator)
     session.refresh(pair)
-    if not cast(CursorResult[Any], written).rowcount and pair.answered_at is None:
-        seats.check_can_act(evaluator, now)  # raises: withdrawn or out of time
     if (pair.winner, pair.tie) != (winner, tie):
         raise ConflictError("this pair was already answered otherwise")
     return pair

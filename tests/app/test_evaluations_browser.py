@@ -23,10 +23,6 @@ import httpx
 import pytest
 from playwright.sync_api import Browser, Page, expect
 
-from app.db import make_engine, make_sessions
-from app.jobs.settings import run_dir
-from app.models import RunCheckpoint
-from app.settings import SQLITE_FILE
 from tests.support.a11y import assert_accessible
 from tests.support.browser import (
     ADMIN_TOKEN,
@@ -36,7 +32,7 @@ from tests.support.browser import (
     new_page,
     wait_until_still,
 )
-from tests.support.evaluations import EXPERIMENT, STEP, write_checkpoint
+from tests.support.evaluations import EXPERIMENT, save_served_checkpoints
 from tests.support.labelling import wait_until_prepared
 from tests.support.server import acv_serve, clean_env
 
@@ -80,16 +76,7 @@ def experiment(server: tuple[str, Path], api: httpx.Client) -> dict[str, Any]:
     )
     assert made.status_code == 202, made.text
     data_dir = server[1]
-    engine = make_engine(f"sqlite:///{data_dir / SQLITE_FILE}")
-    try:
-        with make_sessions(engine)() as session:
-            for run in made.json()["runs"]:
-                if run["role"] != "pilot":
-                    write_checkpoint(run_dir(data_dir / "runs", run["id"]), seed=run["id"])
-                    session.add(RunCheckpoint(run_id=run["id"], step=STEP))
-            session.commit()
-    finally:
-        engine.dispose()
+    save_served_checkpoints(data_dir, made.json())
     return made.json()
 
 

@@ -27,14 +27,14 @@ from fastapi.testclient import TestClient
 from PIL import Image
 from playwright.sync_api import Browser, Page, expect
 
-from app.db import make_engine, make_sessions
 from app.evaluations.results import TREE_VS_ASKED, notes_of_experiments
-from app.jobs.settings import run_dir
-from app.models import RunCheckpoint
-from app.settings import SQLITE_FILE
 from tests.support.a11y import assert_accessible
 from tests.support.browser import ADMIN_TOKEN, new_page, wait_until_still
-from tests.support.evaluations import EXPERIMENT, STEP, evaluable_experiment, write_checkpoint
+from tests.support.evaluations import (
+    EXPERIMENT,
+    evaluable_experiment,
+    save_served_checkpoints,
+)
 from tests.support.labelling import wait_until_prepared
 from tests.support.runs import run_app
 from tests.support.server import acv_serve, clean_env
@@ -160,16 +160,7 @@ def served(server: tuple[str, Path]) -> dict[str, Any]:
             json={"study_id": study.json()["id"], "teacher": "good", "seeds": 2, **EXPERIMENT},
         )
         assert made.status_code == 202, made.text
-    engine = make_engine(f"sqlite:///{data_dir / SQLITE_FILE}")
-    try:
-        with make_sessions(engine)() as session:
-            for run in made.json()["runs"]:
-                if run["role"] != "pilot":
-                    write_checkpoint(run_dir(data_dir / "runs", run["id"]), seed=run["id"])
-                    session.add(RunCheckpoint(run_id=run["id"], step=STEP))
-            session.commit()
-    finally:
-        engine.dispose()
+    save_served_checkpoints(data_dir, made.json())
     return made.json()
 
 

@@ -9,8 +9,10 @@ from typing import Any
 import gymnasium as gym
 import torch
 from fastapi.testclient import TestClient
+from sqlalchemy.orm import Session, sessionmaker
 
 from app.core.auth import new_token
+from app.db import make_engine, make_sessions
 from app.evaluations.service import QUESTIONS
 from app.jobs.settings import JobSettings, run_dir
 from app.models import (
@@ -21,6 +23,7 @@ from app.models import (
     RunCheckpoint,
     StudyStatus,
 )
+from app.settings import SQLITE_FILE
 from engine.rl.checkpoint import save_checkpoint
 from engine.rl.config import TrainConfig
 from engine.rl.networks import Agent
@@ -63,14 +66,31 @@ def evaluable_experiment(client: TestClient, study_id: int, *, seeds: int = 2) -
     assert response.status_code == 202, response.text
     experiment = response.json()
     runtime = client.app.state.runtime
-    runs_root = JobSettings().runs_root(runtime.settings)
-    with runtime.sessions() as session:
+    save_checkpoints(runtime.sessions, JobSettings().runs_root(runtime.settings), experiment)
+    return experiment
+
+
+def save_checkpoints(
+    sessions: sessionmaker[Session], runs_root: Path, experiment: dict[str, Any]
+) -> None:
+    """A checkpoint for each advised and baseline run of ``experiment`` (its JSON), file and
+    row, as the executor would save it (pilots get none)."""
+    with sessions() as session:
         for run in experiment["runs"]:
             if run["role"] != "pilot":
                 write_checkpoint(run_dir(runs_root, run["id"]), seed=run["id"])
                 session.add(RunCheckpoint(run_id=run["id"], step=STEP))
         session.commit()
-    return experiment
+
+
+def save_served_checkpoints(data_dir: Path, experiment: dict[str, Any]) -> None:
+    """:func:`save_checkpoints` for a test server's experiment (SQLite in ``data_dir``, its
+    runs in ``data_dir/runs``), from outside its process."""
+    engine = make_engine(f"sqlite:///{data_dir / SQLITE_FILE}")
+    try:
+        save_checkpoints(make_sessions(engine), data_dir / "runs", experiment)
+    finally:
+        engine.dispose()
 
 
 def wait_evaluation(
