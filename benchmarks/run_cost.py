@@ -3,16 +3,18 @@
 ``source`` trains the source run once, outside the repository (``bipars-em`` on Humanoid-v5, a
 1M-step config stopped early: "late" only as far as this machine allows). ``measure`` times
 each stage in a fresh process: ``env`` (the run's envs and F, random actions), fresh learners
-``learner-ppo`` and ``learner-em`` (``train_throughput.py``'s loop), ``learner-resumed`` (that
-loop from the source checkpoint), ``run`` (``train(resume=True)`` on a copy of the source for
-``--steps``, with a checkpoint every ``checkpoint_every`` steps and at the stop, each judged by
-``checkpoint_report`` as the worker's ``on_checkpoint`` does, metrics and TensorBoard logged)
-and ``sb3`` (Stable-Baselines3 PPO, same settings, when installed). Learners also report their
-env CPU seconds, so that "env share" compares code within one process whatever the machine's
-speed; ``run`` reports its startup, judging and checkpoint seconds and projects them to 100k
-steps at the product's density. Each ``--code`` checkout (``PYTHONPATH``) runs every stage
-once per repeat, alternating; ratios are per repeat, printed as median [range]. The last line
-is one JSON object. Commands and results: ``docs/scale.md``, "The cost of a training run".
+``learner-ppo`` and ``learner-em`` (``train_throughput.py``'s loop), ``learner-2proc`` (the
+``learner-em`` loop with half of the envs in a helper process: wall steps/s),
+``learner-resumed`` (that loop from the source checkpoint), ``run`` (``train(resume=True)`` on
+a copy of the source for ``--steps``, with a checkpoint every ``checkpoint_every`` steps and at
+the stop, each judged by ``checkpoint_report`` as the worker's ``on_checkpoint`` does, metrics
+and TensorBoard logged) and ``sb3`` (Stable-Baselines3 PPO, same settings, when installed).
+Learners also report their env CPU seconds, so that "env share" compares code within one
+process whatever the machine's speed; ``run`` reports its startup, judging and checkpoint
+seconds and projects them to 100k steps at the product's density. Each ``--code`` checkout
+(``PYTHONPATH``) runs every stage once per repeat, alternating; ratios are per repeat, printed
+as median [range]. The last line is one JSON object. Commands and results: ``docs/scale.md``,
+"The cost of a training run".
 
     .venv/bin/python benchmarks/run_cost.py source --out /work/runs/run-cost/source
     .venv/bin/python benchmarks/run_cost.py measure --source /work/runs/run-cost/source \\
@@ -40,7 +42,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
 ADVICE = ROOT / "tests" / "engine" / "rl" / "data" / "bit_identity" / "advice.json"
-STAGES = ("env", "learner-ppo", "learner-em", "learner-resumed", "run", "sb3")
+STAGES = ("env", "learner-ppo", "learner-em", "learner-2proc", "learner-resumed", "run", "sb3")
 #: (numerator, denominator) stages of the ratios printed within one checkout.
 RATIOS = {
     "learner/env": ("learner-em", "env"),
@@ -49,6 +51,8 @@ RATIOS = {
     "ppo/sb3": ("learner-ppo", "sb3"),
     "ppo/em (BiPaRS overhead + 1)": ("learner-ppo", "learner-em"),
 }
+#: The same, of wall-clock steps/s: ``learner-2proc`` spends a second process's CPU on purpose.
+WALL_RATIOS = {"2proc/1proc (wall)": ("learner-2proc", "learner-em")}
 
 
 def make_source(out: Path, algo: str, steps: int, seed: int) -> None:
@@ -97,8 +101,12 @@ def stage_env(source: Path, steps: int) -> dict[str, float]:
     return _result(start, -(-steps // cfg.n_envs) * cfg.n_envs)
 
 
-def stage_learner(source: Path, steps: int, algo: str | None, resumed: bool) -> dict[str, float]:
-    """``Trainer.iterate`` alone: no logging, checkpoints or judging."""
+def stage_learner(
+    source: Path, steps: int, algo: str | None, resumed: bool, processes: int = 1
+) -> dict[str, float]:
+    """``Trainer.iterate`` alone: no logging, checkpoints or judging. With ``processes=2``
+    (``learner-2proc``), half of the envs step in a helper process: compare its wall
+    steps/s; its CPU seconds are the learner's only, and its env seconds include the wait."""
     import torch
 
     from engine.rl.checkpoint import find_checkpoint, load_checkpoint
@@ -106,7 +114,7 @@ def stage_learner(source: Path, steps: int, algo: str | None, resumed: bool) -> 
 
     torch.set_num_threads(1)
     cfg = _source_config(source, algo)
-    trainer = Trainer(cfg, _advice(source, cfg))
+    trainer = Trainer(cfg, _advice(source, cfg), env_processes=processes)
     if resumed:
         trainer.load_state_dict(load_checkpoint(find_checkpoint(source)))
     spent = {"collect_cpu_s": 0.0, "env_cpu_s": 0.0}
@@ -117,7 +125,9 @@ def stage_learner(source: Path, steps: int, algo: str | None, resumed: bool) -> 
     start, first = _clock(), trainer.timesteps
     while trainer.timesteps - first < steps:
         trainer.iterate()
-    return _result(start, trainer.timesteps - first) | spent
+    result = _result(start, trainer.timesteps - first) | spent
+    trainer.close()
+    return result
 
 
 def _timed(
@@ -205,6 +215,7 @@ def child(stage: str, source: Path, steps: int, profile: Path | None) -> dict[st
         "env": lambda: stage_env(source, steps),
         "learner-ppo": lambda: stage_learner(source, steps, "ppo", False),
         "learner-em": lambda: stage_learner(source, steps, None, False),
+        "learner-2proc": lambda: stage_learner(source, steps, None, False, processes=2),
         "learner-resumed": lambda: stage_learner(source, steps, None, True),
         "run": lambda: stage_run(source, steps),
         "sb3": lambda: stage_sb3(source, steps),
@@ -273,8 +284,13 @@ def _within(by_stage: dict[str, list[dict[str, float]]]) -> dict[str, str]:
     for name, (a, b) in RATIOS.items():
         if a in cpu and b in cpu:
             out[name] = spread([x / y for x, y in zip(cpu[a], cpu[b], strict=True)])
+    wall = {s: [x["wall_sps"] for x in v] for s, v in by_stage.items()}
+    for name, (a, b) in WALL_RATIOS.items():
+        if a in wall and b in wall:
+            out[f"{a} wall_sps"] = spread(wall[a])
+            out[name] = spread([x / y for x, y in zip(wall[a], wall[b], strict=True)])
     for s, v in by_stage.items():
-        if "env_cpu_s" in v[0]:
+        if "env_cpu_s" in v[0] and not s.endswith("2proc"):
             out[f"{s} env share (env CPU / learner CPU)"] = spread(
                 [1 / _learner_cost(x) for x in v]
             )

@@ -34,14 +34,24 @@ class Trainer:
         cfg: the run's configuration.
         advice: the advice reward F (required by the shaped algorithms, optional for ``ppo``
             where it is only logged).
+        env_processes: 2 steps half of the envs in a helper process, at the same time as the
+            other half (:func:`make_vec_env`); it changes speed, never numbers, so it is no
+            part of the config.
     """
 
-    def __init__(self, cfg: TrainConfig, advice: AdviceFn | None):
+    def __init__(self, cfg: TrainConfig, advice: AdviceFn | None, env_processes: int = 1):
         self.cfg = cfg
         self.rng = np.random.default_rng(cfg.seed)
         self.envs = make_vec_env(
-            cfg.env_id, cfg.n_envs, advice, cfg.advice_scale, cfg.advice_offset
+            cfg.env_id, cfg.n_envs, advice, cfg.advice_scale, cfg.advice_offset, env_processes
         )
+        try:
+            self._start(cfg)
+        except BaseException:
+            self.envs.close()  # never leave a helper process behind
+            raise
+
+    def _start(self, cfg: TrainConfig) -> None:
         first_obs, _ = self.envs.reset(seed=cfg.seed)
         obs_dim = box(self.envs.single_observation_space).shape[0]
         act_dim = box(self.envs.single_action_space).shape[0]
