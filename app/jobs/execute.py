@@ -26,7 +26,7 @@ from sqlalchemy.orm import Session, sessionmaker
 
 from app.db import make_engine, make_sessions
 from app.jobs import queue
-from app.jobs.settings import run_dir
+from app.jobs.settings import SPLIT_ENV, run_dir
 from app.models import Run, RunStatus
 from app.runs import artefacts, run_state
 from app.runs.imported import is_imported
@@ -99,7 +99,12 @@ class _Job:
                         return "lost"
                 else:
                     _train(
-                        row, out, self.progress, self.should_stop, self.judge_checkpoint(row, out)
+                        row,
+                        out,
+                        self.progress,
+                        self.should_stop,
+                        self.judge_checkpoint(row, out),
+                        self.env_processes(),
                     )
         except Exception as exc:  # any failure must end up on the run, not in a log only
             log.error("run %d failed:\n%s", self.run_id, traceback.format_exc())
@@ -170,6 +175,17 @@ class _Job:
 
         return judge
 
+    def env_processes(self) -> int:
+        """2 when the worker lets a lone run take the second core (``ACV_SPLIT_LONE_RUN``)
+        and no other run is running now, else 1. Either gives the same numbers."""
+        if os.environ.get(SPLIT_ENV) != "1":
+            return 1
+        with self.sessions() as session:
+            alone = queue.running_besides(session, run_id=self.run_id) == 0
+        processes = 2 if alone else 1
+        log.info("run %d: its envs step in %d process(es)", self.run_id, processes)
+        return processes
+
     def should_stop(self) -> bool:
         if self.reason is None and self.interrupted():
             self.reason = "interrupted"
@@ -185,6 +201,7 @@ def _train(
     progress: Callable[[dict[str, Any]], None],
     should_stop: Callable[[], bool],
     on_checkpoint: Callable[[int, Path], None] | None,
+    env_processes: int = 1,
 ) -> None:
     from engine.rl.config import TrainConfig  # torch loads here, in the run's process
     from engine.rl.runner import train
@@ -201,6 +218,7 @@ def _train(
         should_stop=should_stop,
         resume=row.resume,
         on_checkpoint=on_checkpoint,
+        env_processes=env_processes,
     )
 
 

@@ -24,7 +24,7 @@ from pathlib import Path
 
 from app.core.resources import child_pythonpath
 from app.jobs.run_process import preload, run_child
-from app.jobs.settings import run_dir
+from app.jobs.settings import SPLIT_ENV, run_dir
 
 LOG_FILE = "process.log"
 #: Characters of a dead process's log quoted in its run's error.
@@ -45,13 +45,16 @@ class LocalExecutor:
     Args:
         database_url: passed to the run processes as ``DATABASE_URL``.
         runs_dir: the folder of run directories.
+        split_lone_runs: a run that starts while no other run is running steps half of its
+            envs in a helper process (``ACV_SPLIT_LONE_RUN``; the run process checks).
     """
 
     name = "local"
     signals_runs = True  # stop() reaches the runs by SIGTERM
 
-    def __init__(self, *, database_url: str, runs_dir: Path) -> None:
+    def __init__(self, *, database_url: str, runs_dir: Path, split_lone_runs: bool = False) -> None:
         self.database_url = database_url
+        self.split_lone_runs = split_lone_runs
         self.runs_dir = Path(runs_dir).resolve()
         self.procs: dict[int, BaseProcess] = {}
 
@@ -63,6 +66,7 @@ class LocalExecutor:
             "DATABASE_URL": self.database_url,
             "ACV_RUNS_DIR": str(self.runs_dir),
             "PYTHONPATH": child_pythonpath(),
+            SPLIT_ENV: "1" if self.split_lone_runs else "0",
         }
         proc = fork_server().Process(
             target=run_child,

@@ -19,7 +19,7 @@ from collections.abc import Callable
 from datetime import timedelta
 from typing import Any, cast
 
-from sqlalchemy import CursorResult, select, update
+from sqlalchemy import CursorResult, func, select, update
 from sqlalchemy.orm import Session
 
 from app.db import writing
@@ -119,6 +119,15 @@ def stop_reason(session: Session, *, run_id: int, worker: str) -> str | None:
     if row is None or row.status != RunStatus.RUNNING or row.worker != worker:
         return "lost"
     return "cancel" if row.cancel_requested else None
+
+
+def running_besides(session: Session, *, run_id: int) -> int:
+    """How many runs other than ``run_id`` are running now, on any worker."""
+    count = session.scalar(
+        select(func.count()).where(Run.status == RunStatus.RUNNING, Run.id != run_id)
+    )
+    session.rollback()
+    return int(count or 0)
 
 
 def finish(

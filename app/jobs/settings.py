@@ -10,18 +10,27 @@
   checkpoints have no artefact yet (the one a stop writes, failed judgings, runs older than
   artefacts) and judges them in a process of its own; 0 turns that off (``acv worker
   --backfill`` then does it on demand).
+- ``ACV_SPLIT_LONE_RUN`` (default false): with one slot and at least 2 CPUs, a run that starts
+  while no other run is running steps half of its envs in a helper process
+  (:class:`engine.rl.envproc.SplitVectorEnv`): the same numbers, faster only when the second
+  core is idle (docs/scale.md, "The second core for a lone run").
 - ``ACV_RUN_WORKER`` (default true): start a worker inside the web server; set it to false
   when ``acv worker`` processes run elsewhere.
 """
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 from pydantic import Field
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
 from app.settings import Settings
+
+#: Set by the local executor in a run process's environment: "1" when that run may split its
+#: envs over two processes if it is alone (:meth:`JobSettings.splits_lone_runs`).
+SPLIT_ENV = "ACV_SPLIT_THIS_RUN"
 
 
 class JobSettings(BaseSettings):
@@ -37,6 +46,13 @@ class JobSettings(BaseSettings):
     """seconds between two looks at the queue"""
     backfill_s: float = Field(default=60.0, ge=0, le=86400)
     """seconds between two looks for unjudged checkpoints of ended runs (0: never)"""
+    split_lone_run: bool = False
+    """a lone run (one slot, no other run running) steps half of its envs in a helper process"""
+
+    @property
+    def splits_lone_runs(self) -> bool:
+        """Whether this worker's runs may take the second core: one slot, at least 2 CPUs."""
+        return self.split_lone_run and self.worker_slots == 1 and (os.cpu_count() or 1) >= 2
 
     @property
     def executor(self) -> str:

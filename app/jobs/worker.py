@@ -62,7 +62,11 @@ def make_executor(settings: Settings, jobs: JobSettings) -> Executor:
         return RayExecutor(
             address=jobs.ray_address, database_url=settings.sqlalchemy_url, runs_dir=runs_dir
         )
-    return LocalExecutor(database_url=settings.sqlalchemy_url, runs_dir=runs_dir)
+    return LocalExecutor(
+        database_url=settings.sqlalchemy_url,
+        runs_dir=runs_dir,
+        split_lone_runs=jobs.splits_lone_runs,
+    )
 
 
 def make_backfiller(
