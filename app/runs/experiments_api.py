@@ -23,7 +23,7 @@ from app.http.deps import DbId, ResearcherDep, SessionDep, StepParam
 from app.http.errors import RESPONSES
 from app.http.files import attachment
 from app.models import Experiment, ExperimentRole, RunStatus
-from app.runs import experiment_notes, experiments
+from app.runs import experiment_notes, experiments, external
 from app.runs.experiments import (
     DEFAULT_PILOT_SEEDS,
     DEFAULT_SEEDS,
@@ -33,13 +33,14 @@ from app.runs.experiments import (
     PILOT_SEED_BASE,
     ExperimentSpec,
 )
-from app.runs.imported import public_spec
+from app.runs.imported import public_spec, tree_digest
 from app.runs.imported_schemas import ImportedOut
 from app.runs.schemas import Judge, RunCreate
 from app.runs.spec import RunSpec
 from app.studies.schemas import ProgressOut
 from engine.judges import DEFAULT_JUDGE
 from engine.rl.config import Algo
+from engine.treefile import dumps
 
 router = APIRouter(prefix="/experiments", tags=["experiments"])
 PENDING: dict[int | str, dict[str, Any]] = {
@@ -156,6 +157,41 @@ def list_experiments(
 @router.get("/{experiment_id}")
 def get_experiment(experiment_id: DbId, session: SessionDep, _: ResearcherDep) -> ExperimentOut:
     return experiment_out(session, experiments.get_experiment(session, experiment_id=experiment_id))
+
+
+TREE_HEADERS = {
+    "X-Tree-SHA256": {
+        "description": "SHA-256 (hex) of the body: the experiment's ``spec.tree_sha256`` for "
+        "an external one, what a policy trained with it declares.",
+        "schema": {"type": "string"},
+    },
+    "ETag": {"description": "The same hash, quoted.", "schema": {"type": "string"}},
+}
+
+
+@router.get(
+    "/{experiment_id}/advice-tree",
+    response_class=Response,
+    responses={
+        200: {
+            "description": "The ``acv.tree/1`` document (``AdviceWrapper`` loads it).",
+            "content": {"application/json": {}},
+            "headers": TREE_HEADERS,
+        },
+        404: {**RESPONSES[404], "description": "No such experiment."},
+        409: {**RESPONSES[409], "description": "Its advised runs have no advice tree."},
+    },
+)
+def experiment_advice_tree(experiment_id: DbId, session: SessionDep, _: ResearcherDep) -> Response:
+    """The advice tree to train the advised arm with elsewhere (``acv.tree/1``, as ACV writes
+    the file, so that ``sha256sum`` of the download gives the ``X-Tree-SHA256`` header)."""
+    doc = external.experiment_advice(session, experiment_id=experiment_id)
+    digest = tree_digest(doc)
+    return Response(
+        dumps(doc),
+        media_type="application/json",
+        headers={"X-Tree-SHA256": digest, "ETag": f'"{digest}"'},
+    )
 
 
 JudgeQuery = Annotated[Judge, Query(description="How the runs score states.")]

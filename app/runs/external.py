@@ -23,9 +23,10 @@ from typing import Any
 
 from sqlalchemy.orm import Session
 
+from app.core.errors import ConflictError
 from app.db import writing
-from app.models import Experiment
-from app.runs import advice, pools
+from app.models import Experiment, ExperimentRole
+from app.runs import advice, experiments, pools, service
 from app.runs.experiments import DEFAULT_SEEDS, MAX_SEEDS, MIN_SEEDS, get_experiment
 from app.runs.imported import EXTERNAL, FROZEN, is_external, tree_digest
 from app.runs.spec import AdviceSource, advice_fields
@@ -181,3 +182,21 @@ def advice_label(experiment: Experiment) -> str:
     if info.participant_id is not None:
         return f"participant #{info.participant_id}"
     return f"teacher {info.teacher}"
+
+
+def experiment_advice(session: Session, *, experiment_id: int) -> TreeDocument:
+    """The advice tree an experiment's advised policies train with: an external one's frozen
+    tree, else its advised runs' (as ``GET /api/runs/{id}/advice-tree`` reads a run's).
+
+    Raises:
+        NotFoundError: no such experiment.
+        ConflictError: its advised runs have no advice tree.
+    """
+    experiment = get_experiment(session, experiment_id=experiment_id)
+    if is_external(experiment):
+        return advice_tree(experiment)
+    members = experiments.members(session, experiment_id=experiment_id)
+    advised = next((run for role, run in members if role == ExperimentRole.ADVISED), None)
+    if advised is None:
+        raise ConflictError(f"experiment {experiment_id} has no advised runs")
+    return service.advice_of(advised)

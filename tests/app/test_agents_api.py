@@ -6,6 +6,7 @@ No policy is judged here (the run worker is off): judging is tests/app/test_agen
 
 from __future__ import annotations
 
+import hashlib
 import re
 from collections.abc import Iterator
 from pathlib import Path
@@ -276,3 +277,35 @@ def test_only_external_experiments_take_policies(client: TestClient, study: dict
     anonymous = upload(client, own.json()["id"], policy(), headers={}, arm="baseline", seed=0)
     assert anonymous.status_code == 401
     assert _n_runs(client) == before
+
+
+def test_the_advice_tree_downloads_with_its_hash(
+    client: TestClient, study: dict[str, Any], external: dict[str, Any]
+) -> None:
+    import gymnasium as gym
+
+    from engine.envs import make_env
+    from engine.rl.shaping import AdviceWrapper
+
+    response = client.get(f"/api/experiments/{external['id']}/advice-tree", headers=ADMIN)
+    assert response.status_code == 200, response.text
+    digest = external["spec"]["tree_sha256"]
+    assert hashlib.sha256(response.content).hexdigest() == digest  # sha256sum of the file
+    assert response.headers["x-tree-sha256"] == digest
+    assert response.headers["etag"] == f'"{digest}"'
+    assert response.headers["content-type"].startswith("application/json")
+    env: gym.Env[Any, Any] = AdviceWrapper(make_env("Hopper-v5"), response.json(), scale=10.0)
+    env.reset(seed=0)
+    *_, info = env.step(env.action_space.sample())
+    assert {"R", "F"} <= set(info)
+    env.close()
+    missing = client.get("/api/experiments/999999/advice-tree", headers=ADMIN)
+    assert missing.status_code == 404 and "detail" in missing.json()
+    assert client.get(f"/api/experiments/{external['id']}/advice-tree").status_code == 401
+    body = {"study_id": study["id"], "teacher": "good", "timesteps": 512, "n_envs": 1}
+    own = client.post("/api/experiments", json=body | {"seeds": 2}, headers=ADMIN).json()
+    advised = next(r["id"] for r in own["runs"] if r["role"] == "advised")
+    tree = client.get(f"/api/experiments/{own['id']}/advice-tree", headers=ADMIN)
+    assert tree.status_code == 200
+    assert tree.json() == client.get(f"/api/runs/{advised}/advice-tree", headers=ADMIN).json()
+    assert tree.headers["x-tree-sha256"] == hashlib.sha256(tree.content).hexdigest()
