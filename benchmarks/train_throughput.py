@@ -23,8 +23,8 @@ import numpy as np
 import torch
 
 from engine.pipeline import run_tournament
+from engine.rl.advice_fn import advice_reward
 from engine.rl.config import TrainConfig
-from engine.rl.runner import advice_reward
 from engine.rl.trainer import Trainer
 
 

@@ -13,10 +13,11 @@ import numpy as np
 
 from engine.errors import InputError
 from engine.judges import judge_name
-from engine.rl.agent_judge import agent_tree, candidate_terms
+from engine.rl.agent_judge import agent_tree
 from engine.rl.behaviour import RolloutOptions
 from engine.rl.checkpoint import find_checkpoint
 from engine.rl.config import TrainConfig
+from engine.rl.reward_terms import candidate_terms
 from engine.rl.runner import load_run_config
 from engine.rl.trained import load_agent
 from engine.treefile import TreeDocument

@@ -12,7 +12,7 @@
   --backfill`` then does it on demand).
 - ``ACV_SPLIT_LONE_RUN`` (default false): with one slot and at least 2 CPUs, a run that starts
   while no other run is running steps half of its envs in a helper process
-  (:class:`engine.rl.envproc.SplitVectorEnv`): the same numbers, faster only when the second
+  (:class:`engine.rl.split_vecenv.SplitVectorEnv`): the same numbers, faster only when the second
   core is idle (docs/scale.md, "The second core for a lone run").
 - ``ACV_RUN_WORKER`` (default true): start a worker inside the web server; set it to false
   when ``acv worker`` processes run elsewhere.

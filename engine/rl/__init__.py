@@ -11,9 +11,10 @@ Public API (imported lazily, so that ``engine.rl.config`` stays free of torch):
 - :func:`~engine.rl.agent_judge.agent_tree`: the Agent Preference Tree of a checkpoint
 - :func:`~engine.rl.plot.plot_runs`: learning curves
 
-Modules: ``networks`` (actor, critics, z_phi), ``normalize``, ``shaping``, ``vecenv`` and
-``envproc`` (env side), ``rollout``, ``buffer`` (GAE), ``ppo``, ``bipars``, ``trainer`` (one
-iteration), ``checkpoint``, ``logger``, ``runner``, ``agent_judge``, ``plot``.
+Modules: ``networks`` (actor, critics, z_phi), ``normalize``, ``shaping``, ``advice_fn`` (F
+of a run's trees), ``vecenv``, ``split_vecenv``, ``envproc`` and ``env_snapshot`` (env side),
+``rollout``, ``buffer`` (GAE), ``ppo``, ``bipars``, ``trainer`` (one iteration),
+``checkpoint``, ``logger``, ``runner``, ``agent_judge`` and ``reward_terms``, ``plot``.
 """
 
 from __future__ import annotations

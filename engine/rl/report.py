@@ -19,17 +19,11 @@ from engine.conformance import Conformance, compare
 from engine.errors import InputError
 from engine.judges import JUDGES, LEGACY_JUDGES
 from engine.records import CandidateRow
-from engine.rl.agent_judge import (
-    CandidateTerms,
-    agent_scores,
-    candidate_terms,
-    replay_as,
-    run_advice_fn,
-    term_scores,
-)
+from engine.rl.agent_judge import agent_scores, replay_as, run_advice_fn
 from engine.rl.behaviour import RolloutOptions
 from engine.rl.checkpoint import find_checkpoint
 from engine.rl.returns import ReturnOptions
+from engine.rl.reward_terms import CandidateTerms, candidate_terms, term_scores
 from engine.rl.runner import load_run_advice
 from engine.rl.trained import TrainedAgent, load_agent
 from engine.treefile import TreeDocument, tree_from_json, tree_to_json

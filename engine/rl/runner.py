@@ -23,18 +23,18 @@ import shutil
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any, TypeGuard, cast
+from typing import Any, TypeGuard
 
 import torch
 
-from engine.advice import AdviceMode, AdviceReward
 from engine.errors import InputError
 from engine.provenance import PROVENANCE_FILE, provenance
+from engine.rl.advice_fn import advice_reward, pool_reward
 from engine.rl.checkpoint import find_checkpoint, list_checkpoints, load_checkpoint, save_checkpoint
-from engine.rl.config import REWARD_ADVICE, TrainConfig
+from engine.rl.config import TrainConfig
 from engine.rl.hparams import config_hparams
 from engine.rl.logger import METRICS_FILE, RunLogger
-from engine.rl.shaping import AdviceFn, EnvRewardAdvice
+from engine.rl.shaping import AdviceFn
 from engine.rl.trainer import Trainer
 from engine.treefile import TreeDocument, dump_tree, load_tree
 
@@ -78,7 +78,7 @@ def train(
         on_checkpoint: called after each checkpoint and its ``progress`` (not after the one
             a stop writes, so that stopping stays quick), e.g. to judge the checkpoint.
         env_processes: 2 for a lone run on an idle second core: half of the envs step in a
-            helper process (:class:`engine.rl.envproc.SplitVectorEnv`). Speed only: the
+            helper process (:class:`engine.rl.split_vecenv.SplitVectorEnv`). Speed only: the
             metrics rows and checkpoints are the same as with 1, and it is not saved.
 
     Raises:
@@ -269,33 +269,3 @@ def _check_pool_weights(config: TrainConfig, advice: Advice) -> None:
         raise InputError(
             f"{len(weights)} pool weights for {len(advice)} pooled trees: give one per tree"
         )
-
-
-def pool_reward(config: TrainConfig, docs: Sequence[TreeDocument]) -> AdviceFn:
-    """F of pooled advice: the mean of the trees' F with the config's options, weighted by
-    its ``pool_weights`` when set (F = R for the ``reward`` mode, whatever the trees)."""
-    from engine.pooling import pooled_advice
-
-    if config.advice_mode == REWARD_ADVICE:
-        return EnvRewardAdvice()
-    return pooled_advice(
-        docs,
-        config.advice_mode,
-        config.advice_depth_factor,
-        config.advice_kappa,
-        weights=config.pool_weights,
-    )
-
-
-def advice_reward(config: TrainConfig, doc: TreeDocument) -> AdviceFn:
-    """F built from a tree with the config's mode, depth factor and kappa (F = R for the
-    ``reward`` mode, whatever the tree)."""
-    if config.advice_mode == REWARD_ADVICE:
-        return EnvRewardAdvice()
-    # TrainConfig.__post_init__ has checked that the mode is one of ADVICE_MODES
-    return AdviceReward.from_tree(
-        doc,
-        mode=cast(AdviceMode, config.advice_mode),
-        depth_factor=config.advice_depth_factor,
-        kappa=config.advice_kappa,
-    )

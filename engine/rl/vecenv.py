@@ -7,8 +7,10 @@ from typing import TYPE_CHECKING, Any, cast
 import gymnasium as gym
 import torch
 
-from engine.rl.envproc import SplitVectorEnv, make_sub_env, restore_arrays, snapshot_arrays
+from engine.rl.env_snapshot import restore_arrays, snapshot_arrays
+from engine.rl.envproc import make_sub_env
 from engine.rl.shaping import AdviceFn, AdviceShaping
+from engine.rl.split_vecenv import SplitVectorEnv
 
 if TYPE_CHECKING:
     from gymnasium.vector import SyncVectorEnv
@@ -27,7 +29,7 @@ def make_vec_env(
     On two cores the synchronous env beats ``AsyncVectorEnv``: the learner and the simulator
     alternate, so worker processes only add pickling and IPC. With ``processes=2`` (a lone
     run, the second core idle) half of the envs step in one helper process while the learner
-    steps the other half (:class:`engine.rl.envproc.SplitVectorEnv`): the same numbers, faster.
+    steps the other half (:class:`engine.rl.split_vecenv.SplitVectorEnv`): the same numbers, faster.
 
     Raises:
         InputError: ``env_id`` is not a Gymnasium MuJoCo env.
@@ -57,7 +59,7 @@ def snapshot_env(env: gym.Env[Any, Any]) -> dict[str, Any]:
 
 
 def _as_tensors(snap: dict[str, Any]) -> dict[str, Any]:
-    """A :func:`engine.rl.envproc.snapshot_arrays` snapshot with its arrays as tensors."""
+    """A :func:`engine.rl.env_snapshot.snapshot_arrays` snapshot with its arrays as tensors."""
     return snap | {"mujoco": {k: torch.from_numpy(v) for k, v in snap["mujoco"].items()}}
 
 

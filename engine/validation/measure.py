@@ -21,10 +21,10 @@ import torch
 from engine.envs import env_model
 from engine.errors import InputError
 from engine.provenance import git_commit
-from engine.rl.agent_judge import candidate_terms
 from engine.rl.behaviour import RolloutOptions, visited_states
 from engine.rl.checkpoint import find_checkpoint
 from engine.rl.logger import read_metrics
+from engine.rl.reward_terms import candidate_terms
 from engine.rl.trained import deterministic_policy, load_agent
 from engine.teachers import POSTURE_SCORES
 from engine.treefile import TreeDocument

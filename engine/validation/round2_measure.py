@@ -21,9 +21,10 @@ import torch
 
 from engine.advice import AdviceReward
 from engine.provenance import git_commit
-from engine.rl.agent_judge import behaviour_visited, candidate_terms
+from engine.rl.agent_judge import behaviour_visited
 from engine.rl.behaviour import RolloutOptions, nearest_shares
 from engine.rl.checkpoint import find_checkpoint
+from engine.rl.reward_terms import candidate_terms
 from engine.rl.trained import TrainedAgent, load_agent
 from engine.treefile import TreeDocument
 from engine.validation.measure import JUDGES, posture_truth, training_end, truth_states

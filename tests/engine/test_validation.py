@@ -14,8 +14,8 @@ from PIL import Image
 
 from engine.errors import InputError
 from engine.pipeline import run_tournament
-from engine.rl.agent_judge import CandidateTerms, term_scores
 from engine.rl.behaviour import occupancy_scores
+from engine.rl.reward_terms import CandidateTerms, term_scores
 from engine.treefile import TreeDocument, dump_tree
 from engine.validation import criteria, runs
 from engine.validation.analysis import arm_table, judge_summary

@@ -14,15 +14,10 @@ from engine.envs import make_env, restore
 from engine.errors import InputError
 from engine.judges import JUDGES
 from engine.pipeline import run_tournament
-from engine.rl.agent_judge import (
-    agent_scores,
-    agent_tree,
-    candidate_terms,
-    candidate_z,
-    judge_reward,
-)
+from engine.rl.agent_judge import agent_scores, agent_tree
 from engine.rl.checkpoint import find_checkpoint
 from engine.rl.config import TrainConfig
+from engine.rl.reward_terms import candidate_terms, candidate_z, judge_reward
 from engine.rl.runner import train
 from engine.rl.trained import load_agent
 from engine.treefile import TreeDocument, load_tree, tree_from_json, tree_to_json

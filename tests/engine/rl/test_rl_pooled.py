@@ -12,10 +12,11 @@ from engine.advice import AdviceReward
 from engine.errors import InputError
 from engine.pipeline import replay_with_teacher, run_tournament
 from engine.pooling import pooled_advice, pooled_tree
+from engine.rl.advice_fn import pool_reward
 from engine.rl.agent_judge import agent_scores, agent_tree
 from engine.rl.checkpoint import find_checkpoint
 from engine.rl.config import TrainConfig
-from engine.rl.runner import load_run_advice, load_run_pool, pool_reward, train
+from engine.rl.runner import load_run_advice, load_run_pool, train
 from engine.rl.trained import load_agent
 from engine.treefile import TreeDocument, tree_to_json
 

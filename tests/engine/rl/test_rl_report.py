@@ -10,13 +10,14 @@ import pytest
 from engine.errors import InputError
 from engine.judges import JUDGES
 from engine.pipeline import run_tournament
-from engine.rl.agent_judge import agent_tree, candidate_terms
+from engine.rl.agent_judge import agent_tree
 from engine.rl.behaviour import RolloutOptions, occupancy_scores
 from engine.rl.checkpoint import find_checkpoint
 from engine.rl.config import TrainConfig
 from engine.rl.judge_cache import ROLLOUT_DIR, file_digest
 from engine.rl.logger import read_metrics
 from engine.rl.report import CheckpointReport, checkpoint_report
+from engine.rl.reward_terms import candidate_terms
 from engine.rl.runner import train
 from engine.rl.trained import load_agent
 from engine.treefile import TreeDocument, tree_to_json
