@@ -39,6 +39,9 @@ def create(
     baseline: Annotated[str | None, Opt(help="With --advised: baseline run ids.")] = None,
     kind: Annotated[str, Opt(help="Who answers: 'advisor' or 'others'.")] = "others",
     stimulus: Annotated[str, Opt(help="'clip' or 'still'.")] = "clip",
+    show_bracket: Annotated[
+        bool, Opt(help="Advisor only: remind them of their bracket with every pair.")
+    ] = False,
     pairs: Annotated[int, Opt(help="Pairs per evaluator.")] = evaluations.DEFAULT_PAIRS,
     target: Annotated[float, Opt(help="Win rate the design is sized for.")] = (
         evaluations.DEFAULT_TARGET
@@ -61,6 +64,7 @@ def create(
                 advised=arms[0],
                 baseline=arms[1],
                 evaluator_kind=kind,  # type: ignore[arg-type]  # checked above
+                show_bracket=show_bracket,
                 stimulus=stimulus,  # type: ignore[arg-type]
                 pairs_per_evaluator=pairs,
                 target_win_rate=target,

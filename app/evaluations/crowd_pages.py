@@ -5,6 +5,7 @@ no evaluation (its name may list its runs: the evaluation is blind)."""
 from __future__ import annotations
 
 from app.evaluations.crowd import LINK
+from app.evaluations.evaluators import SHARE_LABEL
 from app.evaluations.pages import HEADER, INSTRUCTIONS
 from app.recruiting.pages import LinkPages, open_link_router
 
@@ -13,5 +14,6 @@ router = open_link_router(
         kind=LINK,
         name_of=lambda session, evaluation_id: HEADER,
         next_path=lambda session, person: INSTRUCTIONS,
+        share_label=SHARE_LABEL,
     )
 )

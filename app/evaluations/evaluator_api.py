@@ -16,22 +16,26 @@ from fastapi import Path as PathParam
 from sqlalchemy.orm import Session
 
 from app.core.errors import NotFoundError
-from app.evaluations import crowd, evaluators
+from app.evaluations import crowd, evaluators, reminder
 from app.evaluations import service as evaluations
 from app.evaluations.schemas import AnswerIn, PairOut
 from app.evaluations.stimuli import stimuli_dir
 from app.http.deps import SessionDep, SettingsDep
 from app.http.member_auth import EvaluatorDep
+from app.labelling.schemas import ShareConsentIn, ShareConsentOut
 from app.models import Evaluation, EvaluationPair, EvaluationStimulus, Evaluator, utcnow
 from app.recruiting import seats
 from app.recruiting import service as recruiting
 from app.recruiting.schemas import OutcomeOut, WithdrawIn
+from app.studies.images import MEDIA_TYPE as IMAGE_TYPE
+from app.studies.images import image_file
 
 router = APIRouter(prefix="/evaluators/me", tags=["evaluators"])
 
 Side = Literal["left", "right"]
 Kind = Literal["still", "clip"]
 PairKey = Annotated[str, PathParam(min_length=1, max_length=32, pattern=r"^[A-Za-z0-9_-]+$")]
+Place = Literal["first", "second", "third", "fourth"]  # reminder.PLACES
 MEDIA_TYPES = {"still": "image/jpeg", "clip": "image/webp"}
 #: The pictures of a pair never change: the browser may keep them, for this evaluator only.
 CACHE = "private, max-age=86400, immutable"
@@ -103,6 +107,7 @@ def pair_out(session: Session, person: Evaluator, pair: EvaluationPair) -> PairO
         question=evaluation.question,
         left=_side(pair.key, "left", kind),
         right=_side(pair.key, "right", kind),
+        reminder=reminder.urls(session, evaluation),
     )
 
 
@@ -127,7 +132,10 @@ def answer_pair(
     again is accepted, another is a 409."""
     seats.check_can_act(person, utcnow())
     evaluation = evaluations.get_evaluation(session, evaluation_id=person.evaluation_id)
-    shown = evaluators.Shown(stimulus=body.stimulus or shown_kind(evaluation), reminder=False)
+    shown = evaluators.Shown(
+        stimulus=body.stimulus or shown_kind(evaluation),
+        reminder=reminder.shown(session, evaluation),
+    )
     evaluators.answer(
         session,
         evaluator=person,
@@ -167,3 +175,33 @@ def pair_picture(
         raise NotFoundError(f"no {kind} of this pair yet")
     data = (stimuli_dir(settings.data_dir) / Path(path)).read_bytes()
     return Response(data, media_type=MEDIA_TYPES[kind], headers={"Cache-Control": CACHE})
+
+
+@router.get(
+    "/reminder/{place}",
+    response_class=Response,
+    responses={200: {"content": {IMAGE_TYPE: {}}}},
+)
+def reminder_picture(
+    place: Place, person: EvaluatorDep, session: SessionDep, settings: SettingsDep
+) -> Response:
+    """The reminder's picture at ``place`` (``first``: the advisor's choice in the final),
+    small; 404 where the evaluation shows no reminder."""
+    evaluation = evaluations.get_evaluation(session, evaluation_id=person.evaluation_id)
+    found = reminder.pictures(session, evaluation)
+    index = reminder.PLACES.index(place)
+    if index >= len(found):
+        raise NotFoundError("no such reminder picture")
+    path = image_file(settings.data_dir, found[index].thumb_path)
+    if not path.is_file():
+        raise NotFoundError("the reminder picture is missing on disk")
+    return Response(path.read_bytes(), media_type=IMAGE_TYPE, headers={"Cache-Control": CACHE})
+
+
+@router.put("/share-consent")
+def share_consent(
+    body: ShareConsentIn, person: EvaluatorDep, session: SessionDep
+) -> ShareConsentOut:
+    """Agree, or no longer agree, that your answers may be shared in a public dataset under
+    a pseudonym; off unless you agree. An export made afterwards follows your latest choice."""
+    return ShareConsentOut(share=evaluators.set_share_consent(session, person, share=body.share))

@@ -22,6 +22,7 @@ from app.core.errors import ConflictError, NotFoundError
 from app.core.limits import MAX_BATCH, check_text
 from app.db import writing
 from app.evaluations.service import get_evaluation, get_ready_evaluation
+from app.labelling.participants import Progress
 from app.models import (
     Evaluation,
     EvaluationPair,
@@ -31,11 +32,13 @@ from app.models import (
     utcnow,
 )
 from app.recruiting import seats
-from app.studies.participants import Progress
 from engine.errors import InputError
 from engine.evaluation.design import evaluator_pairs
 
 Choice = Literal["left", "right", "tie"]
+#: What an evaluator ticks to agree to share their answers (the open link's consent page and
+#: the instructions page say it alike): the study dataset's ``evaluations`` config.
+SHARE_LABEL = "I agree that my answers may be shared in a public dataset, under a pseudonym."
 
 
 def add_evaluators(
@@ -117,6 +120,15 @@ def list_evaluators(session: Session, *, evaluation_id: int) -> list[Evaluator]:
     get_evaluation(session, evaluation_id=evaluation_id)
     query = select(Evaluator).where(Evaluator.evaluation_id == evaluation_id)
     return list(session.scalars(query.order_by(Evaluator.id)))
+
+
+def set_share_consent(session: Session, person: Evaluator, *, share: bool) -> bool:
+    """Record whether the evaluator agrees that their answers may be shared in a public
+    dataset under a pseudonym (the study dataset's ``evaluations`` config,
+    :mod:`app.labelling.dataset`); an export follows their choice when it is made."""
+    with writing(session):
+        person.share_consent = share
+    return person.share_consent
 
 
 def progress(session: Session, *, evaluator_id: int) -> Progress:

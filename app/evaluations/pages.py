@@ -22,7 +22,7 @@ from sqlalchemy.orm import Session
 from app.core.errors import ConflictError, ServiceError
 from app.core.json_types import IntParam, from_form
 from app.core.limits import MAX_BATCH, MAX_NAME_CHARS
-from app.evaluations import crowd, evaluators, results
+from app.evaluations import crowd, evaluators, reminder, results
 from app.evaluations import service as evaluations
 from app.evaluations.api import evaluator_out
 from app.evaluations.evaluator_api import pair_out
@@ -43,6 +43,7 @@ router = APIRouter(route_class=PageRoute, include_in_schema=False)
 INSTRUCTIONS = "/evaluate"
 PAIR = "/evaluate/pair"
 THANKS = "/evaluate/thanks"
+SHARE = "/evaluate/share"
 ENDED = "/evaluate/ended"
 #: What an evaluator's pages are headed with (never the evaluation's name: it may name runs).
 HEADER = "Agent evaluation"
@@ -61,9 +62,15 @@ WHOLE = re.compile(r"[0-9]{1,15}")
 MAX_RESPONSE_MS = 86_400_000
 #: The creation form's fields with their defaults, and what each is called on the page.
 _PAIRS = str(evaluations.DEFAULT_PAIRS)
-FORM = {"evaluator_kind": "others", "stimulus": "clip", "pairs_per_evaluator": _PAIRS}
+FORM = {
+    "evaluator_kind": "others",
+    "stimulus": "clip",
+    "pairs_per_evaluator": _PAIRS,
+    "show_bracket": "false",  # a checkbox: "on" when ticked, absent otherwise
+}
 LABELS = {
     "evaluator_kind": "Who answers",
+    "show_bracket": "Remind the advisor of their bracket",
     "stimulus": "What they see",
     "pairs_per_evaluator": "Pairs per evaluator",
 }
@@ -111,6 +118,7 @@ def context_of(session: Session, person: Evaluator) -> dict[str, Any]:
         "question": evaluation.question,
         "instructions": evaluation.instructions,
         "progress": evaluators.progress(session, evaluator_id=person.id),
+        "evaluator": person,
     }
 
 
@@ -132,7 +140,15 @@ def instructions(request: Request, session: SessionDep, person: PageEvaluator) -
     context = context_of(session, person)
     if context["progress"].finished:
         raise RedirectTo(THANKS)
-    return render(request, "evaluate.html", context | {"advisor_text": ADVISOR_TEXT})
+    context |= {"advisor_text": ADVISOR_TEXT, "share_label": evaluators.SHARE_LABEL}
+    return render(request, "evaluate.html", context)
+
+
+@router.post(SHARE, dependencies=[CsrfChecked])
+def share_choice(session: SessionDep, person: PageEvaluator, fields: FormFields) -> Response:
+    """Store the instructions page's sharing choice (ticked or not), then show the page."""
+    evaluators.set_share_consent(session, person, share=fields.get("share") == "on")
+    return redirect(INSTRUCTIONS + "#share-form")
 
 
 @router.get(PAIR)
@@ -143,7 +159,7 @@ def pair_page(request: Request, session: SessionDep, person: PageEvaluator) -> R
     if pair is None:
         raise RedirectTo(THANKS)
     shown = pair_out(session, person, pair)
-    context |= {"pair": shown, "shown_at": int(time.time() * 1000)}
+    context |= {"pair": shown, "shown_at": int(time.time() * 1000), "reminder_text": reminder.TEXT}
     return render(request, "evaluate_pair.html", context)
 
 
@@ -159,7 +175,9 @@ def pair_answer(
         raise InputError("choose the left agent, the right agent, or Can't tell")
     if stimulus not in ("still", "clip") or not KEY.fullmatch(key):
         raise InputError("this form is not one of this site's pair pages: reload the page")
-    shown, took = evaluators.Shown(stimulus=stimulus, reminder=False), _response_ms(fields)
+    evaluation = evaluations.get_evaluation(session, evaluation_id=person.evaluation_id)
+    shown = evaluators.Shown(stimulus=stimulus, reminder=reminder.shown(session, evaluation))
+    took = _response_ms(fields)
     try:
         evaluators.answer(
             session, evaluator=person, key=key, choice=choice, response_ms=took, shown=shown

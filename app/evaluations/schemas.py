@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, Strict
 
 from app.core.json_types import JsonFloat, JsonInt, UtcDatetime
 from app.core.limits import MAX_BATCH, MAX_NAME_CHARS
@@ -34,6 +34,12 @@ class EvaluationDesign(BaseModel):
         description="Clips of each agent moving, or stills (clips fall back to stills "
         "until they are rendered).",
     )
+    show_bracket: Annotated[bool, Strict()] = Field(
+        False,
+        description="Advisor only: show each pair with a folded reminder of the advisor's own "
+        "bracket (the pictures they ranked highest); recorded with every answer "
+        "(`reminder`). Off by default.",
+    )
     pairs_per_evaluator: JsonInt = Field(service.DEFAULT_PAIRS, ge=1, le=service.MAX_PAIRS)
     target_win_rate: JsonFloat = Field(service.DEFAULT_TARGET, gt=0.5, lt=1)
     name: str | None = Field(None, min_length=1, max_length=MAX_NAME_CHARS)
@@ -49,6 +55,7 @@ class EvaluationDesign(BaseModel):
             advised=tuple(advised),
             baseline=tuple(baseline),
             evaluator_kind=self.evaluator_kind,
+            show_bracket=self.show_bracket,
             stimulus=self.stimulus,
             pairs_per_evaluator=self.pairs_per_evaluator,
             target_win_rate=self.target_win_rate,
@@ -123,6 +130,11 @@ class PairOut(BaseModel):
     question: str
     left: dict[str, Any]
     right: dict[str, Any]
+    reminder: list[dict[str, str]] | None = Field(
+        None,
+        description="The advisor's own bracket as a reminder (its pictures' `url` and `alt`, "
+        "best first) when the evaluation shows it; null otherwise. Answers record it.",
+    )
 
 
 class AnswerIn(BaseModel):

@@ -4,20 +4,20 @@ rejected states (``preferences``, :mod:`app.labelling.dataset_preferences`), as 
 dataset card (:mod:`app.labelling.dataset_card` says the folder's layout and columns).
 
 Only participants who agreed to share (``share_consent``) and whom the researcher did not
-exclude are in it, and only their labels and trees. Each is named by a pseudonym: an
-HMAC-SHA256 of their id, and one of their crowd platform id, keyed with the deployment's
-secret dataset salt (:func:`app.core.auth.dataset_salt`) and the study id. The researcher
-keeps the salt, so an export made again names everyone the same way; without it, nobody
-can reverse a pseudonym, even by trying every small id. The study id in the key keeps one
-person's pseudonyms in two studies apart. Times of day are left out: with a platform's
+exclude are in it, and only their labels and trees; likewise the answers of agent
+evaluations of the study's runs, from evaluators who agreed (the ``evaluations`` config,
+:mod:`app.labelling.dataset_evaluations`, there only when it has rows). Each is named by a
+pseudonym: an HMAC-SHA256 of their id, and one of their crowd platform id, keyed with the
+deployment's secret dataset salt (:func:`app.core.auth.dataset_salt`) and the study id. The
+researcher keeps the salt, so an export made again names everyone the same way; without it,
+nobody can reverse a pseudonym, even by trying every small id. The study id in the key keeps
+one person's pseudonyms in two studies apart. Times of day are left out: with a platform's
 submission log they could tell who a pseudonym is.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import hashlib
-import hmac
 import io
 import json
 import zipfile
@@ -34,6 +34,7 @@ from app.labelling import label_export, trees
 from app.labelling.dataset_card import (
     CANDIDATES,
     DEFAULT_LICENSE,
+    EVALUATIONS,
     LABELS,
     PARTICIPANTS,
     PREFERENCES,
@@ -44,7 +45,9 @@ from app.labelling.dataset_card import (
     check_license,
     readme,
 )
+from app.labelling.dataset_evaluations import evaluation_rows
 from app.labelling.dataset_preferences import preferences
+from app.labelling.pseudonyms import Pseudonyms
 from app.labelling.quality import quality
 from app.models import Participant, Study, utcnow
 from app.recruiting.seats import kept_in_data
@@ -56,19 +59,6 @@ from engine.treefile import tree_to_json
 Rows = list[dict[str, Any]]
 #: What a participant ticks to agree (the consent and instructions pages say it alike).
 SHARE_LABEL = "I agree that my labels may be shared in a public dataset, under a pseudonym."
-
-
-@dataclass(frozen=True)
-class Pseudonyms:
-    """Keyed hashes of one study's ids: the same salt and id give the same pseudonym."""
-
-    salt: bytes
-    study_id: int
-
-    def of(self, what: str, value: object) -> str:
-        """The pseudonym of ``value``, an id of kind ``what`` (``participant``, ``external``)."""
-        message = f"acv-dataset/{self.study_id}/{what}/{value}".encode()
-        return hmac.new(self.salt, message, hashlib.sha256).hexdigest()[:32]
 
 
 @dataclass(frozen=True)
@@ -122,6 +112,8 @@ def build(
         TREES: _trees(session, people, names),
         PREFERENCES: preferences(labels, list_candidates(session, study_id=study_id), study.env_id),
     }
+    if answers := evaluation_rows(session, study_id=study_id, hashes=hashes):
+        tables[EVALUATIONS] = answers  # agent evaluations' sharing evaluators (issue 41)
     facts = _facts(study, len(people), tables, license)
     files = {t.path: _parquet(t, rows) for t, rows in tables.items()}
     return Export({"README.md": readme(facts).encode(), **files}, facts)
@@ -152,6 +144,7 @@ def _facts(study: Study, people: int, tables: dict[Table, Rows], license: str) -
         labels=len(tables[LABELS]),
         trees=len(tables[TREES]),
         license=license,
+        evaluations=len(tables.get(EVALUATIONS, [])),
     )
 
 

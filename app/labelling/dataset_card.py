@@ -9,6 +9,7 @@ The folder that :mod:`app.labelling.dataset` writes::
     participants/train-00000-of-00001.parquet    who labelled, under pseudonyms
     trees/train-00000-of-00001.parquet           each finished participant's Preference Tree
     preferences/train-00000-of-00001.parquet     each answered pair as chosen and rejected states
+    evaluations/train-00000-of-00001.parquet     agent evaluations' answers (only when any)
 
 The labels sit in ``data/`` under the Hub's shard name because
 ``load_dataset("parquet", data_dir=DIR)`` reads no card: it takes the first file pattern that
@@ -138,6 +139,38 @@ PREFERENCES = Table(
         Column("rejected_observation", "list<float64>", "The same for `rejected`."),
     ),
 )
+EVALUATOR = Column("evaluator", "string", "The evaluator's pseudonym (keyed hash of id).")
+EVALUATIONS = Table(
+    "evaluations",
+    "evaluations",
+    "One row per answered pair of an agent evaluation of this study's runs (issue 41): "
+    "people shown what two trained agents do, asked which one does what was asked. Only "
+    "evaluators who agreed to share their answers; present only when there are any.",
+    (
+        Column("evaluation", "int64", "The evaluation's id (one design, one question)."),
+        Column(
+            "evaluator_kind",
+            "string",
+            "`advisor` (whose tree trained the advised agents) or `others` (shown the "
+            "study's instructions).",
+        ),
+        Column("question", "string", "What the evaluator was asked about every pair."),
+        EVALUATOR,
+        Column("position", "int64", "The pair's place in the evaluator's sequence, from 0."),
+        Column("left_run", "string", "Keyed hash of the run shown on the left."),
+        Column("left_arm", "string", "`advised` or `baseline`: the left run's arm."),
+        Column("right_run", "string", "Keyed hash of the run shown on the right."),
+        Column("right_arm", "string", "`advised` or `baseline`: the right run's arm."),
+        Column("winner", "string", "`left`, `right`, or null when they could not tell."),
+        Column("tie", "bool", 'The evaluator chose "can\'t tell".'),
+        Column("response_ms", "int64", "Milliseconds from the pair shown to the choice."),
+        Column("stimulus", "string", "What the pair showed of each agent: `still` or `clip`."),
+        Column("reminder", "bool", "Whether the advisor's own bracket was shown as a reminder."),
+        Column(
+            "answered_on", "string", "The day it was answered (UTC, `YYYY-MM-DD`; no time of day)."
+        ),
+    ),
+)
 TABLES = (LABELS, CANDIDATES, PARTICIPANTS, TREES, PREFERENCES)
 
 
@@ -199,6 +232,13 @@ class Facts:
     labels: int
     trees: int
     license: str
+    #: Answered evaluation pairs shared (:data:`EVALUATIONS`; the table is there only if any).
+    evaluations: int = 0
+
+    @property
+    def tables(self) -> tuple[Table, ...]:
+        """The dataset's tables: :data:`TABLES`, and :data:`EVALUATIONS` when it has rows."""
+        return TABLES + ((EVALUATIONS,) if self.evaluations else ())
 
 
 def readme(facts: Facts) -> str:
@@ -216,10 +256,11 @@ def readme(facts: Facts) -> str:
         configs=[
             {"config_name": t.name, "data_files": [{"split": "train", "path": t.path}]}
             | ({"default": True} if t is LABELS else {})
-            for t in TABLES
+            for t in facts.tables
         ],
         dataset_info=[
-            {"config_name": t.name, "features": [_feature(c) for c in t.columns]} for t in TABLES
+            {"config_name": t.name, "features": [_feature(c) for c in t.columns]}
+            for t in facts.tables
         ],
     )
     return f"---\n{meta.to_yaml()}\n---\n\n{_body(facts)}"
@@ -239,11 +280,27 @@ def _told(f: Facts) -> str:
     return "\n\nParticipants were told:\n\n" + "\n".join(f"> {x}" for x in lines) if lines else ""
 
 
+def _evaluated(f: Facts) -> str:
+    """What the ``evaluations`` config is, when the dataset has it."""
+    if not f.evaluations:
+        return ""
+    return f"""## Agent evaluations
+
+Agents were trained on these trees (advised) or without them (baseline), then people were
+shown, pair by pair, what two agents do (`still` pictures or `clip`s) and asked which one
+does what was asked: {f.evaluations} answers, in the `evaluations` config, from evaluators
+who agreed to share them, under pseudonyms made like the participants'. Runs are named by
+keyed hashes too, with their arm; the pair's sides were seeded. `reminder` says whether the
+advisor's own bracket was shown beside the pair.
+
+"""
+
+
 def _body(f: Facts) -> str:
     tables = "\n\n".join(
         f"### `{t.name}` (`{t.path}`)\n\n{t.doc}\n\n| column | type | meaning |\n|---|---|---|\n"
         + "\n".join(f"| `{c.name}` | `{c.kind}` | {c.doc} |" for c in t.columns)
-        for t in TABLES
+        for t in f.tables
     )
     return f"""# ACV preference labels: {f.name}
 
@@ -266,7 +323,7 @@ hash (HMAC-SHA256 with a salt the researcher keeps secret) of their id, and thei
 platform id likewise: the same study exported again gives the same pseudonyms, and they
 cannot be traced back without the salt. Times of day are left out.
 
-## Loading
+{_evaluated(f)}## Loading
 
 ```python
 from datasets import load_dataset

@@ -200,6 +200,7 @@ def world(client: TestClient, study: dict[str, Any], make_study) -> dict[str, An
         "key": "no-such-pair",
         "side": "left",
         "kind": "still",
+        "place": "first",  # an evaluator's bracket reminder picture
     }
     return {
         "callers": callers,

@@ -78,7 +78,8 @@ def test_an_evaluator_answers_blind_and_the_answer_reads_them(client, evaluation
         response := client.get("/api/evaluators/me/pairs/next", headers=headers)
     ).status_code == 200:
         pair = response.json()
-        assert set(pair) == {"key", "position", "total", "question", "left", "right"}
+        assert set(pair) == {"key", "position", "total", "question", "left", "right", "reminder"}
+        assert pair["reminder"] is None  # an evaluation of others: no bracket reminder
         _pictures_are_blind(client, headers, pair, run_ids)
         choice = "left" if answered % 3 else "tie"
         answer = client.post(
@@ -159,6 +160,9 @@ def test_bad_answers_are_422(client, evaluation, body) -> None:
         ({"pairs_per_evaluator": True}, 422, "pairs_per_evaluator"),
         ({"target_win_rate": 0.5}, 422, "target_win_rate"),
         ({"evaluator_kind": "advisor"}, 409, "one participant's tree"),
+        ({"evaluator_kind": "advisor", "show_bracket": True}, 409, "one participant's tree"),
+        ({"show_bracket": True}, 422, "advisor only"),
+        ({"show_bracket": "true"}, 422, "show_bracket"),
         ({"stimulus": "video"}, 422, "stimulus"),
     ],
 )

@@ -14,6 +14,7 @@ real (untrained) checkpoint written into the server's data dir, as its executor 
 from __future__ import annotations
 
 import re
+import sqlite3
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -35,6 +36,8 @@ from tests.support.browser import (
 from tests.support.evaluations import EXPERIMENT, save_served_checkpoints
 from tests.support.labelling import wait_until_prepared
 from tests.support.server import acv_serve, clean_env
+from tests.support.studies import Player
+from tests.support.wait import wait_for
 
 pytestmark = pytest.mark.browser
 ADMIN = {"Authorization": f"Bearer {ADMIN_TOKEN}"}
@@ -238,4 +241,68 @@ def test_an_evaluation_from_the_experiment_page_to_its_answer(
     rows = api.get(f"/api/evaluations/{evaluation_id}/answers.csv").text.splitlines()[1:]
     assert len(rows) == PAIRS + 1, rows
     assert sorted(row.count(",clip,") for row in rows) == [0] + [1] * PAIRS  # no-JS: a still
+    assert errors == []
+
+
+def test_the_advisors_bracket_reminder(
+    server, api: httpx.Client, experiment, browser: Browser, screens: Path
+) -> None:
+    """An advisor evaluation with the reminder on: each pair shows, folded away, the top of
+    the advisor's own bracket with a sentence saying so; it opens and closes; it stays blind;
+    the answer records it. (The experiment's runs trained on a simulated teacher, so the
+    advisor is set in the database, as an experiment on a participant's tree would set it.)"""
+    base, data_dir = server
+    made = api.post(
+        f"/api/experiments/{experiment['id']}/evaluations",
+        json={"stimulus": "still", "pairs_per_evaluator": 2},
+    )
+    assert made.status_code == 201, made.text
+    evaluation_id = made.json()["id"]
+    wait_for(
+        lambda: api.get(f"/api/evaluations/{evaluation_id}").json(),
+        lambda found: found["status"] != "preparing",
+        what="the evaluation's stills",
+        timeout_s=600,
+    )
+    joined = api.post(f"/api/studies/{experiment['study_id']}/participants").json()
+    advisor = Player(api, joined["id"], joined["token"], joined["invite_url"])  # type: ignore[arg-type]
+    assert advisor.play() == 4
+    with sqlite3.connect(data_dir / "acv.sqlite3") as db:
+        db.execute(
+            "UPDATE evaluations SET evaluator_kind = 'advisor', advisor_id = ?, "
+            "show_bracket = 1 WHERE id = ?",
+            (advisor.id, evaluation_id),
+        )
+    (person,) = api.post(f"/api/evaluations/{evaluation_id}/evaluators", json={"count": 1}).json()
+    slots = api.get(f"/api/evaluations/{evaluation_id}/result").json()["slots"]
+    run_ids = {str(s["run_id"]) for s in slots}
+
+    errors: list[str] = []
+    _, page = new_page(browser, errors, viewport=DESKTOP)
+    seen = Blindness(page)
+    page.goto(person["invite_url"])
+    page.click("#start")
+    key = wait_pair(page, None, kind="still")
+    reminder = page.locator("#bracket-reminder")
+    expect(reminder).to_be_visible()
+    expect(reminder).not_to_have_attribute("open", "")
+    page.click("#bracket-reminder summary")
+    expect(page.locator("#reminder-text")).to_contain_text("your own earlier choices")
+    pictures = page.locator("#bracket-reminder img")
+    expect(pictures).to_have_count(4)
+    expect(pictures.first).to_have_attribute("alt", "your choice in the final")
+    page.wait_for_function(
+        "() => [...document.querySelectorAll('#bracket-reminder img')]"
+        ".every(i => i.complete && i.naturalWidth > 0)"
+    )
+    settled(page, "a pair with the advisor's bracket reminder open")
+    page.screenshot(path=screens / "evaluate-reminder.png", full_page=True)
+    seen.check(page, run_ids)
+    page.click("#bracket-reminder summary")
+    expect(page.locator("#reminder-text")).to_be_hidden()
+    page.click("#pick-left")
+    wait_pair(page, key, kind="still")
+    rows = api.get(f"/api/evaluations/{evaluation_id}/answers.jsonl").text.splitlines()
+    assert len(rows) == 1 and '"reminder": true' in rows[0]
+    seen.check(page, run_ids)
     assert errors == []

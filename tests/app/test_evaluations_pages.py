@@ -211,6 +211,7 @@ def test_the_researcher_page_shows_the_answer(client, researcher, evaluation) ->
         ({"stimulus": "video"}, 422, "What they see"),
         ({"evaluator_kind": "robot"}, 422, "Who answers"),
         ({"evaluator_kind": "advisor"}, 409, "one participant&#39;s tree"),
+        ({"show_bracket": "on"}, 422, "advisor only"),
     ],
 )
 def test_a_bad_design_shows_the_form_again(researcher, experiment, form, status, says) -> None:
