@@ -10,12 +10,12 @@ from dataclasses import dataclass
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
+from app.labelling.participants import add_participants
 from app.labelling.simulate import simulate
 from app.models import Experiment, Label, Participant, Study, StudyStatus
 from app.runs.experiments import ExperimentSpec, create_experiment
 from app.runs.spec import RunSpec
 from app.runtime import Runtime
-from app.studies.participants import add_participants
 from app.studies.service import StudySpec, create_study, get_study
 
 DEMO_NAME = "Demo: upright humanoid"

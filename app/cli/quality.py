@@ -12,9 +12,9 @@ import typer
 from app.cli.root import cli
 from app.cli.serve import cli_runtime
 from app.cli.study import participant_cli, study_cli
-from app.labelling import quality
+from app.labelling import participants, quality, study_link
 from app.recruiting import service as recruiting
-from app.studies import crowd, gold, participants
+from app.studies import crowd, gold
 
 gold_cli = typer.Typer(help="Gold items: pairs with a right answer.", no_args_is_help=True)
 cli.add_typer(gold_cli, name="gold")
@@ -74,7 +74,7 @@ def gate(
 ) -> None:
     """Set the study's qualification gate, keeping its open link and other options."""
     with cli_runtime() as runtime, runtime.sessions() as session:
-        row = recruiting.settings(session, crowd.LINK, study)
+        row = recruiting.settings(session, study_link.LINK, study)
         kept = (
             crowd.CrowdOptions()
             if row is None

@@ -33,11 +33,11 @@ from app.db import upgrade
 from app.demo import ensure_demo
 from app.jobs.settings import JobSettings
 from app.jobs.worker import Worker, WorkerThread, make_executor
+from app.labelling.participants import invite_url
 from app.main import create_app
 from app.preflight import check_data_dir
 from app.runtime import Runtime
 from app.settings import Settings
-from app.studies.participants import invite_url
 from app.webhooks.scheduler import start_delivery
 from engine.errors import InputError
 

@@ -11,12 +11,11 @@ import typer
 from app.cli.options import CandidatesOpt, CoinOpt, EnvOpt, NoiseOpt, SamplingOpt, TeacherOpt
 from app.cli.root import cli, fail
 from app.cli.serve import cli_runtime
+from app.labelling import participants, trees
 from app.labelling import simulate as simulation
-from app.labelling import trees
+from app.labelling.participants import invite_url
 from app.models import StudyStatus
-from app.studies import participants
 from app.studies import service as studies
-from app.studies.participants import invite_url
 from engine.disagreement import MAX_PAIRS
 from engine.envs import DEFAULT_ENV_ID
 from engine.practice import MAX_PRACTICE_PAIRS, MIN_PRACTICE_PAIRS

@@ -17,6 +17,7 @@ from app.http.deps import DbId, SessionDep
 from app.http.guards import ResearcherPage
 from app.http.rendering import PageRoute, redirect
 from app.recruiting import service as recruiting
+from app.recruiting.kinds import open_url
 from app.recruiting.links import LinkOptions
 from app.recruiting.pages import link_form, validated, whole
 from app.recruiting.schemas import OpenLinkIn
@@ -28,7 +29,7 @@ def link_context(request: Request, session: Session, evaluation_id: int) -> dict
     """What the evaluation page's "Crowd: open link" section shows: the saved link (``None``
     before the form is first saved, with the defaults in the form) and its URL."""
     row = recruiting.settings(session, crowd.LINK, evaluation_id)
-    url = None if row is None else crowd.LINK.open_url(request.base_url, row.slug)
+    url = None if row is None else open_url(crowd.LINK, request.base_url, row.slug)
     return {"crowd": row, "crowd_defaults": LinkOptions(), "open_url": url}
 
 

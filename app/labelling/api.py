@@ -13,7 +13,7 @@ from app.core.json_types import IntParam
 from app.http.deps import DbId, ResearcherDep, RuntimeDep, SessionDep, ViewerDep
 from app.http.member_auth import InviteTokenDep, ParticipantDep
 from app.http.urls import image_url
-from app.labelling import disagreement, quality, trees
+from app.labelling import disagreement, gold_answers, participants, quality, study_link, trees
 from app.labelling import service as labelling
 from app.labelling.schemas import (
     BracketCellOut,
@@ -30,7 +30,6 @@ from app.recruiting import members
 from app.recruiting import service as recruiting
 from app.recruiting.schemas import OutcomeOut, WithdrawIn
 from app.runtime import Runtime
-from app.studies import crowd, gold, participants
 from app.studies import service as studies
 from app.studies.api import participant_out
 from app.studies.schemas import ExclusionIn, ParticipantOut, ProgressOut
@@ -69,7 +68,7 @@ def withdraw(body: WithdrawIn, person: ParticipantDep, session: SessionDep) -> O
     freed, and the labels are kept but left out of trees, pooling, exports and the dataset.
     Returns the open link's code for it."""
     row = participants.get_participant(session, participant_id=person.id)
-    return OutcomeOut.withdrawn(recruiting.withdraw(session, crowd.LINK, member=row))
+    return OutcomeOut.withdrawn(recruiting.withdraw(session, study_link.LINK, member=row))
 
 
 @router.get(
@@ -224,7 +223,7 @@ def _label_gold(
 ) -> tuple[bool, dict[str, Any]]:
     with runtime.engine.connect() as conn:
         person = members.participant_ref(conn, token=token)
-        answered = gold.answer(
+        answered = gold_answers.answer(
             conn,
             participant_id=person.id,
             item_id=item_id,
@@ -256,7 +255,7 @@ def set_exclusion(
 
 
 def _participant_out(request: Request, session: Session, person: Participant) -> ParticipantOut:
-    link = recruiting.settings(session, crowd.LINK, person.study_id)
+    link = recruiting.settings(session, study_link.LINK, person.study_id)
     return participant_out(
         request, person, participants.progress(session, participant=person), link
     )

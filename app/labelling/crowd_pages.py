@@ -11,16 +11,15 @@ from app.http.deps import SessionDep
 from app.http.guards import PageParticipant
 from app.http.rendering import RedirectTo, redirect, render
 from app.labelling import check as crowd_check
-from app.labelling import dataset
+from app.labelling import dataset, participants, study_link
 from app.labelling.pages import THANKS, where_next
 from app.recruiting import pages as open_links
-from app.studies import crowd, participants
 from app.studies import service as studies
 
 CHECK = "/participate/check"
 router = open_links.open_link_router(
     open_links.LinkPages(
-        kind=crowd.LINK,
+        kind=study_link.LINK,
         name_of=lambda session, study_id: studies.get_ready_study(session, study_id=study_id).name,
         next_path=lambda session, person: where_next(
             participants.progress(session, participant=person)

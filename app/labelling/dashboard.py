@@ -37,11 +37,11 @@ from sqlalchemy.orm import Session
 
 from app.core.errors import NotFoundError
 from app.labelling.dashboard_sql import ROWS, SNAPSHOT
-from app.labelling.quality import flags_of, is_fast
+from app.labelling.gold_answers import GoldScore
+from app.labelling.participant_quality import flags_of, is_fast
+from app.labelling.participants import n_matches
 from app.models import as_utc, utcnow
 from app.studies.crowd import DEFAULT_SPEED_THRESHOLD_MS
-from app.studies.gold import GoldScore
-from app.studies.participants import n_matches
 
 Status = Literal["not_started", "labelling", "finished", "withdrawn", "failed_gate", "timed_out"]
 #: Bumped when the dashboard's body changes shape, so that no old ETag matches a new body.
@@ -117,7 +117,7 @@ def etag_matches(if_none_match: str | None, etag: str) -> bool:
 @dataclass(frozen=True)
 class LiveParticipant:
     """One participant as the dashboard shows them; ``flags`` as
-    :attr:`app.labelling.quality.ParticipantQuality.flags`."""
+    :attr:`app.labelling.participant_quality.ParticipantQuality.flags`."""
 
     id: int
     name: str | None
@@ -244,7 +244,8 @@ def _live(row: Row[Any], total: int, rules: _Rules, now: datetime) -> LivePartic
 
 
 def _flags(row: Row[Any], median: float | None, rules: _Rules) -> list[str]:
-    """The quality table's flags (:func:`app.labelling.quality.flags_of`) from the row."""
+    """The quality table's flags (:func:`app.labelling.participant_quality.flags_of`) from
+    the row."""
     return flags_of(
         left=int(row.left),
         sided=int(row.sided),

@@ -11,10 +11,9 @@ from app.core.auth import dataset_salt
 from app.http.deps import DbId, ResearcherDep, SessionDep, SettingsDep
 from app.http.files import attachment
 from app.http.member_auth import ParticipantDep
-from app.labelling import dataset
+from app.labelling import dataset, participants
 from app.labelling.dataset_card import DEFAULT_LICENSE
 from app.labelling.schemas import ShareConsentIn, ShareConsentOut
-from app.studies import participants
 
 router = APIRouter()
 

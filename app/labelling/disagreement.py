@@ -24,11 +24,11 @@ from sqlalchemy.orm import Session
 from app.core.errors import ConflictError, NotFoundError
 from app.db import writing
 from app.labelling.flow import MAX_RESPONSE_MS
+from app.labelling.participants import ParticipantKey, progress
+from app.labelling.sides import a_on_left
 from app.labelling.trees import participant_tree
 from app.models import Candidate, DisagreementPair, Study, as_utc, utcnow
 from app.recruiting import seats
-from app.studies.participants import ParticipantKey, progress
-from app.studies.sides import a_on_left
 from engine.disagreement import disagreement_pairs
 from engine.errors import InputError
 from engine.verdict import Pair, advice_scores

@@ -21,11 +21,12 @@ import statistics
 
 from sqlalchemy import Connection, select
 
-from app.labelling.quality import flags_of, is_fast
+from app.labelling.participant_quality import flags_of, is_fast
+from app.labelling.participants import ParticipantKey
+from app.labelling.study_link import LINK
 from app.models import CrowdSettings, Label
 from app.recruiting import events
-from app.studies.crowd import DEFAULT_SPEED_THRESHOLD_MS, LINK
-from app.studies.participants import ParticipantKey
+from app.studies.crowd import DEFAULT_SPEED_THRESHOLD_MS
 from app.webhooks.outbox import Owner, webhook_ids
 
 

@@ -1,4 +1,5 @@
-"""The participant's hot path: their next match, and storing a label, in few statements.
+"""The participant's hot path: storing a label, in few statements (their next match is
+:mod:`app.labelling.open_matches`).
 
 Hundreds of people label at once (issue 16), so each request does as little as it can:
 
@@ -35,49 +36,18 @@ from app.core.errors import AuthError, ConflictError, NotFoundError
 from app.db import writing
 from app.labelling import events
 from app.labelling import flow_sql as sql
+from app.labelling.gold_placement import due_gold
+from app.labelling.open_matches import NextMatch, next_match
+from app.labelling.participants import ParticipantKey, Progress
 from app.labelling.shape import BracketShape, shape_of
+from app.labelling.sides import a_on_left, a_wins_tie
 from app.models import as_utc, utcnow
 from app.recruiting.members import STUDY
 from app.recruiting.seats import MemberEndedError
-from app.studies.gold import GoldPair, due_gold
-from app.studies.participants import ParticipantKey, Progress
-from app.studies.sides import a_on_left, a_wins_tie
 from engine.errors import InputError
 
 #: Longest response time stored (one day); a larger client value is bad input.
 MAX_RESPONSE_MS = 24 * 3600 * 1000
-
-
-@dataclass(frozen=True)
-class OpenMatch:
-    """A match whose two players are known and which has no label yet."""
-
-    id: int
-    round: int
-    slot: int
-    a: int
-    b: int
-    a_left: bool = True
-
-    @property
-    def left(self) -> int:
-        """The candidate shown on the left."""
-        return self.a if self.a_left else self.b
-
-
-@dataclass(frozen=True)
-class NextMatch:
-    """The participant's next match: "Round ``round`` of ``n_rounds``, match ``number`` of
-    ``in_round``"; ``gold``: a gold item to answer before it; ``allow_ties``: whether
-    "can't tell" is an answer."""
-
-    match: OpenMatch
-    n_rounds: int
-    number: int
-    in_round: int
-    progress: Progress
-    gold: GoldPair | None = None
-    allow_ties: bool = False
 
 
 @dataclass(frozen=True)
@@ -98,40 +68,10 @@ def _connection(db: Session | Connection) -> Connection:
     return db.connection() if isinstance(db, Session) else db
 
 
-def next_match(
-    db: Session | Connection, *, participant: ParticipantKey, done: int | None = None
-) -> NextMatch | None:
-    """The earliest open match in (round, slot) order, with the gold item due before it if
-    any, or ``None`` when the bracket is done.
-
-    Args:
-        done: the participant's label count when the caller knows it (saves a subquery).
-    """
-    shape, conn = shape_of(db, participant.study_id), _connection(db)
-    row = conn.execute(
-        sql.OPEN if done is not None else sql.OPEN_AND_DONE, {"pid": participant.id}
-    ).one_or_none()
-    if row is None:
-        return None
-    match = OpenMatch(*row[:6])
-    decided = row[6] if done is None else done
-    gold = due_gold(conn, participant_id=participant.id, done=decided)
-    number, in_round = shape.position(match.round, match.slot)
-    return NextMatch(
-        match,
-        shape.n_rounds,
-        number,
-        in_round,
-        Progress(decided, shape.n - 1),
-        gold,
-        shape.allow_ties,
-    )
-
-
 @dataclass(frozen=True)
 class Decision:
     """A participant's answer to a match: ``winner``, or ``tie`` ("can't tell"; the winner
-    is then the seeded coin's, :func:`app.studies.sides.a_wins_tie`)."""
+    is then the seeded coin's, :func:`app.labelling.sides.a_wins_tie`)."""
 
     match_id: int
     winner: int | None

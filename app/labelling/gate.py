@@ -1,7 +1,7 @@
 """The gold gate's reading of one participant (issue 28 §2): their gold answers against the
 study's gate. :mod:`app.labelling.quality` applies it to a whole study; after a gold answer,
 the participant's standing is read in the answer's own transaction (their earlier answers
-counted, plus this one: :func:`app.studies.gold.answer`) and the gate does more only when
+counted, plus this one: :func:`app.labelling.gold_answers.answer`) and the gate does more only when
 it flags them (:func:`app.labelling.quality.gate_after_answer`; issue 45 §7)."""
 
 from __future__ import annotations
@@ -9,8 +9,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from functools import lru_cache
 
+from app.labelling.gold_answers import GoldScore
 from app.models import Participant
-from app.studies.gold import GoldScore
 from engine.reliability import Checks, gold_interval
 
 

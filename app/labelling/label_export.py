@@ -24,12 +24,12 @@ from sqlalchemy import ColumnElement, select
 from sqlalchemy.orm import Session
 
 from app.core import csv_export
+from app.labelling import study_link
 from app.labelling.quality import quality
 from app.models import DisagreementPair, Label, Match, OpenLink, Participant, as_utc, utcnow
 from app.recruiting import seats
 from app.recruiting import service as recruiting
 from app.recruiting.seats import kept_in_data
-from app.studies import crowd
 from app.studies.service import get_study
 
 COLUMNS = (
@@ -72,7 +72,7 @@ def records(
     """Every label of the study, in label order, as :data:`COLUMNS` dicts; excluded
     participants' labels only with ``include_excluded``."""
     get_study(session, study_id=study_id)
-    link, now = recruiting.settings(session, crowd.LINK, study_id), utcnow()
+    link, now = recruiting.settings(session, study_link.LINK, study_id), utcnow()
     people: People = {
         q.participant.id: {
             "flags": q.flags,

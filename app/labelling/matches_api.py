@@ -9,12 +9,12 @@ from fastapi.responses import JSONResponse
 
 from app.http.deps import DbId, RuntimeDep, SessionDep
 from app.http.member_auth import InviteTokenDep, ParticipantDep
+from app.labelling import participants
 from app.labelling import service as labelling
 from app.labelling.api import next_match_body, progress_out
 from app.labelling.schemas import LabelOut, MatchLabelIn, UndoOut
 from app.recruiting import members
 from app.runtime import Runtime
-from app.studies import participants
 
 router = APIRouter(prefix="/matches", tags=["matches"])
 

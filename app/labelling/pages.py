@@ -18,11 +18,10 @@ from app.http.deps import SessionDep, SettingsDep
 from app.http.guards import PageParticipant, enter_by_invite
 from app.http.rendering import PageRoute, RedirectTo, redirect, render, thumb_template
 from app.labelling import check as crowd_check
-from app.labelling import dataset, disagreement, practice
+from app.labelling import dataset, disagreement, participants, practice, study_link
 from app.models import Participant
 from app.recruiting import members, seats
 from app.recruiting import service as recruiting
-from app.studies import crowd, participants
 from app.studies import service as studies
 from engine.errors import InputError
 
@@ -123,7 +122,7 @@ def label_page(request: Request, session: SessionDep, person: PageParticipant) -
 
 def _outcome(session: Session, person: Participant) -> tuple[seats.Outcome, seats.Ending | None]:
     failed_gate = person.gate_stopped_at is not None
-    return recruiting.outcome(session, crowd.LINK, member=person, failed_gate=failed_gate)
+    return recruiting.outcome(session, study_link.LINK, member=person, failed_gate=failed_gate)
 
 
 @router.get(WITHDRAW)
@@ -141,7 +140,7 @@ def withdraw(session: SessionDep, person: PageParticipant, fields: FormFields) -
     with the open link's code for it; only the form's own button withdraws."""
     if fields.get("decision") != "withdraw":
         raise InputError("withdrawing takes the form's Withdraw button (decision=withdraw)")
-    recruiting.withdraw(session, crowd.LINK, member=person)
+    recruiting.withdraw(session, study_link.LINK, member=person)
     return redirect(ENDED)
 
 
@@ -168,5 +167,5 @@ def thanks(request: Request, session: SessionDep, person: PageParticipant) -> Re
         raise RedirectTo(PAIRS)
     if crowd_check.pending_pair(session, participant=person) is not None:
         raise RedirectTo("/participate/check")
-    context["crowd"] = recruiting.completion(session, crowd.LINK, member=person)
+    context["crowd"] = recruiting.completion(session, study_link.LINK, member=person)
     return render(request, "thanks.html", context)

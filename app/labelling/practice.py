@@ -21,7 +21,7 @@ from pathlib import Path
 from sqlalchemy.orm import Session
 
 from app.core.errors import NotFoundError
-from app.studies.participants import ParticipantKey, progress
+from app.labelling.participants import ParticipantKey, progress
 from app.studies.practice_states import PracticeStates, practice_states
 from app.studies.service import get_study
 from engine.errors import InputError

@@ -1,8 +1,9 @@
 """Label quality of a study's participants (issues 14 and 28): position bias, speed, the
 consistency check, gold accuracy with its interval and the qualification gate, the
-reliability these give, and "can't tell" answers (their agreement with each other and with
-the simulated teachers: :mod:`app.labelling.consensus`). Flags only: nothing is rejected
-automatically, unless the researcher has the gate exclude (:func:`apply_gate`).
+reliability these give (each participant's: :mod:`app.labelling.participant_quality`), and
+"can't tell" answers (their agreement with each other and with the simulated teachers:
+:mod:`app.labelling.consensus`). Flags only: nothing is rejected automatically, unless the
+researcher has the gate exclude (:func:`apply_gate`).
 
 A tie ("can't tell") is neither agreement nor disagreement: it is left out of every
 agreement and of position bias, and counted per participant."""
@@ -12,28 +13,25 @@ from __future__ import annotations
 import statistics
 from collections.abc import Callable
 from dataclasses import dataclass
-from functools import lru_cache
 
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from app.db import writing
+from app.labelling import gold_answers
 from app.labelling.check import agreement_by_participant
 from app.labelling.gate import GateStanding, below_gate
+from app.labelling.gold_answers import GoldScore
+from app.labelling.participant_quality import ParticipantQuality, is_fast
+from app.labelling.participants import ParticipantKey
+from app.labelling.study_link import LINK, configure
 from app.models import CrowdSettings, Label, Match, Participant, utcnow
 from app.recruiting import events, seats
 from app.recruiting import service as recruiting
-from app.studies import gold
-from app.studies.crowd import DEFAULT_SPEED_THRESHOLD_MS, LINK, CrowdOptions, configure
-from app.studies.gold import GoldScore
-from app.studies.participants import ParticipantKey
+from app.studies.crowd import DEFAULT_SPEED_THRESHOLD_MS, CrowdOptions
 from app.studies.service import get_study
 from app.webhooks.outbox import Owner, webhook_ids
 from engine import agreement
-from engine.reliability import Checks, competence, gold_interval
-
-#: Position bias is flagged below this p-value of the binomial test.
-BIAS_ALPHA = 0.05
 
 
 @dataclass(frozen=True)
@@ -47,104 +45,6 @@ class LabelRow:
     chose_left: bool | None
     response_ms: int | None
     tie: bool = False
-
-
-def is_fast(median_ms: float | None, threshold_ms: int) -> bool:
-    """The speed flag: a median response time under the study's threshold."""
-    return median_ms is not None and median_ms < threshold_ms
-
-
-@lru_cache(maxsize=4096)
-def position_biased(left: int, sided: int) -> bool:
-    """The position-bias flag: the binomial test of ``left`` of ``sided`` choices against one
-    half rejects at :data:`BIAS_ALPHA` (cached: participants share few distinct counts)."""
-    p_value = agreement.side_bias(left=left, labels=sided).p_value
-    return p_value is not None and p_value < BIAS_ALPHA
-
-
-def flags_of(
-    *,
-    left: int,
-    sided: int,
-    fast: bool,
-    consistent: bool | None = None,
-    gold: GoldScore = GoldScore(0, 0),
-    gate: float | None = None,
-) -> list[str]:
-    """A participant's quality flags, the one rule for the quality table, the live
-    dashboard and webhook events: ``position_bias``, ``fast``, ``inconsistent`` (the
-    consistency check differs) and ``below_gate``, when they apply."""
-    on = {
-        "position_bias": position_biased(left, sided),
-        "fast": fast,
-        "inconsistent": consistent is False,
-        "below_gate": below_gate(gold, gate),
-    }
-    return [flag for flag, applies in on.items() if applies]
-
-
-@dataclass(frozen=True)
-class ParticipantQuality:
-    """One participant's quality; ``gold_gate`` is the study's gate (None: no gate)."""
-
-    participant: Participant
-    bias: agreement.SideBias
-    median_response_ms: float | None
-    fast: bool
-    consistency_agrees: bool | None
-    gold: GoldScore = GoldScore(0, 0)
-    ties: int = 0
-    gold_gate: float | None = None
-
-    @property
-    def flags(self) -> list[str]:
-        """``position_bias``, ``fast``, ``inconsistent`` and ``below_gate`` (:func:`flags_of`)."""
-        return flags_of(
-            left=self.bias.left,
-            sided=self.bias.labels,
-            fast=self.fast,
-            consistent=self.consistency_agrees,
-            gold=self.gold,
-            gate=self.gold_gate,
-        )
-
-    @property
-    def checks(self) -> Checks:
-        """The known-answer checks this participant answered: gold items and the
-        consistency pair."""
-        consistent = self.consistency_agrees
-        return Checks(
-            gold_right=self.gold.right,
-            gold_asked=self.gold.asked,
-            consistent=int(bool(consistent)),
-            consistency_asked=int(consistent is not None),
-        )
-
-    @property
-    def gold_interval(self) -> tuple[float, float] | None:
-        """Clopper-Pearson 95% interval of gold accuracy (None before any gold item)."""
-        return gold_interval(self.checks)
-
-    @property
-    def standing(self) -> GateStanding:
-        """What the gold gate reads of this participant."""
-        return GateStanding(self.participant, self.gold, self.gold_gate)
-
-    @property
-    def below_gate(self) -> bool:
-        """Whether the study's gate flags this participant (:func:`below_gate`)."""
-        return self.standing.below_gate
-
-    @property
-    def gate_reason(self) -> str:
-        """Why the gate flags this participant, in words."""
-        return self.standing.gate_reason
-
-    @property
-    def reliability(self) -> float:
-        """MACE competence from :attr:`checks` (:func:`engine.reliability.competence`): 0.25
-        before any check, never from agreement with others (docs/method.md §2.13)."""
-        return competence(self.checks)
 
 
 @dataclass(frozen=True)
@@ -209,7 +109,7 @@ def _known(session: Session, study_id: int) -> _Known:
         settings.speed_threshold_ms if settings else DEFAULT_SPEED_THRESHOLD_MS,
         settings.gold_gate if settings else None,
         agreement_by_participant(session, study_id=study_id),
-        gold.scores(session, study_id=study_id),
+        gold_answers.scores(session, study_id=study_id),
     )
 
 
@@ -233,7 +133,7 @@ def quality(session: Session, *, study_id: int) -> StudyQuality:
 
 
 def configure_crowd(session: Session, *, study_id: int, options: CrowdOptions) -> CrowdSettings:
-    """Set a study's open link and quality options (:func:`app.studies.crowd.configure`),
+    """Set a study's open link and quality options (:func:`app.labelling.study_link.configure`),
     then apply a gate that excludes to the participants it flags already."""
     settings = configure(session, study_id=study_id, options=options)
     apply_gate(session, study_id=study_id)
@@ -288,7 +188,7 @@ def _standings(
     if participant_id is None:
         return [q.standing for q in quality(session, study_id=study_id).participants]
     person = session.get_one(Participant, participant_id)
-    found = gold.scores(session, study_id=study_id, participant_id=participant_id)
+    found = gold_answers.scores(session, study_id=study_id, participant_id=participant_id)
     return [GateStanding(person, found.get(participant_id, GoldScore(0, 0)), settings.gold_gate)]
 
 

@@ -3,11 +3,11 @@
 Each participant plays the study's whole bracket (:class:`engine.bracket.Bracket`): the
 first-round matches exist from the invitation on, and storing a label creates the
 next-round match as soon as both of its players are known. The next match and storing a
-label are the hot path, in :mod:`app.labelling.flow` (re-exported here). Writes for one
-participant are serialised by updating their row first (a row lock on PostgreSQL; on SQLite
-the database's single-writer lock, see :func:`app.db.writing`), and the UNIQUE
-``labels.match_id`` constraint settles any race that gets through: a match has at most one
-label.
+label are the hot path, in :mod:`app.labelling.open_matches` and :mod:`app.labelling.flow`
+(re-exported here). Writes for one participant are serialised by updating their row first
+(a row lock on PostgreSQL; on SQLite the database's single-writer lock, see
+:func:`app.db.writing`), and the UNIQUE ``labels.match_id`` constraint settles any race that
+gets through: a match has at most one label.
 
 Undo: a participant may take back a label while no later match depends on it, i.e. iff the
 next-round match containing its winner has no label yet. Their latest label always
@@ -23,14 +23,8 @@ from sqlalchemy.orm import Session
 
 from app.core.errors import ConflictError, NotFoundError
 from app.db import writing
-from app.labelling.flow import (
-    MAX_RESPONSE_MS,
-    LabelResult,
-    NextMatch,
-    ParticipantKey,
-    next_match,
-    submit_label,
-)
+from app.labelling.flow import MAX_RESPONSE_MS, LabelResult, ParticipantKey, submit_label
+from app.labelling.open_matches import NextMatch, next_match
 from app.labelling.shape import shape_of
 from app.models import DisagreementPair, Label, Match, Member, Participant, utcnow
 from engine.bracket import Bracket, Results

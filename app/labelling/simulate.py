@@ -6,9 +6,9 @@ from __future__ import annotations
 import numpy as np
 from sqlalchemy.orm import Session
 
+from app.labelling.participants import add_participants
 from app.labelling.service import next_match, submit_label
 from app.models import Participant
-from app.studies.participants import add_participants
 from app.studies.service import engine_candidates_of, get_ready_study
 from engine.envs import env_model
 from engine.errors import InputError

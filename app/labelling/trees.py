@@ -7,10 +7,10 @@ from sqlalchemy.orm import Session
 
 from app.core import csv_export
 from app.core.errors import ConflictError
+from app.labelling.participants import get_participant
 from app.labelling.service import results_of
 from app.models import Label, Match, Participant, as_utc, utcnow
 from app.recruiting.seats import kept_in_data
-from app.studies.participants import get_participant
 from app.studies.service import engine_candidates_of, first_round, get_study
 from engine.treefile import TreeDocument, make_document
 

@@ -7,7 +7,7 @@ body model, a closure variable that FastAPI must read as a class, not as a strin
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Annotated, Any
+from typing import Annotated, Any, Generic
 
 from fastapi import APIRouter, Path, Request
 from pydantic import BaseModel
@@ -17,16 +17,17 @@ from app.core.json_types import IntParam
 from app.core.rows import from_row
 from app.http.deps import MAX_DB_ID, ResearcherDep, SessionDep
 from app.recruiting import service as recruiting
-from app.recruiting.kinds import LinkKind
+from app.recruiting.kinds import Link, MemberKind, open_url
 from app.recruiting.links import LinkOptions
+from app.recruiting.members import MemberRow
 from app.recruiting.schemas import OpenLinkIn
 
 
 @dataclass(frozen=True)
-class LinkApi:
+class LinkApi(Generic[Link, MemberRow]):
     """What one kind of collection's open-link API reads and writes."""
 
-    kind: LinkKind[Any, Any]
+    kind: MemberKind[Link, MemberRow]
     #: The collections' path segment under ``/api`` (``studies``), their OpenAPI tag, and
     #: the routes' names (``set_<name>``, ``get_<name>``: the OpenAPI operation ids).
     collections: str
@@ -39,12 +40,12 @@ class LinkApi:
     #: The options the body becomes, and what stores them for a collection id: by default
     #: :func:`recruiting.configure`; a kind with its own options checks them first.
     options: type[LinkOptions] = LinkOptions
-    configure: Callable[[Session, int, Any], Any] | None = None
+    configure: Callable[[Session, int, Any], Link] | None = None
     #: Response fields that are not columns of the link (a survey's ``completed``).
-    counts: Callable[[Session, Any], dict[str, Any]] = lambda session, link: {}
+    counts: Callable[[Session, Link], dict[str, int]] = lambda session, link: {}
 
 
-def open_link_api_router(api: LinkApi) -> APIRouter:
+def open_link_api_router(api: LinkApi[Link, MemberRow]) -> APIRouter:
     """``PUT`` and ``GET /<collections>/{<noun>_id}/crowd`` for ``api``'s kind of collection."""
     noun, link = api.kind.members.noun, api.kind.prefix
     id_name = f"{noun}_id"
@@ -52,8 +53,8 @@ def open_link_api_router(api: LinkApi) -> APIRouter:
     router = APIRouter(prefix=f"/{api.collections}", tags=[api.tag])
     path = f"/{{{id_name}}}/crowd"
 
-    def out(request: Request, session: Session, row: Any) -> BaseModel:
-        url = api.kind.open_url(request.base_url, row.slug)
+    def out(request: Request, session: Session, row: Link) -> BaseModel:
+        url = open_url(api.kind, request.base_url, row.slug)
         return from_row(api.out, row, url=url, **api.counts(session, row))
 
     own = ", and its own options" if api.body is not OpenLinkIn else ""

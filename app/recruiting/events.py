@@ -12,13 +12,14 @@ the one that makes the change, and costs one indexed query when nobody listens.
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any
+from typing import Literal
 
 from sqlalchemy import Connection, func, select
 from sqlalchemy.orm import Session
 
 from app.models import Member, OpenLink
-from app.recruiting.kinds import LinkKind
+from app.recruiting.kinds import Link, MemberKind, owner_is
+from app.recruiting.members import MemberRow, of_collection
 from app.webhooks.outbox import Data, Owner, emit, webhook_ids
 
 DB = Session | Connection
@@ -28,26 +29,24 @@ def _connection(db: DB) -> Connection:
     return db.connection() if isinstance(db, Session) else db
 
 
-#: The kinds of collection webhooks listen to (an agent evaluation has none).
-WEBHOOK_OWNERS = ("study", "survey")
+#: The kinds of collection webhooks listen to (an agent evaluation has none), by noun.
+WEBHOOK_OWNERS: dict[str, Literal["study", "survey"]] = {"study": "study", "survey": "survey"}
 
 
-def owner(kind: LinkKind[Any, Any], owner_id: int) -> Owner | None:
+def owner(kind: MemberKind[Link, MemberRow], owner_id: int) -> Owner | None:
     """The study or survey ``owner_id`` of ``kind``, as webhooks name it; ``None`` for a kind
     no webhook listens to."""
-    noun = kind.members.noun
-    if noun not in WEBHOOK_OWNERS:
-        return None
-    return Owner(noun, owner_id)  # type: ignore[arg-type]  # one of WEBHOOK_OWNERS
+    noun = WEBHOOK_OWNERS.get(kind.members.noun)
+    return None if noun is None else Owner(noun, owner_id)
 
 
-def declined(db: DB, kind: LinkKind[Any, Any], *, owner_id: int) -> None:
+def declined(db: DB, kind: MemberKind[Link, MemberRow], *, owner_id: int) -> None:
     """A visitor declined consent (nothing about them is stored, so the event carries only
     the count of declines)."""
     if (own := owner(kind, owner_id)) is None:
         return
     conn = _connection(db)
-    count = select(OpenLink.declines).where(kind.owner_is(owner_id))
+    count = select(OpenLink.declines).where(owner_is(kind, owner_id))
     emit(
         conn,
         owner=own,
@@ -59,7 +58,7 @@ def declined(db: DB, kind: LinkKind[Any, Any], *, owner_id: int) -> None:
 
 def finished(
     db: DB,
-    kind: LinkKind[Any, Any],
+    kind: MemberKind[Link, MemberRow],
     *,
     member_id: int,
     owner_id: int,
@@ -90,7 +89,7 @@ def finished(
 
 
 def flagged(
-    db: DB, kind: LinkKind[Any, Any], *, member_id: int, owner_id: int, by: str, data: Data
+    db: DB, kind: MemberKind[Link, MemberRow], *, member_id: int, owner_id: int, by: str, data: Data
 ) -> None:
     """``<person>.flagged`` by ``by`` (``finish``, ``gold_gate``), sent once per member and
     ``by`` whatever number of times it is written."""
@@ -105,7 +104,9 @@ def flagged(
     )
 
 
-def _member_data(conn: Connection, kind: LinkKind[Any, Any], member_id: int, shown_id: int) -> Data:
+def _member_data(
+    conn: Connection, kind: MemberKind[Link, MemberRow], member_id: int, shown_id: int
+) -> Data:
     row = conn.execute(
         select(Member.external_id, Member.external_ids, Member.via_link, Member.finished_at).where(
             Member.id == member_id
@@ -120,15 +121,17 @@ def _member_data(conn: Connection, kind: LinkKind[Any, Any], member_id: int, sho
     }
 
 
-def _locked_maximum(conn: Connection, kind: LinkKind[Any, Any], own: Owner) -> int | None:
+def _locked_maximum(conn: Connection, kind: MemberKind[Link, MemberRow], own: Owner) -> int | None:
     """The open link's maximum, its row locked until the transaction ends (PostgreSQL; SQLite
     has one writer anyway); ``None`` without a link."""
     return conn.scalar(
-        select(OpenLink.max_participants).where(kind.owner_is(own.id)).with_for_update()
+        select(OpenLink.max_participants).where(owner_is(kind, own.id)).with_for_update()
     )
 
 
-def _target(conn: Connection, kind: LinkKind[Any, Any], own: Owner, maximum: int | None) -> None:
+def _target(
+    conn: Connection, kind: MemberKind[Link, MemberRow], own: Owner, maximum: int | None
+) -> None:
     """``<noun>.target_reached`` once the finished open-link members reach the ``maximum``,
     once per maximum (raising it and reaching it again is a new event).
 
@@ -139,8 +142,7 @@ def _target(conn: Connection, kind: LinkKind[Any, Any], own: Owner, maximum: int
         return  # no open link: no target
     done = conn.scalar(
         select(func.count(Member.id)).where(
-            Member.collection_kind == own.noun,
-            Member.collection_id == own.id,
+            of_collection(own.noun, own.id),
             Member.via_link.is_(True),
             Member.finished_at.is_not(None),
         )

@@ -29,7 +29,6 @@ from app.db import writing
 from app.models import (
     CrowdSettings,
     EvaluationLink,
-    Member,
     OpenLink,
     SurveyCrowdSettings,
 )
@@ -216,13 +215,7 @@ def returning(
     key = ids.get(params[0])
     if key is None:
         return cookie
-    known = session.scalar(
-        select(kind.member).where(
-            Member.collection_kind == kind.noun,
-            Member.collection_id == owner_id,
-            Member.external_id == key,
-        )
-    )
+    known = members.member_by_external_id(session, kind, collection_id=owner_id, external_id=key)
     if known is None:
         return None
     if cookie is not None and cookie.id == known.id:

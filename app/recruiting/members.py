@@ -34,7 +34,7 @@ import weakref
 from dataclasses import dataclass
 from typing import Generic, TypeVar
 
-from sqlalchemy import Connection, Engine, Select, bindparam, select
+from sqlalchemy import ColumnElement, Connection, Engine, Select, and_, bindparam, select
 from sqlalchemy.orm import Session
 
 from app.core import auth
@@ -219,6 +219,24 @@ def member_by_token(
         _known.get(engine_of(session), {}).pop((kind.noun, token_digest(ref.token)), None)
         raise AuthError(kind.unknown)
     return member
+
+
+def of_collection(noun: str, collection_id: int) -> ColumnElement[bool]:
+    """The condition on the members of collection ``collection_id`` of kind ``noun``
+    (``study``): with the token lookup's, the one place the kind filter is written."""
+    return and_(Member.collection_kind == noun, Member.collection_id == collection_id)
+
+
+def member_by_external_id(
+    session: Session, kind: CollectionKind[MemberRow], *, collection_id: int, external_id: str
+) -> MemberRow | None:
+    """The member of ``kind`` in collection ``collection_id`` whose first external id is
+    ``external_id`` (unique there), or ``None``."""
+    return session.scalar(
+        select(kind.member).where(
+            of_collection(kind.noun, collection_id), Member.external_id == external_id
+        )
+    )
 
 
 def is_member_token(db: Session | Connection, *, token: str) -> bool:

@@ -28,7 +28,7 @@ from app.http.rendering import PageRoute, is_https, redirect, render
 from app.models import CrowdSettings, EvaluationLink, SurveyCrowdSettings
 from app.recruiting import seats
 from app.recruiting import service as recruiting
-from app.recruiting.kinds import Link, LinkKind
+from app.recruiting.kinds import Link, MemberKind, full_message, open_path
 from app.recruiting.links import DEFAULT_EXTERNAL_PARAMS, check_open
 from app.recruiting.members import MemberRow
 from engine.errors import InputError
@@ -138,9 +138,9 @@ def whole(fields: dict[str, str], name: str) -> int:
 
 @dataclass(frozen=True)
 class LinkPages(Generic[Link, MemberRow]):
-    """What the open-link pages of one kind of collection need beyond its :class:`LinkKind`."""
+    """What the open-link pages of one kind of collection need beyond its :class:`MemberKind`."""
 
-    kind: LinkKind[Link, MemberRow]
+    kind: MemberKind[Link, MemberRow]
     #: The collection's name, shown in the page header (by its id).
     name_of: Callable[[Session, int], str]
     #: Where a member goes once they joined or resumed: their next page.
@@ -154,11 +154,11 @@ class LinkPages(Generic[Link, MemberRow]):
 
     def full(self, request: Request, session: Session, link: Link) -> Response:
         """The page a visitor sees past the link's largest number of people."""
-        title, text = self.kind.full
+        title, text = full_message(self.kind)
         return message(request, self.name(session, link), title, text)
 
 
-def open_link_router(pages: LinkPages[Any, Any]) -> APIRouter:
+def open_link_router(pages: LinkPages[Link, MemberRow]) -> APIRouter:
     """The open link's two routes: ``GET`` (consent, or straight on) and ``POST`` (the
     consent form's agree or decline)."""
     router = APIRouter(route_class=PageRoute, include_in_schema=False)
@@ -175,7 +175,7 @@ def open_link_router(pages: LinkPages[Any, Any]) -> APIRouter:
             if not recruiting.has_room(session, link):
                 return pages.full(request, session, link)
             if link.consent_text:
-                name, action = pages.name(session, link), kind.open_path(link.slug)
+                name, action = pages.name(session, link), open_path(kind, link.slug)
                 return consent(request, name, link, action, ids, pages.share_label)
         return _enter(pages, request, session, link, ids, person)
 
@@ -199,7 +199,7 @@ def open_link_router(pages: LinkPages[Any, Any]) -> APIRouter:
 
 
 def _returning(
-    kind: LinkKind[Link, MemberRow],
+    kind: MemberKind[Link, MemberRow],
     request: Request,
     session: Session,
     link: Link,

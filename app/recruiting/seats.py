@@ -28,6 +28,7 @@ from sqlalchemy.orm import Session
 
 from app.core.errors import ServiceError
 from app.models import Member, OpenLink, Participant, as_utc
+from app.recruiting.members import of_collection
 
 OutcomeName = Literal["in_progress", "finished", "withdrawn", "failed_gate", "timed_out"]
 OUTCOMES: tuple[OutcomeName, ...] = (
@@ -220,8 +221,7 @@ def free_seat(session: Session, member: Member, link: OpenLink | None, now: date
 def _members_of(link: OpenLink) -> ColumnElement[bool]:
     """The members who hold a seat of ``link``."""
     return and_(
-        Member.collection_kind == link.collection_kind,
-        Member.collection_id == link.collection_id,
+        of_collection(link.collection_kind, link.collection_id),
         Member.via_link.is_(True),
         Member.seat_freed_at.is_(None),
     )

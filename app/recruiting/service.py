@@ -6,7 +6,7 @@ A new visitor joins as a member of their own, a returning one resumes (their coo
 first external id with the per-attempt ids), a declined consent is only counted, and a member
 who came through the link and finished gets its completion code. The seat count, the options
 and the external ids are :mod:`app.recruiting.links`; whom a cookie names is
-:func:`app.recruiting.members.resolve`. What differs between the kinds is a :class:`LinkKind`.
+:func:`app.recruiting.members.resolve`. What differs between the kinds is a :class:`MemberKind`.
 """
 
 from __future__ import annotations
@@ -18,22 +18,22 @@ from sqlalchemy.orm import Session
 from app.core.auth import new_token
 from app.core.errors import ConflictError, NotFoundError
 from app.db import writing
-from app.models import CrowdSettings, OpenLink, SurveyCrowdSettings
+from app.models import OpenLink
 from app.models.base import utcnow
 from app.recruiting import events, seats
 from app.recruiting import links as open_links
-from app.recruiting.kinds import Link, LinkKind
+from app.recruiting.kinds import Link, MemberKind, full_message, owner_is
 from app.recruiting.links import LinkOptions
 from app.recruiting.members import MemberRow
 from engine.errors import InputError
 
 
-def settings(session: Session, kind: LinkKind[Link, MemberRow], owner_id: int) -> Link | None:
+def settings(session: Session, kind: MemberKind[Link, MemberRow], owner_id: int) -> Link | None:
     """The collection's open link and options, or ``None`` when never set."""
-    return session.scalar(select(kind.link).where(kind.owner_is(owner_id)))
+    return session.scalar(select(kind.link).where(owner_is(kind, owner_id)))
 
 
-def configured(session: Session, kind: LinkKind[Link, MemberRow], owner_id: int) -> Link:
+def configured(session: Session, kind: MemberKind[Link, MemberRow], owner_id: int) -> Link:
     """The collection's open link and options.
 
     Raises:
@@ -46,7 +46,7 @@ def configured(session: Session, kind: LinkKind[Link, MemberRow], owner_id: int)
 
 
 def configure(
-    session: Session, kind: LinkKind[Link, MemberRow], owner_id: int, options: LinkOptions
+    session: Session, kind: MemberKind[Link, MemberRow], owner_id: int, options: LinkOptions
 ) -> Link:
     """Set the collection's open link and options (the slug is made once and kept); a
     subclass's options (a study's quality checks) are stored too, checked by the caller.
@@ -67,7 +67,7 @@ def configure(
     )
 
 
-def open_link(session: Session, kind: LinkKind[Link, MemberRow], slug: str) -> Link:
+def open_link(session: Session, kind: MemberKind[Link, MemberRow], slug: str) -> Link:
     """The open link ``slug``, open or closed (:func:`open_links.find`).
 
     Raises:
@@ -76,16 +76,14 @@ def open_link(session: Session, kind: LinkKind[Link, MemberRow], slug: str) -> L
     return open_links.find(session, kind.link, slug=slug, what=kind.members.noun)
 
 
-def external_ids(
-    link: CrowdSettings | SurveyCrowdSettings, query: dict[str, str]
-) -> dict[str, str]:
+def external_ids(link: OpenLink, query: dict[str, str]) -> dict[str, str]:
     """The link's external parameters found in ``query`` (see :func:`open_links.external_ids`)."""
     return open_links.external_ids(link.external_params, query)
 
 
 def returning(
     session: Session,
-    kind: LinkKind[Link, MemberRow],
+    kind: MemberKind[Link, MemberRow],
     *,
     link: Link,
     ids: dict[str, str],
@@ -110,7 +108,7 @@ def returning(
 
 def join(
     session: Session,
-    kind: LinkKind[Link, MemberRow],
+    kind: MemberKind[Link, MemberRow],
     *,
     link: Link,
     ids: dict[str, str],
@@ -140,9 +138,9 @@ def join(
     )
     try:
         with writing(session):
-            full = kind.full_error(": ".join(kind.full))
+            full = kind.full_error(": ".join(full_message(kind)))
             seats.free_expired_seats(session, link, now)
-            open_links.take_seat(session, kind.owner_is(owner_id), full=full)
+            open_links.take_seat(session, owner_is(kind, owner_id), full=full)
             kind.stage(session, person)
     except IntegrityError:  # the same external id joined at the same moment: resume it
         existing = returning(session, kind, link=link, ids=ids, token=None)
@@ -163,18 +161,18 @@ def has_room(session: Session, link: OpenLink) -> bool:
     return not open_links.is_full(link)
 
 
-def decline(session: Session, kind: LinkKind[Link, MemberRow], *, link: Link) -> None:
+def decline(session: Session, kind: MemberKind[Link, MemberRow], *, link: Link) -> None:
     """Count a declined consent, and write its webhook event in the same transaction;
     nothing else about the visitor is stored."""
     owner_id = link.collection_id
     with writing(session):
-        open_links.count_decline(session, kind.owner_is(owner_id))
+        open_links.count_decline(session, owner_is(kind, owner_id))
         events.declined(session, kind, owner_id=owner_id)
 
 
 def outcome(
     session: Session,
-    kind: LinkKind[Link, MemberRow],
+    kind: MemberKind[Link, MemberRow],
     *,
     member: MemberRow,
     failed_gate: bool = False,
@@ -187,7 +185,7 @@ def outcome(
 
 
 def completion(
-    session: Session, kind: LinkKind[Link, MemberRow], *, member: MemberRow
+    session: Session, kind: MemberKind[Link, MemberRow], *, member: MemberRow
 ) -> seats.Ending | None:
     """The code and redirect a finished open-link member gets; ``None`` before they finish,
     or for an invited member (the code is what a crowd platform pays against)."""
@@ -196,7 +194,7 @@ def completion(
 
 
 def withdraw(
-    session: Session, kind: LinkKind[Link, MemberRow], *, member: MemberRow
+    session: Session, kind: MemberKind[Link, MemberRow], *, member: MemberRow
 ) -> seats.Ending | None:
     """``member`` withdraws (:func:`app.recruiting.seats.withdraw`): their seat is freed and
     their answers left out of everything; the code and redirect they are shown.

@@ -11,10 +11,10 @@ import numpy as np
 from sqlalchemy.orm import Session
 
 from app.core.errors import NotFoundError
+from app.labelling.participants import get_participant
 from app.labelling.trees import participant_tree
 from app.runs import pools
 from app.runs.spec import AdviceSource, ParticipantAdvice, PooledAdvice, TeacherAdvice
-from app.studies.participants import get_participant
 from app.studies.service import engine_candidates_of, first_round, get_ready_study
 from engine.bracket import Bracket
 from engine.envs import env_model

@@ -21,13 +21,13 @@ from app.http.csrf import CsrfChecked, FormFields
 from app.http.deps import DbId, SessionDep
 from app.http.guards import ResearcherPage
 from app.http.rendering import PageRoute, redirect, render
+from app.labelling import participants
 from app.models import Participant, StudyStatus
 from app.runs import experiments, run_state
 from app.runs import service as runs
 from app.runs.experiments import DEFAULT_SEEDS
 from app.runs.experiments_api import ExperimentCreate
 from app.runs.schemas import RunCreate, RunOut
-from app.studies import participants
 from app.studies import service as studies
 from engine.errors import InputError
 from engine.rl.config import ADVICE_MODES, ALGOS

@@ -23,11 +23,11 @@ from typing import Any
 from sqlalchemy.orm import Session
 
 from app.core.errors import ConflictError, NotFoundError
-from app.labelling.quality import ParticipantQuality, quality
-from app.labelling.trees import participant_tree
+from app.labelling.finished_members import FinishedMember, finished_members
+from app.labelling.participant_quality import ParticipantQuality
+from app.labelling.participants import list_participants
 from app.models import Participant, Run
 from app.runs.spec import PoolWeighting
-from app.studies.participants import get_participant, list_participants
 from engine.errors import InputError
 from engine.pooling import check_pool, pooled_tree
 from engine.treefile import TreeDocument, tree_to_json
@@ -128,12 +128,16 @@ def pool_of(
             every reliability 0.
         InputError: trees over different brackets (never within one study).
     """
-    trees = []
-    for pid in ids:
-        _check_poolable(get_participant(session, participant_id=pid), study_id)
-        trees.append(participant_tree(session, participant_id=pid))
+    members = finished_members(
+        session,
+        study_id=study_id,
+        ids=ids,
+        check=lambda person: _check_poolable(person, study_id),
+        reliabilities=weighted,
+    )
+    trees = [m.tree for m in members]
     check_pool(trees)
-    found = reliability_weights(session, study_id=study_id, ids=ids) if weighted else None
+    found = reliability_weights(members, study_id=study_id) if weighted else None
     whys = {w.participant_id: w.why for w in found or () if w.why is not None}
     pool: Pool = [
         {"participant_id": pid, "tree": tree_to_json(t)}
@@ -154,16 +158,18 @@ def _check_poolable(person: Participant, study_id: int) -> None:
         )
 
 
-def reliability_weights(session: Session, *, study_id: int, ids: Sequence[int]) -> list[PoolWeight]:
-    """Each of ``ids`` weighted by their reliability (:func:`app.labelling.quality.quality`),
+def reliability_weights(members: Sequence[FinishedMember], *, study_id: int) -> list[PoolWeight]:
+    """Each of ``members`` (read with their reliabilities:
+    :func:`app.labelling.finished_members.finished_members`) weighted by their reliability,
     with why for each one below the pool's highest weight: a weighted mean only compares
     weights, so the most reliable count fully and the others are weighted down.
 
     Raises:
-        NotFoundError: an id that is no participant of ``study_id``.
+        NotFoundError: a member who is no participant of ``study_id``.
         ConflictError: every reliability is 0 (nothing to weight by).
     """
-    by_id = {q.participant.id: q for q in quality(session, study_id=study_id).participants}
+    by_id = {m.participant.id: m.quality for m in members if m.quality is not None}
+    ids = [m.participant.id for m in members]
     stranger = next((pid for pid in ids if pid not in by_id), None)
     if stranger is not None:
         raise NotFoundError(f"participant {stranger} is not in study {study_id}")

@@ -17,10 +17,9 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from app.labelling import disagreement
-from app.labelling.trees import participant_tree
+from app.labelling.finished_members import FinishedMember, finished_members
 from app.models import Candidate
 from app.runs.experiments import DEFAULT_SEEDS
-from app.studies import participants
 from engine.verdict import advice_scores, bracket_pairs, split_matches
 from engine.verdict_power import min_detectable_delta
 
@@ -55,24 +54,23 @@ def study_power(
     session: Session, *, study_id: int, seeds: int = DEFAULT_SEEDS
 ) -> list[AdvicePower]:
     """:class:`AdvicePower` of every finished participant of the study, in invitation order."""
-    finished = [
-        s.participant.id
-        for s in participants.list_participants(session, study_id=study_id)
-        if s.progress.finished
-    ]
+    finished = finished_members(session, study_id=study_id)
     baseline = session.scalars(
         select(Candidate.baseline_return)
         .where(Candidate.study_id == study_id)
         .order_by(Candidate.id)
     ).all()
     known = baseline and all(r is not None for r in baseline)
-    return [_power(session, pid, seeds, baseline if known else None) for pid in finished]
+    return [_power(session, m, seeds, baseline if known else None) for m in finished]
 
 
 def _power(
-    session: Session, participant_id: int, seeds: int, baseline: Sequence[float | None] | None
+    session: Session,
+    member: FinishedMember,
+    seeds: int,
+    baseline: Sequence[float | None] | None,
 ) -> AdvicePower:
-    tree = participant_tree(session, participant_id=participant_id)
+    tree, participant_id = member.tree, member.participant.id
     stand_in = [c.env_reward for c in tree.candidates] if baseline is None else baseline
     pairs = bracket_pairs(tree) + disagreement.answered(session, participant_id=participant_id)
     classes = split_matches(advice_scores(tree), np.array(stand_in, dtype=float), pairs)

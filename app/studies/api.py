@@ -22,13 +22,12 @@ from app.http.deps import (
 )
 from app.http.files import attachment
 from app.http.urls import image_url, invite_url
-from app.labelling import trees
+from app.labelling import participants, study_link, trees
 from app.models import OpenLink, Participant, utcnow
 from app.recruiting import seats
 from app.recruiting import service as recruiting
 from app.runs import power
 from app.runs.experiments import DEFAULT_SEEDS, MAX_SEEDS, MIN_SEEDS
-from app.studies import crowd, participants
 from app.studies import service as studies
 from app.studies.images import MEDIA_TYPE, ImageSize, image_file
 from app.studies.schemas import (
@@ -170,7 +169,7 @@ def list_participants(
     study_id: DbId, request: Request, session: SessionDep, _: ResearcherDep
 ) -> list[ParticipantOut]:
     """Participants with their progress, invite links, outcomes and codes."""
-    link = recruiting.settings(session, crowd.LINK, study_id)
+    link = recruiting.settings(session, study_link.LINK, study_id)
     return [
         participant_out(request, s.participant, s.progress, link)
         for s in participants.list_participants(session, study_id=study_id)

@@ -12,7 +12,7 @@ from fastapi import APIRouter, Response
 from app.core.errors import NotFoundError
 from app.http.deps import DbId, ResearcherDep, SessionDep
 from app.http.files import attachment
-from app.labelling import consensus, label_export
+from app.labelling import consensus, label_export, study_link
 from app.labelling import quality as crowd_stats
 from app.recruiting.api import LinkApi, open_link_api_router
 from app.studies import crowd
@@ -35,7 +35,7 @@ router = APIRouter(prefix="/studies", tags=["crowd"])
 #: options.
 link_router = open_link_api_router(
     LinkApi(
-        kind=crowd.LINK,
+        kind=study_link.LINK,
         collections="studies",
         tag="crowd",
         name="crowd",

@@ -12,9 +12,10 @@ from app.http.csrf import CsrfChecked, FormFields
 from app.http.deps import DbId, SessionDep
 from app.http.guards import ResearcherPage
 from app.http.rendering import PageRoute, redirect
-from app.labelling import consensus
+from app.labelling import consensus, study_link
 from app.labelling import quality as crowd_stats
 from app.recruiting import service as recruiting
+from app.recruiting.kinds import open_url
 from app.recruiting.pages import link_form, validated, whole
 from app.studies import crowd, gold
 from app.studies.crowd_schemas import CrowdIn
@@ -53,7 +54,7 @@ def heat_map(agreement: consensus.StudyAgreement) -> list[dict[str, Any]]:
 
 def crowd_context(request: Request, session: Session, study_id: int) -> dict[str, Any]:
     """What ``study_crowd.html`` shows: settings and link, quality, agreement."""
-    row = recruiting.settings(session, crowd.LINK, study_id)
+    row = recruiting.settings(session, study_link.LINK, study_id)
     agreement = consensus.study_agreement(session, study_id=study_id)
     teachers: dict[int, dict[str, float | None]] = {}
     for t in agreement.teachers:
@@ -61,7 +62,7 @@ def crowd_context(request: Request, session: Session, study_id: int) -> dict[str
     return {
         "crowd": row,
         "crowd_defaults": crowd.CrowdOptions(),
-        "open_url": None if row is None else crowd.LINK.open_url(request.base_url, row.slug),
+        "open_url": None if row is None else open_url(study_link.LINK, request.base_url, row.slug),
         "quality": crowd_stats.quality(session, study_id=study_id),
         "agreement": agreement,
         "heat_rows": heat_map(agreement),

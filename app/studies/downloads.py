@@ -13,8 +13,7 @@ from app.http.deps import DbId, SessionDep
 from app.http.files import attachment
 from app.http.guards import ResearcherPage
 from app.http.rendering import PageRoute
-from app.labelling import trees
-from app.studies import participants
+from app.labelling import participants, trees
 from app.studies.schemas import IncludeExcluded
 from engine.treefile import dumps
 

@@ -10,8 +10,9 @@ from app.http.csrf import CsrfChecked, FormFields
 from app.http.deps import DbId, SessionDep
 from app.http.guards import ResearcherPage
 from app.http.rendering import PageRoute, redirect
+from app.labelling import participants
 from app.recruiting.pages import validated
-from app.studies import gold, participants
+from app.studies import gold
 from app.studies.gold_api import GoldItemIn
 
 router = APIRouter(route_class=PageRoute, include_in_schema=False, dependencies=[ResearcherPage])

@@ -14,19 +14,19 @@ from pydantic import ValidationError
 from sqlalchemy.orm import Session
 
 from app.core.json_types import IntParam, from_form
+from app.core.limits import MAX_BATCH
 from app.http.csrf import CsrfChecked, FormFields
 from app.http.deps import DbId, RuntimeDep, SessionDep, SettingsDep
 from app.http.guards import ResearcherPage
 from app.http.rendering import PageRoute, redirect, render, thumb_template
 from app.http.urls import image_url
 from app.labelling import dashboard as live
+from app.labelling import participants
 from app.models import StudyStatus
 from app.runs import power as study_power
 from app.runs.experiments import DEFAULT_SEEDS
-from app.studies import participants
 from app.studies import service as studies
 from app.studies.crowd_pages import crowd_context
-from app.studies.participants import MAX_BATCH
 from app.studies.schemas import StudyCreate
 from app.webhooks.outbox import Owner
 from app.webhooks.pages import webhooks_context

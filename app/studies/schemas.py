@@ -14,10 +14,9 @@ from pydantic import (
 )
 
 from app.core.json_types import JsonFloat, JsonInt, UtcDatetime
-from app.core.limits import MAX_INSTRUCTIONS_CHARS, MAX_NAME_CHARS, MAX_SEED
+from app.core.limits import MAX_BATCH, MAX_INSTRUCTIONS_CHARS, MAX_NAME_CHARS, MAX_SEED
 from app.models import StudyStatus
 from app.recruiting.seats import OutcomeName
-from app.studies.participants import MAX_BATCH
 from app.studies.service import StudySpec
 from engine.candidates import MAX_CANDIDATES
 from engine.disagreement import MAX_PAIRS

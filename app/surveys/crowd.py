@@ -13,7 +13,7 @@ from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
 from app.models import SurveyCrowdSettings, SurveyRespondent
-from app.recruiting.kinds import LinkKind
+from app.recruiting.kinds import MemberKind
 from app.recruiting.links import LinkFullError
 from app.recruiting.members import SURVEY
 from app.surveys.service import get_survey
@@ -23,15 +23,27 @@ class SurveyFullError(LinkFullError):
     """The survey's open link reached its largest number of respondents."""
 
 
-LINK = LinkKind(
-    members=SURVEY,
-    link=SurveyCrowdSettings,
+class SurveyKind:
+    """A survey's open link ``/q/<slug>`` (:class:`app.recruiting.kinds.MemberKind`): a
+    survey takes people from its creation, and a new respondent starts with nothing more."""
+
+    members = SURVEY
+    link = SurveyCrowdSettings
     # /q/ (questionnaire), apart from the studies' /s/: each kind of link has its own table.
-    prefix="/q/",
-    full_error=SurveyFullError,
-    check_collection=lambda session, survey_id: get_survey(session, survey_id=survey_id),
-    stage=lambda session, person: session.add(person),
-)
+    prefix = "/q/"
+    full_error: type[LinkFullError] = SurveyFullError
+    timed = False
+
+    def check_collection(self, session: Session, collection_id: int) -> None:
+        """Refuse a survey that does not exist (:func:`get_survey`)."""
+        get_survey(session, survey_id=collection_id)
+
+    def stage(self, session: Session, member: SurveyRespondent) -> None:
+        """Add a respondent who joined."""
+        session.add(member)
+
+
+LINK: MemberKind[SurveyCrowdSettings, SurveyRespondent] = SurveyKind()
 
 
 def completed(session: Session, *, survey_id: int) -> int:

@@ -21,6 +21,7 @@ from app.http.rendering import PageRoute, render
 from app.models import Survey, SurveyRespondent
 from app.recruiting import members
 from app.recruiting import service as recruiting
+from app.recruiting.kinds import open_url
 from app.recruiting.links import LinkOptions
 from app.surveys import crowd as survey_crowd
 from app.surveys import respond as survey_respond
@@ -60,11 +61,12 @@ def new_survey_page(request: Request, session: SessionDep) -> HTMLResponse:
 def crowd_context(request: Request, session: Session, survey_id: int) -> dict[str, Any]:
     """What the survey page's "Crowd: open link" section shows (the form posts to
     :mod:`app.surveys.crowd_pages`)."""
-    row = recruiting.settings(session, survey_crowd.LINK, survey_id)
+    kind = survey_crowd.LINK
+    row = recruiting.settings(session, kind, survey_id)
     return {
         "crowd": row,
         "crowd_defaults": LinkOptions(),
-        "open_url": None if row is None else survey_crowd.LINK.open_url(request.base_url, row.slug),
+        "open_url": None if row is None else open_url(kind, request.base_url, row.slug),
         "completed": survey_crowd.completed(session, survey_id=survey_id),
     }
 

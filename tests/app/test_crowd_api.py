@@ -18,7 +18,7 @@ from app.core.auth import PARTICIPANT_COOKIE
 from app.db import make_engine, upgrade
 from app.http.ratelimit import LoginLimiter
 from app.labelling.label_export import COLUMNS
-from app.studies.sides import a_on_left
+from app.labelling.sides import a_on_left
 from tests.support.crowd import SETTINGS, configure, joined_player, visit, visitor
 from tests.support.postgres import empty_database
 from tests.support.studies import Player

@@ -11,7 +11,7 @@ from fastapi.testclient import TestClient
 
 from app.cli.serve import _demo_lines
 from app.demo import DEMO_RUN, ensure_demo
-from app.studies.participants import invite_url
+from app.labelling.participants import invite_url
 from tests.support.runs import run_app
 from tests.support.web import ADMIN
 

@@ -14,10 +14,10 @@ import pytest
 from fastapi.testclient import TestClient
 from sqlalchemy import event
 
-from app.labelling import quality
+from app.labelling import gold_answers, quality
+from app.labelling.gold_answers import GoldScore
 from app.recruiting.members import ParticipantRef
 from app.studies import gold
-from app.studies.gold import GoldScore
 from tests.support.crowd import configure
 from tests.support.studies import Player
 from tests.support.web import ADMIN
@@ -140,7 +140,7 @@ def test_the_standing_a_gold_answer_reads_is_the_gates_full_reading(
             assert player.answer_gold(item, answer).status_code == 201
             answers += 1
             with runtime.sessions() as session:
-                full = gold.scores(session, study_id=sid, participant_id=player.id)
+                full = gold_answers.scores(session, study_id=sid, participant_id=player.id)
             assert passed[-1] == (player.id, full[player.id], 0.9)
             assert full[player.id] == GoldScore(answers if right else 0, answers)
         assert answers == 2

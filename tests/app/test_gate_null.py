@@ -9,7 +9,7 @@ import pytest
 from scipy.stats import binom
 
 from app.labelling.gate import below_gate
-from app.studies.gold import GoldScore
+from app.labelling.gold_answers import GoldScore
 
 
 def _flag_rate(accuracy: float, asked: int, gate: float) -> float:

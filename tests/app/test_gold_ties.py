@@ -15,7 +15,7 @@ from typing import Any
 import pytest
 from fastapi.testclient import TestClient
 
-from app.studies import gold
+from app.labelling import gold_placement
 from tests.support.crowd import configure
 from tests.support.studies import Player
 from tests.support.web import ADMIN
@@ -93,7 +93,7 @@ def test_gold_items_come_among_the_matches_and_never_enter_the_bracket(
         player, lambda m: {0: 1, 2: 2}[min(m["a"]["candidate_id"], m["b"]["candidate_id"])]
     )
     assert sorted(m["gold"]["item_id"] for m in seen) == sorted(g["id"] for g in gold_items)
-    places = gold.positions(
+    places = gold_placement.positions(
         n_candidates=N, count=2, seed=gold_study["seed"], participant_id=player.id
     )
     assert sorted(m["progress"]["done"] for m in seen) == places

@@ -23,7 +23,7 @@ from sqlalchemy.orm import Session
 
 from app.db import make_engine, make_sessions
 from app.labelling import check
-from app.labelling.quality import ParticipantQuality
+from app.labelling.participant_quality import ParticipantQuality
 from app.models import Label, Match, Participant
 from app.runs import service as runs
 from app.settings import Settings

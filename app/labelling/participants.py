@@ -12,11 +12,11 @@ from app.core.auth import new_token
 from app.core.errors import NotFoundError
 from app.core.limits import MAX_BATCH, check_text
 from app.db import writing
+from app.labelling.gold_placement import stage_gold
+from app.labelling.sides import a_on_left
 from app.models import Label, Match, Participant, Study
 from app.recruiting.members import STUDY
-from app.studies.gold import stage_gold
 from app.studies.service import first_round, get_ready_study, get_study
-from app.studies.sides import a_on_left
 from engine.bracket import Bracket
 from engine.errors import InputError
 

@@ -1,0 +1,78 @@
+"""The participant's next match: the earliest open one in (round, slot) order, with the gold
+item due before it, in few indexed queries on a plain connection (the hot path, as
+storing a label is: :mod:`app.labelling.flow`)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from sqlalchemy import Connection
+from sqlalchemy.orm import Session
+
+from app.labelling import flow_sql as sql
+from app.labelling.gold_placement import GoldPair, due_gold
+from app.labelling.participants import ParticipantKey, Progress
+from app.labelling.shape import shape_of
+
+
+@dataclass(frozen=True)
+class OpenMatch:
+    """A match whose two players are known and which has no label yet."""
+
+    id: int
+    round: int
+    slot: int
+    a: int
+    b: int
+    a_left: bool = True
+
+    @property
+    def left(self) -> int:
+        """The candidate shown on the left."""
+        return self.a if self.a_left else self.b
+
+
+@dataclass(frozen=True)
+class NextMatch:
+    """The participant's next match: "Round ``round`` of ``n_rounds``, match ``number`` of
+    ``in_round``"; ``gold``: a gold item to answer before it; ``allow_ties``: whether
+    "can't tell" is an answer."""
+
+    match: OpenMatch
+    n_rounds: int
+    number: int
+    in_round: int
+    progress: Progress
+    gold: GoldPair | None = None
+    allow_ties: bool = False
+
+
+def next_match(
+    db: Session | Connection, *, participant: ParticipantKey, done: int | None = None
+) -> NextMatch | None:
+    """The earliest open match in (round, slot) order, with the gold item due before it if
+    any, or ``None`` when the bracket is done.
+
+    Args:
+        done: the participant's label count when the caller knows it (saves a subquery).
+    """
+    shape = shape_of(db, participant.study_id)
+    conn = db.connection() if isinstance(db, Session) else db
+    row = conn.execute(
+        sql.OPEN if done is not None else sql.OPEN_AND_DONE, {"pid": participant.id}
+    ).one_or_none()
+    if row is None:
+        return None
+    match = OpenMatch(*row[:6])
+    decided = row[6] if done is None else done
+    gold = due_gold(conn, participant_id=participant.id, done=decided)
+    number, in_round = shape.position(match.round, match.slot)
+    return NextMatch(
+        match,
+        shape.n_rounds,
+        number,
+        in_round,
+        Progress(decided, shape.n - 1),
+        gold,
+        shape.allow_ties,
+    )
