@@ -82,41 +82,13 @@ def sb3_return(cfg: TrainConfig) -> float:
     """Stable-Baselines3 PPO with ``cfg``'s settings: mean return of its last 100 episodes."""
     import gymnasium as gym
     import torch
-    from stable_baselines3 import PPO
     from stable_baselines3.common.env_util import make_vec_env
-    from stable_baselines3.common.vec_env import VecNormalize
+
+    from engine.rl.sb3_peer import normalised, sb3_ppo
 
     torch.set_num_threads(1)
-    venv = VecNormalize(
-        make_vec_env(lambda: gym.make(cfg.env_id), n_envs=cfg.n_envs, seed=cfg.seed),
-        norm_obs=cfg.norm_obs,
-        norm_reward=cfg.norm_reward,
-        clip_obs=10.0,
-        clip_reward=10.0,
-        gamma=cfg.gamma,
-    )
-    lr = cfg.learning_rate
-    model = PPO(
-        "MlpPolicy",
-        venv,
-        learning_rate=(lambda left: lr * left) if cfg.anneal_lr else lr,
-        n_steps=cfg.num_steps,
-        batch_size=cfg.minibatch_size,
-        n_epochs=cfg.update_epochs,
-        gamma=cfg.gamma,
-        gae_lambda=cfg.gae_lambda,
-        clip_range=cfg.clip_coef,
-        ent_coef=cfg.ent_coef,
-        vf_coef=cfg.vf_coef,
-        max_grad_norm=cfg.max_grad_norm,
-        device="cpu",
-        seed=cfg.seed,
-        policy_kwargs={
-            "net_arch": {"pi": [cfg.hidden] * 2, "vf": [cfg.hidden] * 2},
-            "activation_fn": torch.nn.Tanh,
-            "optimizer_kwargs": {"eps": 1e-5},
-        },
-    )
+    venv = make_vec_env(lambda: gym.make(cfg.env_id), n_envs=cfg.n_envs, seed=cfg.seed)
+    model = sb3_ppo(cfg, normalised(venv, cfg))
     model.learn(total_timesteps=cfg.num_updates * cfg.batch_size)
     return float(np.mean([info["r"] for info in model.ep_info_buffer]))
 

@@ -212,11 +212,11 @@ def sb3_model(bench: Bench, task: Task, advice: TreeDocument | None) -> tuple[An
     Hopper-v5 envs, each wrapped in :class:`AdviceWrapper` when ``advice`` is given. SB3's
     ``Monitor`` sits inside the wrapper, so its episode returns are the env's R."""
     import torch
-    from stable_baselines3 import PPO
     from stable_baselines3.common.monitor import Monitor
-    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+    from stable_baselines3.common.vec_env import DummyVecEnv
 
     from engine.envs import make_env
+    from engine.rl.sb3_peer import normalised, sb3_ppo
 
     cfg = bench.config(*task)
     torch.set_num_threads(1)
@@ -227,36 +227,8 @@ def sb3_model(bench: Bench, task: Task, advice: TreeDocument | None) -> tuple[An
             return env
         return AdviceWrapper(env, advice, scale=SCALE, offset=ADVICE_OFFSET)
 
-    venv = VecNormalize(
-        DummyVecEnv([one_env] * cfg.n_envs),
-        norm_obs=cfg.norm_obs,
-        norm_reward=cfg.norm_reward,
-        clip_obs=10.0,
-        clip_reward=10.0,
-        gamma=cfg.gamma,
-    )
-    lr = cfg.learning_rate
-    model = PPO(
-        "MlpPolicy",
-        venv,
-        learning_rate=(lambda left: lr * left) if cfg.anneal_lr else lr,
-        n_steps=cfg.num_steps,
-        batch_size=cfg.minibatch_size,
-        n_epochs=cfg.update_epochs,
-        gamma=cfg.gamma,
-        gae_lambda=cfg.gae_lambda,
-        clip_range=cfg.clip_coef,
-        ent_coef=cfg.ent_coef,
-        vf_coef=cfg.vf_coef,
-        max_grad_norm=cfg.max_grad_norm,
-        device="cpu",
-        seed=cfg.seed,
-        policy_kwargs={
-            "net_arch": {"pi": [cfg.hidden] * 2, "vf": [cfg.hidden] * 2},
-            "activation_fn": torch.nn.Tanh,
-            "optimizer_kwargs": {"eps": 1e-5},
-        },
-    )
+    venv = normalised(DummyVecEnv([one_env] * cfg.n_envs), cfg)
+    model = sb3_ppo(cfg, venv)
     model.learn(total_timesteps=cfg.num_updates * cfg.batch_size)  # whole rollouts, as ACV
     return model, venv
 

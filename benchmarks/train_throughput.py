@@ -49,37 +49,14 @@ def acv_timer(cfg: TrainConfig, advice):
 def sb3_timer(cfg: TrainConfig):
     """The same for Stable-Baselines3 PPO with matching settings."""
     import gymnasium as gym
-    from stable_baselines3 import PPO
     from stable_baselines3.common.env_util import make_vec_env
-    from stable_baselines3.common.vec_env import VecNormalize
 
-    venv = VecNormalize(
-        make_vec_env(
-            lambda: gym.make(cfg.env_id, disable_env_checker=True), n_envs=cfg.n_envs, seed=cfg.seed
-        ),
-        gamma=cfg.gamma,
+    from engine.rl.sb3_peer import normalised, sb3_ppo
+
+    venv = make_vec_env(
+        lambda: gym.make(cfg.env_id, disable_env_checker=True), n_envs=cfg.n_envs, seed=cfg.seed
     )
-    model = PPO(
-        "MlpPolicy",
-        venv,
-        learning_rate=cfg.learning_rate,
-        n_steps=cfg.num_steps,
-        batch_size=cfg.minibatch_size,
-        n_epochs=cfg.update_epochs,
-        gamma=cfg.gamma,
-        gae_lambda=cfg.gae_lambda,
-        clip_range=cfg.clip_coef,
-        ent_coef=cfg.ent_coef,
-        vf_coef=cfg.vf_coef,
-        max_grad_norm=cfg.max_grad_norm,
-        device="cpu",
-        seed=cfg.seed,
-        policy_kwargs={
-            "net_arch": {"pi": [cfg.hidden] * 2, "vf": [cfg.hidden] * 2},
-            "activation_fn": torch.nn.Tanh,
-            "optimizer_kwargs": {"eps": 1e-5},
-        },
-    )
+    model = sb3_ppo(cfg, normalised(venv, cfg), anneal=False)  # a constant rate, timed
 
     def run(k: int) -> np.ndarray:
         start = clocks()
