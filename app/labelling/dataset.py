@@ -31,22 +31,19 @@ from sqlalchemy.orm import Session
 
 from app.core.errors import ConflictError
 from app.labelling import label_export, trees
-from app.labelling.dataset_card import (
+from app.labelling.dataset_card import DEFAULT_LICENSE, Facts, check_license, readme
+from app.labelling.dataset_evaluations import evaluation_rows
+from app.labelling.dataset_preferences import preferences
+from app.labelling.dataset_tables import (
     CANDIDATES,
-    DEFAULT_LICENSE,
     EVALUATIONS,
     LABELS,
     PARTICIPANTS,
     PREFERENCES,
     TREES,
-    Facts,
     Table,
     arrow_schema,
-    check_license,
-    readme,
 )
-from app.labelling.dataset_evaluations import evaluation_rows
-from app.labelling.dataset_preferences import preferences
 from app.labelling.pseudonyms import Pseudonyms
 from app.labelling.quality import quality
 from app.models import Participant, Study, utcnow

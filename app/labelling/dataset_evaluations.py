@@ -48,7 +48,7 @@ def evaluation_ids(session: Session, *, study_id: int) -> list[int]:
 
 def evaluation_rows(session: Session, *, study_id: int, hashes: Pseudonyms) -> Rows:
     """One row per answered pair of the study's evaluations' sharing, kept evaluators, in
-    the columns of :data:`app.labelling.dataset_card.EVALUATIONS`, by evaluation, then
+    the columns of :data:`app.labelling.dataset_tables.EVALUATIONS`, by evaluation, then
     evaluator pseudonym, then position."""
     ids = evaluation_ids(session, study_id=study_id)
     if not ids:

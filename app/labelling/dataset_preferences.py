@@ -27,7 +27,7 @@ STILL = "still"
 
 
 def preferences(labels: Rows, candidates: Sequence[Candidate], env_id: str) -> Rows:
-    """One row of :data:`app.labelling.dataset_card.PREFERENCES` per row of ``labels``.
+    """One row of :data:`app.labelling.dataset_tables.PREFERENCES` per row of ``labels``.
 
     Args:
         labels: the export's ``labels`` rows (pseudonymous, consenting participants only).
