@@ -12,7 +12,7 @@ from fastapi import APIRouter
 from app.evaluations import api as evaluations_api
 from app.evaluations import crowd_api as evaluation_crowd_api
 from app.evaluations import crowd_pages as evaluation_link_pages
-from app.evaluations import evaluator_api, link_pages, withdraw_pages
+from app.evaluations import evaluator_api, link_pages, researcher_pages, withdraw_pages
 from app.evaluations import export_api as evaluation_export_api
 from app.evaluations import pages as evaluation_pages
 from app.http import auth_pages, errors
@@ -91,6 +91,7 @@ for _pages in (
     survey_link_pages,
     webhooks_pages,
     evaluation_pages,
+    researcher_pages,
     evaluation_link_pages,
     link_pages,
     withdraw_pages,

@@ -13,7 +13,7 @@ from typing import Annotated
 from fastapi import APIRouter, Query, Request
 from fastapi.responses import HTMLResponse
 
-from app.evaluations import pages as evaluation_pages
+from app.evaluations import researcher_pages
 from app.http.deps import DbId, SessionDep
 from app.http.guards import ResearcherPage
 from app.http.rendering import PageRoute, render
@@ -67,6 +67,6 @@ def experiment_page(
             "not_seen": NOT_SEEN,
             "found": found,
             "problem": problem,
-            **evaluation_pages.experiment_section(session, experiment_id),
+            **researcher_pages.experiment_section(session, experiment_id),
         },
     )

@@ -1,0 +1,124 @@
+"""The researcher's agent evaluation pages (issue 41): an evaluation's status, design,
+evaluators and answer; creating one from an experiment's page; inviting evaluators. The
+evaluator's own pages are :mod:`app.evaluations.pages`."""
+
+from __future__ import annotations
+
+import re
+from typing import Annotated, Any
+
+from fastapi import APIRouter, Request, Response
+from fastapi.responses import HTMLResponse
+from pydantic import ValidationError
+from sqlalchemy.orm import Session
+
+from app.core.errors import ServiceError
+from app.core.json_types import IntParam, from_form
+from app.core.limits import MAX_BATCH, MAX_NAME_CHARS
+from app.evaluations import evaluators, results
+from app.evaluations import service as evaluations
+from app.evaluations.api import evaluator_out
+from app.evaluations.link_pages import link_context
+from app.evaluations.schemas import EvaluationDesign
+from app.http.csrf import CsrfChecked, FormFields
+from app.http.deps import DbId, RuntimeDep, SessionDep
+from app.http.guards import ResearcherPage
+from app.http.rendering import PageRoute, redirect, render
+from engine.errors import InputError
+
+router = APIRouter(route_class=PageRoute, include_in_schema=False)
+
+WHOLE = re.compile(r"[0-9]{1,15}")
+#: The creation form's fields with their defaults, and what each is called on the page.
+_PAIRS = str(evaluations.DEFAULT_PAIRS)
+FORM = {
+    "evaluator_kind": "others",
+    "stimulus": "clip",
+    "pairs_per_evaluator": _PAIRS,
+    "show_bracket": "false",  # a checkbox: "on" when ticked, absent otherwise
+}
+LABELS = {
+    "evaluator_kind": "Who answers",
+    "show_bracket": "Remind the advisor of their bracket",
+    "stimulus": "What they see",
+    "pairs_per_evaluator": "Pairs per evaluator",
+}
+
+
+def experiment_section(session: Session, experiment_id: int) -> dict[str, Any]:
+    """The experiment page's evaluations section: its evaluations and the creation form."""
+    found = evaluations.list_evaluations(session, experiment_id=experiment_id)
+    return {"evaluations": found, "evaluation_values": FORM, "evaluation_error": None}
+
+
+@router.post("/experiments/{experiment_id}/evaluations", dependencies=[ResearcherPage, CsrfChecked])
+def create_evaluation(
+    experiment_id: DbId,
+    request: Request,
+    session: SessionDep,
+    runtime: RuntimeDep,
+    fields: FormFields,
+) -> Response:
+    """Create an evaluation of the experiment's advised against its baseline runs, then its
+    page; a bad design shows the form again with what is wrong."""
+    advised, baseline = evaluations.experiment_arms(session, experiment_id=experiment_id)
+    form = {name: fields.get(name, default) for name, default in FORM.items()}
+    try:
+        spec = _design(form).spec(advised, baseline, experiment_id=experiment_id)
+        evaluation = evaluations.create_evaluation(session, spec=spec)
+    except (InputError, ServiceError) as exc:  # a service error says its own status
+        context = {"experiment_id": experiment_id, "evaluation_values": form}
+        context["evaluation_error"] = getattr(exc, "detail", str(exc))
+        status = getattr(exc, "status_code", 422)
+        return render(request, "evaluation_new.html", context, status_code=status)
+    runtime.prepare_evaluation_later(evaluation.id)
+    return redirect(f"/evaluations/{evaluation.id}")
+
+
+def _design(form: dict[str, str]) -> EvaluationDesign:
+    """The form's design, or :class:`InputError` saying which field is wrong and why."""
+    try:
+        return from_form(EvaluationDesign, {name: value.strip() for name, value in form.items()})
+    except ValidationError as exc:
+        error = exc.errors()[0]
+        where = LABELS.get(str(error["loc"][0]), "The form")
+        raise InputError(f"{where}: {error['msg']}") from None
+
+
+@router.get("/evaluations/{evaluation_id}", dependencies=[ResearcherPage])
+def evaluation_page(
+    evaluation_id: DbId,
+    request: Request,
+    session: SessionDep,
+    invited: Annotated[int, IntParam(ge=0, le=MAX_BATCH)] = 0,
+) -> HTMLResponse:
+    """An evaluation: status, design, open link, evaluators and their links, the answer."""
+    evaluation = evaluations.get_evaluation(session, evaluation_id=evaluation_id)
+    people = evaluators.list_evaluators(session, evaluation_id=evaluation_id)
+    answer = results.result(session, evaluation_id=evaluation_id).to_json()
+    slots = evaluations.slots(session, evaluation_id=evaluation_id)
+    context = {
+        "evaluation": evaluation,
+        "evaluators": [evaluator_out(request, session, p) for p in people],
+        "result": answer,
+        "slots": list(zip(slots, answer["win_rates"], strict=True)),
+        "tree_vs_asked": results.TREE_VS_ASKED,
+        "invited": invited,
+        "max_batch": MAX_BATCH,
+        "max_name": MAX_NAME_CHARS,
+    }
+    context |= link_context(request, session, evaluation_id)  # the open link and its form
+    return render(request, "evaluation.html", context)
+
+
+@router.post("/evaluations/{evaluation_id}/evaluators", dependencies=[ResearcherPage, CsrfChecked])
+def invite(evaluation_id: DbId, session: SessionDep, fields: FormFields) -> Response:
+    """Invite evaluators, then the evaluation's page with their links."""
+    count = fields.get("count", "1").strip() or "1"
+    if not WHOLE.fullmatch(count):
+        raise InputError(f"the number of evaluators must be a whole number in 1..{MAX_BATCH}")
+    name = fields.get("name", "").strip()[:MAX_NAME_CHARS] or None
+    people = evaluators.add_evaluators(
+        session, evaluation_id=evaluation_id, count=int(count), name=name
+    )
+    return redirect(f"/evaluations/{evaluation_id}?invited={len(people)}#evaluators")
