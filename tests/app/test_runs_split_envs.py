@@ -8,6 +8,8 @@ running run, on any worker, keeps a new one in one process. Runs on SQLite and P
 
 from __future__ import annotations
 
+import os
+
 import pytest
 
 from app.jobs import queue
@@ -33,6 +35,12 @@ def _rows(settings, run_id: int) -> list[dict]:
     return [{k: v for k, v in r.items() if k not in ("sps", "time")} for r in rows]
 
 
+@pytest.fixture(autouse=True)
+def two_cpus(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The machine the worker sees has 2 CPUs, whatever runs the tests."""
+    monkeypatch.setattr(os, "cpu_count", lambda: 2)
+
+
 def test_a_lone_run_splits_its_envs_and_writes_the_same_rows(settings) -> None:
     with run_app(settings, slots=1, split_lone_run=True) as client:
         study_id = new_study(client)["id"]
@@ -50,6 +58,9 @@ def test_only_a_lone_run_of_a_one_slot_worker_splits(settings) -> None:
     assert JobSettings(split_lone_run=True, worker_slots=1).splits_lone_runs
     assert not JobSettings(split_lone_run=True, worker_slots=2).splits_lone_runs
     assert not JobSettings(worker_slots=1).splits_lone_runs  # off unless asked
+    with pytest.MonkeyPatch.context() as one_cpu:
+        one_cpu.setattr(os, "cpu_count", lambda: 1)
+        assert not JobSettings(split_lone_run=True, worker_slots=1).splits_lone_runs
     with run_app(settings, worker=False) as client:
         study_id = new_study(client)["id"]
         first, second = (
