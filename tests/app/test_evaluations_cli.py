@@ -64,6 +64,7 @@ def test_create_invite_and_read_the_answer(run, experiment) -> None:
         (("--experiment", 999_999), "experiment 999999 not found"),
         (("--experiment", "{experiment}", "--kind", "nobody"), "--kind is"),
         (("--experiment", "{experiment}", "--pairs", 0), "pairs_per_evaluator"),
+        (("--experiment", "{experiment}", "--show-bracket"), "advisor only"),
     ],
 )
 def test_bad_input_is_exit_2_and_stores_nothing(run, client, experiment, args, says) -> None:
