@@ -167,6 +167,11 @@ def test_an_evaluation_from_the_experiment_page_to_its_answer(
     expect(page.locator("#question")).to_have_text("Which agent follows the instruction better?")
     settled(page, f"evaluator instructions {where}")
     seen.check(page, run_ids)
+    page.check("#share")  # agreeing to share: the page comes back saying so
+    page.click("#share-save")
+    expect(page.locator("#share-state")).to_contain_text("You agreed")
+    expect(page.locator("#share")).to_be_checked()
+    settled(page, f"evaluator instructions after agreeing to share {where}")
     page.click("#start")
     key = wait_pair(page, None)
     expect(page.locator("#motion-left")).to_have_text("Pause the left agent")
@@ -298,10 +303,14 @@ def test_the_advisors_bracket_reminder(
     settled(page, "a pair with the advisor's bracket reminder open")
     page.screenshot(path=screens / "evaluate-reminder.png", full_page=True)
     seen.check(page, run_ids)
+    page.set_viewport_size(PHONE)
+    settled(page, "a pair with the advisor's bracket reminder open on a phone")
     page.click("#bracket-reminder summary")
     expect(page.locator("#reminder-text")).to_be_hidden()
     page.click("#pick-left")
     wait_pair(page, key, kind="still")
+    expect(page.locator("#bracket-reminder")).to_be_visible()  # on every pair
+    settled(page, "the next pair, its reminder folded, on a phone")
     rows = api.get(f"/api/evaluations/{evaluation_id}/answers.jsonl").text.splitlines()
     assert len(rows) == 1 and '"reminder": true' in rows[0]
     seen.check(page, run_ids)
