@@ -73,6 +73,12 @@ class Evaluation(Base):
     show_bracket: Mapped[bool] = mapped_column(Boolean, default=False)
     stimulus: Mapped[str] = mapped_column(String(8))
     pairs_per_evaluator: Mapped[int] = mapped_column(Integer)
+    #: Instructed gold pairs per evaluator ("choose the one with the marker"), placed among
+    #: the real pairs and never counted in the result; the gate (``None``: none) leaves out an
+    #: evaluator whose gold accuracy is clearly below it; practice pairs come first.
+    gold_pairs: Mapped[int] = mapped_column(Integer, default=0)
+    gold_gate: Mapped[float | None] = mapped_column(Float, default=None)
+    practice_pairs: Mapped[int] = mapped_column(Integer, default=0)
     #: The advised agents' win rate the design is sized to detect (80% power).
     target_win_rate: Mapped[float] = mapped_column(Float)
     #: The design's size for ``target_win_rate`` at 80% power, simulated when it is prepared
@@ -133,6 +139,7 @@ class Evaluator(Member):
     #: Their place in the evaluation's pair sequence (:func:`engine.evaluation.design`).
     sequence_index: Mapped[int] = mapped_column(Integer)
     excluded: Mapped[bool] = mapped_column(Boolean, default=False)
+    exclusion_reason: Mapped[str | None] = mapped_column(String(200), default=None)
     #: Their evaluation (the member's collection).
     evaluation_id = synonym("collection_id")
 
@@ -168,6 +175,8 @@ class EvaluationPair(Base):
     response_ms: Mapped[int | None] = mapped_column(BigInteger, default=None)
     stimulus: Mapped[str | None] = mapped_column(String(8), default=None)
     reminder: Mapped[bool | None] = mapped_column(Boolean, default=None)
+    #: A gold pair's marked slot, the right answer (``None``: a real pair, counted).
+    gold_answer: Mapped[int | None] = mapped_column(Integer, default=None)
     answered_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), default=None)
 
 

@@ -60,6 +60,10 @@ class Study(Base):
     allow_ties: Mapped[bool] = mapped_column(Boolean, default=False)
     #: Practice pairs shown before the bracket (0, or 2 to 5); never stored as labels.
     practice_pairs: Mapped[int] = mapped_column(Integer, default=0)
+    #: Motion clips of the candidates, opted in by the researcher (issue 41 §3); they render
+    #: after the study is ready, and ``clips_ready`` says when every one has.
+    clips: Mapped[bool] = mapped_column(Boolean, default=False)
+    clips_ready: Mapped[bool] = mapped_column(Boolean, default=False)
     #: Its webhooks and gold items, counted in the transactions that add and remove them: the
     #: database caps them (:func:`app.core.atomic.take`), never a count read beforehand.
     webhook_count: Mapped[int] = mapped_column(Integer, default=0)
@@ -92,6 +96,11 @@ class Candidate(Base):
     #: The study's no-advice baseline's return from this state (studies that ask
     #: disagreement pairs; NULL otherwise).
     baseline_return: Mapped[float | None] = mapped_column(Float, default=None)
+    #: The candidate's clip (studies with clips; NULL until rendered), and the policy and reset
+    #: seed that rolled it forward from this state.
+    clip_path: Mapped[str | None] = mapped_column(String(255), default=None)
+    clip_policy: Mapped[str | None] = mapped_column(String(100), default=None)
+    clip_seed: Mapped[int | None] = mapped_column(BigInteger, default=None)
 
 
 class BracketSlot(Base):
@@ -172,6 +181,8 @@ class Label(Base):
     chose_left: Mapped[bool | None] = mapped_column(Boolean, default=None)
     #: The participant could not tell; ``winner`` is the seeded coin's (docs/method.md §2.14).
     tie: Mapped[bool] = mapped_column(Boolean, default=False)
+    #: What the pair showed: ``still`` or ``clip`` (issue 41 §3).
+    stimulus: Mapped[str] = mapped_column(String(8), default="still")
 
 
 class CrowdSettings(OpenLink):
