@@ -16,9 +16,11 @@ them out); the cluster code is in ``tests/support/postgres.py``.
 from __future__ import annotations
 
 import shutil
+import sqlite3
 import subprocess
 import threading
 from collections.abc import Callable, Iterator
+from contextlib import closing
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
 from typing import Any
@@ -60,18 +62,30 @@ def postgres() -> Iterator[PostgresCluster]:
     cluster.stop()
 
 
+@pytest.fixture(scope="session")
+def sqlite_at_head(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A SQLite database built once by ``alembic upgrade head``, for modules to copy."""
+    path = tmp_path_factory.mktemp("acv-sqlite-head") / "acv.sqlite3"
+    upgrade(f"sqlite:///{path}")
+    return path
+
+
 @pytest.fixture(scope="module", params=BACKENDS)
 def backend_url(
     request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory
 ) -> tuple[Path, str]:
-    """``(data dir, database URL)`` of a fresh database built by ``alembic upgrade head``."""
+    """``(data dir, database URL)`` of a fresh database at the migrations' head: a copy of one
+    that ``alembic upgrade head`` built this session (``tests/app/test_migrations.py`` runs
+    the revisions themselves)."""
     data_dir = tmp_path_factory.mktemp(f"acv-{request.param}")
     if request.param == "sqlite":
-        url = f"sqlite:///{data_dir / 'acv.sqlite3'}"
-    else:
-        url = request.getfixturevalue("postgres").create_database()
-    upgrade(url)
-    return data_dir, url
+        path = data_dir / "acv.sqlite3"
+        # The backup API, not a file copy: it reads a consistent database whatever the WAL holds.
+        head_path = request.getfixturevalue("sqlite_at_head")
+        with closing(sqlite3.connect(head_path)) as head, closing(sqlite3.connect(path)) as copy:
+            head.backup(copy)
+        return data_dir, f"sqlite:///{path}"
+    return data_dir, request.getfixturevalue("postgres").database_at_head()
 
 
 @pytest.fixture(scope="module")

@@ -18,6 +18,7 @@ from pathlib import Path
 import psycopg
 import pytest
 
+from app.db import upgrade
 from tests.support.net import free_port
 
 #: The database backends a test runs on; the PostgreSQL one is marked ``postgres`` (its tier).
@@ -64,6 +65,7 @@ class PostgresCluster:
             entry = pwd.getpwnam(self.user)
             os.chown(self.root, entry.pw_uid, entry.pw_gid)
         self.port = free_port()
+        self._head: str | None = None
 
     def _run(self, *args: str) -> None:
         subprocess.run(
@@ -109,9 +111,20 @@ class PostgresCluster:
     def url(self, database: str) -> str:
         return f"postgresql://postgres@127.0.0.1:{self.port}/{database}"
 
-    def create_database(self) -> str:
-        """A new empty database; returns its URL."""
+    def create_database(self, template: str | None = None) -> str:
+        """A new database, empty or a copy of ``template``'s; returns its URL."""
         name = f"acv_{uuid.uuid4().hex[:12]}"
+        copy = f' TEMPLATE "{template}"' if template else ""
         with psycopg.connect(self.url("postgres"), autocommit=True) as conn:
-            conn.execute(f'CREATE DATABASE "{name}"')
+            conn.execute(f'CREATE DATABASE "{name}"{copy}')
         return self.url(name)
+
+    def database_at_head(self) -> str:
+        """A new database at the migrations' head; returns its URL. The first is built by
+        ``alembic upgrade head``; the next are copies of it (``CREATE DATABASE ... TEMPLATE``,
+        a tenth of the time of running every revision again)."""
+        if self._head is None:
+            url = self.create_database()
+            upgrade(url)
+            self._head = url.rsplit("/", 1)[1]
+        return self.create_database(template=self._head)
