@@ -12,8 +12,8 @@ from pydantic import ValidationError
 
 from app.cli.root import cli, fail
 from app.cli.serve import cli_runtime
-from app.surveys import respond as survey_respond
-from app.surveys import results as survey_results
+from app.surveys import respond
+from app.surveys import results as surveys_results
 from app.surveys import service as surveys
 from app.surveys.schemas import SurveyCreate
 
@@ -66,9 +66,9 @@ def add_respondents(
     """Invite respondents; prints one invite link per line."""
     with cli_runtime() as runtime, runtime.sessions() as session:
         base = (base_url or runtime.settings.public_url or "http://127.0.0.1:8000").rstrip("/")
-        people = survey_respond.add_respondents(session, survey_id=survey, count=count)
+        people = respond.add_respondents(session, survey_id=survey, count=count)
     for person in people:
-        typer.echo(f"{person.id}\t{base}{survey_respond.invite_path(person.token)}")
+        typer.echo(f"{person.id}\t{base}{respond.invite_path(person.token)}")
 
 
 @survey_cli.command("results")
@@ -80,7 +80,7 @@ def results(
 ) -> None:
     """Per stimulus and question: n, accuracy with its 95% CI and p vs chance."""
     with cli_runtime() as runtime, runtime.sessions() as session:
-        out = survey_results.results(session, survey_id=survey)
+        out = surveys_results.results(session, survey_id=survey)
     if as_json:
         typer.echo(json.dumps(out, indent=1))
         return
@@ -118,6 +118,6 @@ def export(
 ) -> None:
     """One row per answer, as CSV or JSONL."""
     with cli_runtime() as runtime, runtime.sessions() as session:
-        write = survey_results.export_csv if fmt == "csv" else survey_results.export_jsonl
+        write = surveys_results.export_csv if fmt == "csv" else surveys_results.export_jsonl
         out.write_text(write(session, survey_id=survey), encoding="utf-8")
     typer.echo(f"wrote {out}")

@@ -20,8 +20,7 @@ from app.core.errors import ConflictError, NotFoundError
 from app.db import writing
 from app.models import OpenLink
 from app.models.base import utcnow
-from app.recruiting import events, seats
-from app.recruiting import links as open_links
+from app.recruiting import events, links, seats
 from app.recruiting.kinds import Link, MemberKind, full_message, owner_is
 from app.recruiting.links import LinkOptions
 from app.recruiting.members import MemberRow
@@ -55,11 +54,11 @@ def configure(
         InputError: a bad option, or a maximum below the people already joined.
         NotFoundError, ConflictError: no such collection, or it cannot take people now.
     """
-    open_links.check_options(options)
+    links.check_options(options)
     if options.time_limit_min is not None and not kind.timed:
         raise InputError(f"a {kind.members.noun}'s open link takes no time_limit_min")
     kind.check_collection(session, owner_id)
-    return open_links.save(
+    return links.save(
         session,
         settings(session, kind, owner_id),
         lambda: kind.link(collection_id=owner_id),
@@ -68,17 +67,17 @@ def configure(
 
 
 def open_link(session: Session, kind: MemberKind[Link, MemberRow], slug: str) -> Link:
-    """The open link ``slug``, open or closed (:func:`open_links.find`).
+    """The open link ``slug``, open or closed (:func:`links.find`).
 
     Raises:
         NotFoundError: no such link.
     """
-    return open_links.find(session, kind.link, slug=slug, what=kind.members.noun)
+    return links.find(session, kind.link, slug=slug, what=kind.members.noun)
 
 
 def external_ids(link: OpenLink, query: dict[str, str]) -> dict[str, str]:
-    """The link's external parameters found in ``query`` (see :func:`open_links.external_ids`)."""
-    return open_links.external_ids(link.external_params, query)
+    """The link's external parameters found in ``query`` (see :func:`links.external_ids`)."""
+    return links.external_ids(link.external_params, query)
 
 
 def returning(
@@ -89,14 +88,14 @@ def returning(
     ids: dict[str, str],
     token: str | None,
 ) -> MemberRow | None:
-    """The member this visitor already is (:func:`open_links.returning`): by the cookie the
+    """The member this visitor already is (:func:`links.returning`): by the cookie the
     browser holds for this collection, or by the first external id with the per-attempt ids;
     ``None`` for a new visitor.
 
     Raises:
         AlreadyTookPartError: the external id joined before, from another browser.
     """
-    return open_links.returning(
+    return links.returning(
         session,
         kind.members,
         owner_id=link.collection_id,
@@ -124,7 +123,7 @@ def join(
         LinkClosedError: the researcher closed the link.
         LinkFullError: ``kind.full_error``, when the link has its largest number of people.
     """
-    open_links.check_open(link, what=kind.members.noun)
+    links.check_open(link, what=kind.members.noun)
     owner_id, now = link.collection_id, utcnow()
     kind.check_collection(session, owner_id)
     person = kind.members.member(
@@ -140,7 +139,7 @@ def join(
         with writing(session):
             full = kind.full_error(": ".join(full_message(kind)))
             seats.free_expired_seats(session, link, now)
-            open_links.take_seat(session, owner_is(kind, owner_id), full=full)
+            links.take_seat(session, owner_is(kind, owner_id), full=full)
             kind.stage(session, person)
     except IntegrityError:  # the same external id joined at the same moment: resume it
         existing = returning(session, kind, link=link, ids=ids, token=None)
@@ -153,12 +152,12 @@ def join(
 def has_room(session: Session, link: OpenLink) -> bool:
     """Whether ``link`` has a seat for a newcomer, once the seats of members past their time
     are given back (a write only when it is full and has a time limit)."""
-    if not open_links.is_full(link) or link.time_limit_min is None:
-        return not open_links.is_full(link)
+    if not links.is_full(link) or link.time_limit_min is None:
+        return not links.is_full(link)
     with writing(session):
         seats.free_expired_seats(session, link, utcnow())
     session.refresh(link)
-    return not open_links.is_full(link)
+    return not links.is_full(link)
 
 
 def decline(session: Session, kind: MemberKind[Link, MemberRow], *, link: Link) -> None:
@@ -166,7 +165,7 @@ def decline(session: Session, kind: MemberKind[Link, MemberRow], *, link: Link) 
     nothing else about the visitor is stored."""
     owner_id = link.collection_id
     with writing(session):
-        open_links.count_decline(session, owner_is(kind, owner_id))
+        links.count_decline(session, owner_is(kind, owner_id))
         events.declined(session, kind, owner_id=owner_id)
 
 

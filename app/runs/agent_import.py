@@ -24,7 +24,7 @@ from sqlalchemy.orm import Session
 from app.core.errors import ConflictError, ServiceError
 from app.db import writing
 from app.models import Experiment, ExperimentRole, ExperimentRun, Run, RunStatus
-from app.runs import imported as store
+from app.runs import imported
 from app.runs.declared import Declared, checked_declared
 from app.runs.experiments import MAX_PILOT_SEEDS, get_experiment, members
 from app.runs.external import ExternalInfo, external_info
@@ -78,7 +78,7 @@ def import_agent(
         InputError: any rule of the model, the normalisation or the declared settings.
     """
     experiment = get_experiment(session, experiment_id=experiment_id)
-    if not store.is_external(experiment):
+    if not imported.is_external(experiment):
         raise ConflictError(
             f"experiment {experiment_id} trains its own runs: policies are imported into an "
             "external experiment (POST /api/experiments/external, acv agents experiment)"
@@ -108,7 +108,7 @@ def import_agent(
     created = [
         p
         for p, data in _files(runs_root, upload, config)
-        if store.store_blob(p, data)  # content-addressed: kept when already there
+        if imported.store_blob(p, data)  # content-addressed: kept when already there
     ]
     try:
         return _store(session, experiment, info, role, config)
@@ -119,9 +119,9 @@ def import_agent(
 
 
 def _arm(arm: str) -> ExperimentRole:
-    if arm not in store.ARMS:
-        raise InputError(f"unknown arm {arm!r}: expected one of {', '.join(store.ARMS)}")
-    return store.ARMS[arm]
+    if arm not in imported.ARMS:
+        raise InputError(f"unknown arm {arm!r}: expected one of {', '.join(imported.ARMS)}")
+    return imported.ARMS[arm]
 
 
 def _config(
@@ -138,7 +138,7 @@ def _config(
         "uploaded_as": upload.uploaded_as,
         "onnx_sha256": model.digest,
         "onnx_bytes": len(model.data),
-        "obs_norm_sha256": store.sha256(upload.obs_norm)
+        "obs_norm_sha256": imported.sha256(upload.obs_norm)
         if normalised and upload.obs_norm is not None
         else None,
         "env_id": model.env_id,
@@ -154,8 +154,8 @@ def _config(
         "tree_matches": None
         if declared.tree_sha256 is None
         else declared.tree_sha256 == info.tree_sha256,
-        "metadata": store.notes(dict(model.metadata)),
-        "sb3": store.notes(dict(upload.sb3)) or None,
+        "metadata": imported.notes(dict(model.metadata)),
+        "sb3": imported.notes(dict(upload.sb3)) or None,
         "imported_at": datetime.now(UTC).isoformat(timespec="seconds"),
     }
 
@@ -163,9 +163,9 @@ def _config(
 def _files(
     runs_root: Path, upload: AgentUpload, config: dict[str, Any]
 ) -> list[tuple[Path, bytes]]:
-    files = [(store.onnx_file(runs_root, config["onnx_sha256"]), upload.onnx)]
+    files = [(imported.onnx_file(runs_root, config["onnx_sha256"]), upload.onnx)]
     if config["obs_norm_sha256"] is not None and upload.obs_norm is not None:
-        files.append((store.npz_file(runs_root, config["obs_norm_sha256"]), upload.obs_norm))
+        files.append((imported.npz_file(runs_root, config["obs_norm_sha256"]), upload.obs_norm))
     return files
 
 
@@ -182,7 +182,7 @@ def _check_place(
     arms: dict[ExperimentRole, list[int]] = {r: [] for r in ExperimentRole}
     for member_role, run in members(session, experiment_id=experiment.id):
         arms[member_role].append(run.seed)
-        other = store.imported_of(run) or {}
+        other = imported.imported_of(run) or {}
         files = (other.get("onnx_sha256"), other.get("obs_norm_sha256"))
         if files == (config["onnx_sha256"], config["obs_norm_sha256"]):
             raise ConflictError(
@@ -226,11 +226,11 @@ def _store(
         participant_id=info.participant_id,
         teacher=info.teacher,
         advice_pool=info.advice_pool,
-        algo=store.ARM_ALGOS[role],
+        algo=imported.ARM_ALGOS[role],
         timesteps=declared["steps"],
         seed=declared["seed"],
         n_envs=1,
-        config={store.IMPORTED: config}
+        config={imported.IMPORTED: config}
         | ({} if info.pool_weights is None else {"pool_weights": info.pool_weights}),
         advice=info.tree,
         status=RunStatus.QUEUED,

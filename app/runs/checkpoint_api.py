@@ -20,13 +20,13 @@ from fastapi.responses import HTMLResponse
 from sqlalchemy.orm import Session
 
 from app.core.figures import FORMATS
-from app.evaluations import results as evaluation_results
+from app.evaluations import results as evaluations_results
 from app.http.deps import DbId, ResearcherDep, SessionDep, SettingsDep, StepParam
 from app.http.errors import RESPONSES
 from app.http.files import attachment
 from app.models import Run
 from app.runs import comparison, experiments
-from app.runs import report as run_report
+from app.runs import report as runs_report
 from app.runs import service as runs
 from app.runs.compare_schemas import CheckpointReportOut, ConformanceOut, CurvePointOut, TreeJson
 from app.runs.schemas import Judge
@@ -111,7 +111,7 @@ def checkpoint_report(at: AtCheckpointDep) -> CheckpointReportOut:
     """What the compare page shows of a checkpoint: the verdict, the states to highlight,
     every judge's agreement side by side, and the per-candidate table."""
     run, view = at.view()
-    return CheckpointReportOut.of(view, at.judge, run_report.whose(run))
+    return CheckpointReportOut.of(view, at.judge, runs_report.whose(run))
 
 
 @router.get("/{run_id}/conformance-curve", responses=PENDING)
@@ -157,8 +157,8 @@ def tree_image(
 ) -> Response:
     """A tree as SVG or PNG with thumbnails; the rejected advice is drawn in red."""
     run, view = at.view()
-    thumbs = run_report.thumb_paths(at.session, data_dir=settings.data_dir, study_id=run.study_id)
-    data = run_report.tree_image(run, view, at.judge, which, thumbs, fmt)
+    thumbs = runs_report.thumb_paths(at.session, data_dir=settings.data_dir, study_id=run.study_id)
+    data = runs_report.tree_image(run, view, at.judge, which, thumbs, fmt)
     return attachment(data, FORMATS[fmt], f"run-{at.run_id}-{which}-tree-{view.step}.{fmt}")
 
 
@@ -169,12 +169,12 @@ def report(at: AtCheckpointDep, settings: SettingsDep, download: bool = False) -
     session, run_id = at.session, at.run_id
     run = runs.get_run(session, run_id=run_id)
     study = studies.get_study(session, study_id=run.study_id)
-    thumbs = run_report.thumb_paths(session, data_dir=settings.data_dir, study_id=run.study_id)
+    thumbs = runs_report.thumb_paths(session, data_dir=settings.data_dir, study_id=run.study_id)
     step = comparison.pick_checkpoint(session, run_id=run_id, step=at.checkpoint)
-    shown = evaluation_results.notes_of_experiments(
+    shown = evaluations_results.notes_of_experiments(
         session, experiments.experiments_of_run(session, run_id=run_id)
     )
-    html = run_report.report_html(
+    html = runs_report.report_html(
         run,
         session=session,
         study_name=study.name,

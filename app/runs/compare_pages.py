@@ -13,13 +13,12 @@ from fastapi.responses import HTMLResponse
 from sqlalchemy.orm import Session
 
 from app.core.errors import PendingError
-from app.evaluations import results as evaluation_results
+from app.evaluations import results as evaluations_results
 from app.http.deps import DbId, SessionDep, StepParam
 from app.http.guards import ResearcherPage
 from app.http.rendering import PageRoute, render, thumb_template
 from app.models import Run
-from app.runs import comparison, experiment_notes, run_state
-from app.runs import report as run_report
+from app.runs import comparison, experiment_notes, report, run_state
 from app.runs import service as runs
 from app.runs.imported import is_imported
 from app.runs.imported_schemas import NOT_SEEN
@@ -66,7 +65,7 @@ def compare_page(
         {
             **_run_context(session, run, [run_id], judge_name(shown)),
             "checkpoints": steps,
-            "who": run_report.who(run),
+            "who": report.who(run),
             "selected": selected,
             "thumb_template": thumb_template(run.study_id),
             "image_template": thumb_template(run.study_id).removesuffix("?size=thumb"),
@@ -103,9 +102,9 @@ def _run_context(session: Session, run: Run, shown: list[int], judge: str) -> di
     return {
         "run": RunOut.of(run),
         "study": studies.get_study(session, study_id=run.study_id),
-        "whose": run_report.whose(run),
+        "whose": report.whose(run),
         "experiment_notes": notes,
-        **evaluation_results.notes_of_experiments(session, [n.experiment_id for n in notes]),
+        **evaluations_results.notes_of_experiments(session, [n.experiment_id for n in notes]),
     }
 
 

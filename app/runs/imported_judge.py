@@ -27,8 +27,7 @@ from typing import TYPE_CHECKING, Any
 from sqlalchemy.orm import Session, sessionmaker
 
 from app.models import Run
-from app.runs import artefacts, run_state
-from app.runs import imported as store
+from app.runs import artefacts, imported, run_state
 from engine.errors import InputError
 from engine.treefile import TreeDocument, replay, tree_from_json
 
@@ -65,7 +64,7 @@ def judge_imported(
     with sessions() as session:
         run = session.get_one(Run, run_id)
         info, advice, pool, step = (
-            store.imported_of(run),
+            imported.imported_of(run),
             run.advice,
             run.advice_pool,
             run.timesteps,
@@ -116,10 +115,12 @@ def load_policy(runs_root: Path, info: dict[str, Any]) -> ImportedPolicy:
     from engine.policies.onnx_policy import ImportedPolicy
 
     try:
-        data = store.read_blob(store.onnx_file(runs_root, info["onnx_sha256"]), info["onnx_sha256"])
+        data = imported.read_blob(
+            imported.onnx_file(runs_root, info["onnx_sha256"]), info["onnx_sha256"]
+        )
         norm_digest = info.get("obs_norm_sha256")
-        npz = None if norm_digest is None else store.read_blob(
-            store.npz_file(runs_root, norm_digest), norm_digest
+        npz = None if norm_digest is None else imported.read_blob(
+            imported.npz_file(runs_root, norm_digest), norm_digest
         )  # fmt: skip
     except OSError as exc:
         raise InputError(f"the imported policy's files cannot be read: {exc}") from exc
@@ -141,7 +142,7 @@ def imported_report(
     from engine.rl.report import CheckpointReport, JudgeResult
     from engine.tournament import ScoreJudge
 
-    cache = store.policy_store(runs_root)
+    cache = imported.policy_store(runs_root)
     scores = {j: imported_scores(policy, doc, j, cache_dir=cache) for j in VERDICT_JUDGES}
     judges = {}
     for judge, by_id in scores.items():

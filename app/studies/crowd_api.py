@@ -12,8 +12,7 @@ from fastapi import APIRouter, Response
 from app.core.errors import NotFoundError
 from app.http.deps import DbId, ResearcherDep, SessionDep
 from app.http.files import attachment
-from app.labelling import consensus, label_export, study_link
-from app.labelling import quality as crowd_stats
+from app.labelling import consensus, label_export, quality, study_link
 from app.recruiting.api import LinkApi, open_link_api_router
 from app.studies import crowd
 from app.studies.crowd_schemas import (
@@ -42,14 +41,14 @@ link_router = open_link_api_router(
         body=CrowdIn,
         out=CrowdOut,
         options=crowd.CrowdOptions,
-        configure=lambda session, study_id, options: crowd_stats.configure_crowd(
+        configure=lambda session, study_id, options: quality.configure_crowd(
             session, study_id=study_id, options=options
         ),
     )
 )
 
 
-def _bias(b: crowd_stats.agreement.SideBias) -> SideBiasOut:
+def _bias(b: quality.agreement.SideBias) -> SideBiasOut:
     return SideBiasOut(labels=b.labels, left=b.left, left_share=b.left_share, p_value=b.p_value)
 
 
@@ -58,7 +57,7 @@ def get_quality(study_id: DbId, session: SessionDep, _: ResearcherDep) -> Qualit
     """Position bias (share of left choices, binomial test) per participant and study,
     median response times with the speed flag, consistency-check agreement, gold accuracy
     with its interval and the gate, reliability, ties and exclusions."""
-    q = crowd_stats.quality(session, study_id=study_id)
+    q = quality.quality(session, study_id=study_id)
     return QualityOut(
         study_id=study_id,
         speed_threshold_ms=q.speed_threshold_ms,

@@ -12,8 +12,7 @@ from app.http.csrf import CsrfChecked, FormFields
 from app.http.deps import DbId, SessionDep
 from app.http.guards import ResearcherPage
 from app.http.rendering import PageRoute, redirect
-from app.labelling import consensus, study_link
-from app.labelling import quality as crowd_stats
+from app.labelling import consensus, quality, study_link
 from app.recruiting import service as recruiting
 from app.recruiting.kinds import open_url
 from app.recruiting.pages import link_form, validated, whole
@@ -63,7 +62,7 @@ def crowd_context(request: Request, session: Session, study_id: int) -> dict[str
         "crowd": row,
         "crowd_defaults": crowd.CrowdOptions(),
         "open_url": None if row is None else open_url(study_link.LINK, request.base_url, row.slug),
-        "quality": crowd_stats.quality(session, study_id=study_id),
+        "quality": quality.quality(session, study_id=study_id),
         "agreement": agreement,
         "heat_rows": heat_map(agreement),
         "teacher_names": consensus.COMPARED_TEACHERS,
@@ -106,5 +105,5 @@ def _share(fields: dict[str, str], name: str) -> float | None:
 @router.post("/studies/{study_id}/crowd", dependencies=[CsrfChecked])
 def set_crowd(study_id: DbId, session: SessionDep, fields: FormFields) -> Response:
     """Save the open-link form, then show the study page's crowd section."""
-    crowd_stats.configure_crowd(session, study_id=study_id, options=_options(fields))
+    quality.configure_crowd(session, study_id=study_id, options=_options(fields))
     return redirect(f"/studies/{study_id}#crowd")

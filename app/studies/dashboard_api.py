@@ -12,7 +12,7 @@ from typing import Annotated
 from fastapi import APIRouter, Header, Response
 
 from app.http.deps import DbId, ResearcherDep, SessionDep
-from app.labelling import dashboard as live
+from app.labelling import dashboard
 from app.studies.dashboard_schemas import DashboardOut, LiveCountsOut, LiveParticipantOut
 
 router = APIRouter(prefix="/studies", tags=["crowd"])
@@ -36,16 +36,16 @@ def get_dashboard(
 ) -> Response:
     """Participants joined, not started, labelling, finished and declined; each one's
     progress, median time per decision, flags and gold accuracy; labels per minute."""
-    snap = live.snapshot(session, study_id=study_id)
+    snap = dashboard.snapshot(session, study_id=study_id)
     headers = {"ETag": snap.etag, "Cache-Control": "private, no-cache"}
-    if live.etag_matches(if_none_match, snap.etag):
+    if dashboard.etag_matches(if_none_match, snap.etag):
         return Response(status_code=304, headers=headers)
-    body = dashboard_out(live.dashboard(session, study_id=study_id, known=snap))
+    body = dashboard_out(dashboard.dashboard(session, study_id=study_id, known=snap))
     # Written here: FastAPI would dump, validate and dump the model again (300 rows).
     return Response(body.model_dump_json(), media_type="application/json", headers=headers)
 
 
-def dashboard_out(d: live.Dashboard) -> DashboardOut:
+def dashboard_out(d: dashboard.Dashboard) -> DashboardOut:
     """The API body of a dashboard."""
     return DashboardOut(
         study_id=d.study_id,

@@ -31,10 +31,9 @@ from app.recruiting import members
 from app.recruiting import service as recruiting
 from app.studies import service as studies
 from app.studies.images import MEDIA_TYPE, image_file
-from app.surveys import answers as survey_answers
-from app.surveys import crowd as survey_crowd
-from app.surveys import respond as survey_respond
-from app.surveys import results as survey_results
+from app.surveys import answers as surveys_answers
+from app.surveys import crowd, respond
+from app.surveys import results as surveys_results
 from app.surveys import service as surveys
 from app.surveys.answers import AnswerIn
 from app.surveys.schemas import (
@@ -60,7 +59,7 @@ def respondent_out(request: Request, person: SurveyRespondent) -> RespondentOut:
         RespondentOut,
         person,
         id=person.shown_id,
-        invite_url=str(request.base_url).rstrip("/") + survey_respond.invite_path(person.token),
+        invite_url=str(request.base_url).rstrip("/") + respond.invite_path(person.token),
         started=person.started_at is not None,
         finished=person.finished_at is not None,
         external_ids=person.external_ids or {},
@@ -75,8 +74,8 @@ def my_survey(session: SessionDep, person: RespondentDep) -> dict[str, Any]:
     """The respondent's survey: name, intro, and how many screens are answered; once an
     open-link respondent has finished, the completion code and redirect URL (or nulls)."""
     survey = surveys.get_survey(session, survey_id=person.survey_id)
-    done, total = survey_respond.progress(session, respondent_id=person.id)
-    link = recruiting.completion(session, survey_crowd.LINK, member=person)
+    done, total = respond.progress(session, respondent_id=person.id)
+    link = recruiting.completion(session, crowd.LINK, member=person)
     return {
         "survey_id": survey.id,
         "name": survey.name,
@@ -93,11 +92,11 @@ def my_survey(session: SessionDep, person: RespondentDep) -> dict[str, Any]:
 def my_screen(session: SessionDep, person: RespondentDep) -> Any:
     """The next unanswered screen (two trees, left and right as planned, and the questions),
     or 204 when the survey is done."""
-    found = survey_respond.next_screen(session, respondent=person)
+    found = respond.next_screen(session, respondent=person)
     if found is None:
         return Response(status_code=204)
     survey, screen, total = found
-    return survey_respond.screen_view(session, survey=survey, screen=screen, total=total)
+    return respond.screen_view(session, survey=survey, screen=screen, total=total)
 
 
 @router.post(
@@ -114,11 +113,11 @@ def answer_screen(
 ) -> dict[str, Any]:
     """Store a screen's answers: 201 stored, 200 the same again, 409 answered differently."""
     answers = {k: AnswerIn(a.value, a.confidence) for k, a in body.answers.items()}
-    if not survey_answers.submit(
+    if not surveys_answers.submit(
         session, respondent=person, position=position, answers=answers, screen_ms=body.screen_ms
     ):
         response.status_code = 200
-    done, total = survey_respond.progress(session, respondent_id=person.id)
+    done, total = respond.progress(session, respondent_id=person.id)
     return {"position": position, "answered": done, "total": total}
 
 
@@ -172,9 +171,7 @@ def add_respondents(
     _: ResearcherDep,
 ) -> list[RespondentOut]:
     """Invite respondents; each gets an invite link ``/r/<token>``."""
-    people = survey_respond.add_respondents(
-        session, survey_id=survey_id, count=body.count, name=body.name
-    )
+    people = respond.add_respondents(session, survey_id=survey_id, count=body.count, name=body.name)
     return [respondent_out(request, p) for p in people]
 
 
@@ -183,8 +180,7 @@ def list_respondents(
     survey_id: DbId, request: Request, session: SessionDep, _: ResearcherDep
 ) -> list[RespondentOut]:
     return [
-        respondent_out(request, p)
-        for p in survey_respond.list_respondents(session, survey_id=survey_id)
+        respondent_out(request, p) for p in respond.list_respondents(session, survey_id=survey_id)
     ]
 
 
@@ -193,7 +189,7 @@ def survey_results_json(survey_id: DbId, session: SessionDep, _: ResearcherDep) 
     """Per stimulus and question: n, counts, accuracy with its Clopper-Pearson 95% CI and an
     exact binomial test against chance, mean confidence, median time; without and with the
     exclusions; and the paper's figures computed the same way."""
-    return survey_results.results(session, survey_id=survey_id)
+    return surveys_results.results(session, survey_id=survey_id)
 
 
 @router.get(
@@ -204,7 +200,7 @@ def survey_results_json(survey_id: DbId, session: SessionDep, _: ResearcherDep) 
 def answers_csv(survey_id: DbId, session: SessionDep, _: ResearcherDep) -> Response:
     """One row per answer."""
     return attachment(
-        survey_results.export_csv(session, survey_id=survey_id),
+        surveys_results.export_csv(session, survey_id=survey_id),
         "text/csv; charset=utf-8",
         f"survey-{survey_id}-answers.csv",
     )
@@ -218,7 +214,7 @@ def answers_csv(survey_id: DbId, session: SessionDep, _: ResearcherDep) -> Respo
 def answers_jsonl(survey_id: DbId, session: SessionDep, _: ResearcherDep) -> Response:
     """One JSON object per line, per answer."""
     return attachment(
-        survey_results.export_jsonl(session, survey_id=survey_id),
+        surveys_results.export_jsonl(session, survey_id=survey_id),
         "application/jsonl",
         f"survey-{survey_id}-answers.jsonl",
     )

@@ -14,16 +14,16 @@ from app.http.csrf import CsrfChecked, FormFields
 from app.http.deps import DbId, SessionDep
 from app.http.guards import ResearcherPage
 from app.http.rendering import redirect
-from app.recruiting import pages as open_links
+from app.recruiting import pages as recruiting_pages
 from app.recruiting import service as recruiting
 from app.recruiting.schemas import OpenLinkIn
-from app.surveys import crowd as survey_crowd
+from app.surveys import crowd
 from app.surveys import service as surveys
 from app.surveys.pages import RESPOND
 
-router = open_links.open_link_router(
-    open_links.LinkPages(
-        kind=survey_crowd.LINK,
+router = recruiting_pages.open_link_router(
+    recruiting_pages.LinkPages(
+        kind=crowd.LINK,
         name_of=lambda session, survey_id: surveys.get_survey(session, survey_id=survey_id).name,
         next_path=lambda session, person: RESPOND,
     )
@@ -34,6 +34,6 @@ router = open_links.open_link_router(
 def set_crowd(survey_id: DbId, session: SessionDep, fields: FormFields) -> Response:
     """Save the open-link form (validated like ``PUT /api/surveys/{id}/crowd``), then show
     the survey page's crowd section."""
-    body = open_links.validated(OpenLinkIn, open_links.link_form(fields))
-    recruiting.configure(session, survey_crowd.LINK, survey_id, body.options())
+    body = recruiting_pages.validated(OpenLinkIn, recruiting_pages.link_form(fields))
+    recruiting.configure(session, crowd.LINK, survey_id, body.options())
     return redirect(f"/surveys/{survey_id}#crowd")

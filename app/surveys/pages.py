@@ -23,9 +23,8 @@ from app.recruiting import members
 from app.recruiting import service as recruiting
 from app.recruiting.kinds import open_url
 from app.recruiting.links import LinkOptions
-from app.surveys import crowd as survey_crowd
-from app.surveys import respond as survey_respond
-from app.surveys import results as survey_results
+from app.surveys import crowd, respond
+from app.surveys import results as surveys_results
 from app.surveys import service as surveys
 from app.surveys.sources import source_menus
 from app.webhooks.outbox import Owner
@@ -44,7 +43,7 @@ def thumb_template(survey_id: int) -> str:
 def surveys_page(request: Request, session: SessionDep) -> HTMLResponse:
     """Every survey, with a link to create one."""
     rows = [
-        (s, survey_respond.list_respondents(session, survey_id=s.id))
+        (s, respond.list_respondents(session, survey_id=s.id))
         for s in surveys.list_surveys(session)
     ]
     return render(request, "surveys.html", {"rows": rows})
@@ -61,26 +60,26 @@ def new_survey_page(request: Request, session: SessionDep) -> HTMLResponse:
 def crowd_context(request: Request, session: Session, survey_id: int) -> dict[str, Any]:
     """What the survey page's "Crowd: open link" section shows (the form posts to
     :mod:`app.surveys.crowd_pages`)."""
-    kind = survey_crowd.LINK
+    kind = crowd.LINK
     row = recruiting.settings(session, kind, survey_id)
     return {
         "crowd": row,
         "crowd_defaults": LinkOptions(),
         "open_url": None if row is None else open_url(kind, request.base_url, row.slug),
-        "completed": survey_crowd.completed(session, survey_id=survey_id),
+        "completed": crowd.completed(session, survey_id=survey_id),
     }
 
 
 def _survey_context(session: Session, survey: Survey, request: Request) -> dict[str, Any]:
-    people = survey_respond.list_respondents(session, survey_id=survey.id)
+    people = respond.list_respondents(session, survey_id=survey.id)
     base = str(request.base_url).rstrip("/")
     stimuli = surveys.stimuli_of(session, survey_id=survey.id)
     return {
         "survey": survey,
         "stimuli": stimuli,
         "labels": {s.id: s.label for s in stimuli},
-        "respondents": [(p, base + survey_respond.invite_path(p.token)) for p in people],
-        "results": survey_results.results(session, survey_id=survey.id),
+        "respondents": [(p, base + respond.invite_path(p.token)) for p in people],
+        "results": surveys_results.results(session, survey_id=survey.id),
         "exclusion": surveys.exclusion_text(survey),
         "thumb_template": thumb_template(survey.id),
         **crowd_context(request, session, survey.id),
@@ -124,7 +123,7 @@ def respond_page(
     """The survey, one stimulus per screen (``static/js/survey_respond.js``)."""
     person = _respondent(session, cookie)
     survey = surveys.get_survey(session, survey_id=person.survey_id)
-    done, total = survey_respond.progress(session, respondent_id=person.id)
+    done, total = respond.progress(session, respondent_id=person.id)
     return render(
         request,
         "survey_respond.html",

@@ -8,8 +8,8 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, StrictBool
 
 from app.core.json_types import JsonInt
-from app.surveys import answers as survey_answers
-from app.surveys import respond as survey_respond
+from app.surveys import answers as surveys_answers
+from app.surveys import respond
 from app.surveys import service as surveys
 from app.surveys.service import AttentionSpec, QuestionSpec, StimulusSpec, SurveySpec
 from app.surveys.sources import TreeSource
@@ -150,7 +150,7 @@ class SurveyOut(BaseModel):
 
 class RespondentsCreate(BaseModel):
     model_config = _FORBID
-    count: Annotated[JsonInt, Field(ge=1, le=survey_respond.MAX_BATCH)] = 1
+    count: Annotated[JsonInt, Field(ge=1, le=respond.MAX_BATCH)] = 1
     name: str | None = Field(None, max_length=200)
 
 
@@ -167,7 +167,7 @@ class RespondentOut(BaseModel):
 
 class AnswerBody(BaseModel):
     model_config = _FORBID
-    value: str = Field(max_length=survey_answers.MAX_TEXT_ANSWER_CHARS)
+    value: str = Field(max_length=surveys_answers.MAX_TEXT_ANSWER_CHARS)
     confidence: Annotated[JsonInt, Field(ge=1, le=5)] | None = None
 
 
@@ -178,4 +178,4 @@ class ScreenAnswers(BaseModel):
     answers: dict[Annotated[str, Field(max_length=32)], AnswerBody] = Field(
         max_length=surveys.MAX_QUESTIONS
     )
-    screen_ms: Annotated[JsonInt, Field(ge=0, le=survey_answers.MAX_SCREEN_MS)]
+    screen_ms: Annotated[JsonInt, Field(ge=0, le=surveys_answers.MAX_SCREEN_MS)]
