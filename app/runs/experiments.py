@@ -264,11 +264,16 @@ def _scores(tables: list[list[dict[str, Any]]], judge: str) -> np.ndarray:
 
 
 def _advised_run(session: Session, experiment: Experiment) -> Run:
-    return next(
-        run
-        for role, run in members(session, experiment_id=experiment.id)
-        if role == ExperimentRole.ADVISED
-    )
+    """The experiment's first advised run.
+
+    Raises:
+        InputError: it has none (the API never makes such an experiment).
+    """
+    found = members(session, experiment_id=experiment.id)
+    run = next((r for role, r in found if role == ExperimentRole.ADVISED), None)
+    if run is None:
+        raise InputError(f"experiment {experiment.id} has no advised runs")
+    return run
 
 
 def _pairs_of(session: Session, experiment: Experiment) -> tuple[Pair, ...]:
