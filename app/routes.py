@@ -15,6 +15,8 @@ from app.evaluations import crowd_pages as evaluation_link_pages
 from app.evaluations import evaluator_api, link_pages, researcher_pages, withdraw_pages
 from app.evaluations import export_api as evaluation_export_api
 from app.evaluations import pages as evaluation_pages
+from app.evaluations import practice_api as evaluation_practice_api
+from app.evaluations import practice_pages as evaluation_practice_pages
 from app.http import auth_pages, errors
 from app.labelling import api as participants_api
 from app.labelling import crowd_pages as study_link_pages
@@ -67,6 +69,7 @@ for _router in (
     survey_crowd_api.router,
     webhooks_api.router,
     evaluations_api.router,
+    evaluation_practice_api.router,
     evaluator_api.router,
     evaluation_crowd_api.router,
     evaluation_export_api.router,
@@ -91,6 +94,7 @@ for _pages in (
     survey_link_pages,
     webhooks_pages,
     evaluation_pages,
+    evaluation_practice_pages,
     researcher_pages,
     evaluation_link_pages,
     link_pages,

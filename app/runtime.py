@@ -23,6 +23,7 @@ from app.evaluations.stimuli import prepare_evaluation
 from app.jobs.settings import JobSettings
 from app.preflight import check_data_dir
 from app.settings import Settings
+from app.studies.clips import add_clips, pending_clip_ids
 from app.studies.service import prepare_study, preparing_study_ids
 from engine.render import RenderCache, RenderService
 
@@ -75,6 +76,16 @@ class Runtime:
             runs_dir=JobSettings().runs_root(self.settings),
         )
 
+    def add_clips(self, study_id: int) -> None:
+        """Render a ready clips study's missing clips now, on this thread."""
+        add_clips(
+            self.sessions,
+            study_id=study_id,
+            renderer=self.renderer,
+            data_dir=self.settings.data_dir,
+            runs_dir=JobSettings().runs_root(self.settings),
+        )
+
     def prepare_later(self, study_id: int) -> Future:
         """Queue a study's preparation on the background worker."""
         return self.submit(self.prepare, study_id)
@@ -105,10 +116,14 @@ class Runtime:
         """Queue studies and evaluations left ``preparing`` by an earlier process."""
         with self.sessions() as session:
             study_ids = preparing_study_ids(session)
+            clip_ids = pending_clip_ids(session)
             evaluation_ids = evaluations.preparing_ids(session)
         for study_id in study_ids:
             log.info("resuming preparation of study %d", study_id)
             self.prepare_later(study_id)
+        for study_id in clip_ids:
+            log.info("resuming the clips of study %d", study_id)
+            self.submit(self.add_clips, study_id)
         for evaluation_id in evaluation_ids:
             log.info("resuming preparation of evaluation %d", evaluation_id)
             self.prepare_evaluation_later(evaluation_id)

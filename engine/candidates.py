@@ -24,7 +24,7 @@ import numpy as np
 
 from engine.envs import DEFAULT_ENV_ID, make_env, restore
 from engine.errors import InputError
-from engine.gym_types import mujoco_base
+from engine.gym_types import box, mujoco_base
 from engine.rewards import posture_features, state_reward
 
 SamplingMode = Literal["uniform", "diverse", "informative"]
@@ -170,6 +170,20 @@ def _pick_diverse(features: np.ndarray, n: int, rng: np.random.Generator) -> np.
         order = np.argsort(row)
         picked.append(int(next(j for j in order if j not in picked)))
     return np.sort(np.array(picked))
+
+
+def random_actions(env_id: str, seed: int) -> Policy:
+    """A policy of uniform random actions drawn from ``seed`` alone, so that the same seed
+    gives the same actions: what rolls a uniform or diverse study's candidates forward in
+    their clips (random actions sampled them). Each call starts a fresh generator."""
+    env = make_env(env_id)
+    try:
+        space = box(env.action_space)
+        low, high = np.asarray(space.low), np.asarray(space.high)
+    finally:
+        env.close()
+    rng = np.random.default_rng(seed)
+    return lambda _obs: rng.uniform(low, high)
 
 
 def candidate_at(env: gym.Env[Any, Any], cid: int, qpos: np.ndarray, qvel: np.ndarray) -> Candidate:

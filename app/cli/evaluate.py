@@ -47,6 +47,13 @@ def create(
         evaluations.DEFAULT_TARGET
     ),
     name: Annotated[str | None, Opt(help="A name for it.")] = None,
+    gold_pairs: Annotated[
+        int, Opt(help='Instructed gold pairs per evaluator ("choose the marker"), 0 to 5.')
+    ] = 0,
+    gold_gate: Annotated[
+        float | None, Opt(help="With --gold-pairs: leave out evaluators clearly below it.")
+    ] = None,
+    practice_pairs: Annotated[int, Opt(help="Practice pairs first: 0, or 2 to 5.")] = 0,
 ) -> None:
     """Create an evaluation and render its stimuli; prints its id and status."""
     if (experiment is None) == (advised is None):
@@ -70,6 +77,9 @@ def create(
                 target_win_rate=target,
                 name=name,
                 experiment_id=experiment,
+                gold_pairs=gold_pairs,
+                gold_gate=gold_gate,
+                practice_pairs=practice_pairs,
             )
             evaluation_id = evaluations.create_evaluation(session, spec=spec).id
         runtime.prepare_evaluation(evaluation_id)

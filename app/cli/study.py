@@ -12,10 +12,11 @@ from app.cli.options import CandidatesOpt, CoinOpt, EnvOpt, NoiseOpt, SamplingOp
 from app.cli.root import cli, fail
 from app.cli.serve import cli_runtime
 from app.labelling import participants, trees
-from app.labelling import simulate as simulation
+from app.labelling import simulate as labelling_simulate
 from app.labelling.participants import invite_url
 from app.models import StudyStatus
 from app.studies import service as studies
+from app.studies.clips import CLIPS_WARNING, clips_state
 from engine.disagreement import MAX_PAIRS
 from engine.envs import DEFAULT_ENV_ID
 from engine.practice import MAX_PRACTICE_PAIRS, MIN_PRACTICE_PAIRS
@@ -59,8 +60,16 @@ def create(
             f"{MAX_PRACTICE_PAIRS}, on states that are not candidates; never stored."
         ),
     ] = 0,
+    clips: Annotated[
+        bool,
+        typer.Option(
+            help="Show participants 2 s motion clips of the candidates, rendered after the "
+            "stills (" + CLIPS_WARNING + ")"
+        ),
+    ] = False,
 ) -> None:
-    """Create a study, then sample and render its candidates (waits until ready)."""
+    """Create a study, then sample and render its candidates (waits until ready, and with
+    --clips until its clips are rendered)."""
     text = instructions_file.read_text(encoding="utf-8") if instructions_file else instructions
     with cli_runtime() as runtime:
         with runtime.sessions() as session:
@@ -75,6 +84,7 @@ def create(
                 disagreement_pairs=disagreement_pairs,
                 allow_ties=allow_ties,
                 practice_pairs=practice_pairs,
+                clips=clips,
             )
             study = studies.create_study(session, spec=spec)
         runtime.prepare(study.id)
@@ -83,6 +93,8 @@ def create(
     if study.status != StudyStatus.READY:
         fail(f"study {study.id} could not be prepared: {study.error}")
     typer.echo(f"study {study.id} ready: {study.n_candidates} {study.env_id} candidates")
+    if clips:
+        typer.echo(f"clips {clips_state(study)}" + (f": {study.error}" if study.error else ""))
 
 
 @study_cli.command("list")
@@ -136,7 +148,7 @@ def simulate(
 ) -> None:
     """Simulated participants label the study's bracket through the service layer."""
     with cli_runtime() as runtime, runtime.sessions() as session:
-        people = simulation.simulate(
+        people = labelling_simulate.simulate(
             session,
             study_id=study,
             teacher=teacher,

@@ -16,7 +16,7 @@ from fastapi import Path as PathParam
 from sqlalchemy.orm import Session
 
 from app.core.errors import NotFoundError
-from app.evaluations import crowd, evaluators, reminder
+from app.evaluations import crowd, evaluators, gold, reminder
 from app.evaluations import service as evaluations
 from app.evaluations.schemas import AnswerIn, PairOut
 from app.evaluations.stimuli import stimuli_dir
@@ -29,6 +29,7 @@ from app.recruiting import service as recruiting
 from app.recruiting.schemas import OutcomeOut, WithdrawIn
 from app.studies.images import MEDIA_TYPE as IMAGE_TYPE
 from app.studies.images import image_file
+from engine.render.image import with_marker
 
 router = APIRouter(prefix="/evaluators/me", tags=["evaluators"])
 
@@ -98,13 +99,14 @@ def next_pair(person: EvaluatorDep, session: SessionDep) -> PairOut | Response:
 def pair_out(session: Session, person: Evaluator, pair: EvaluationPair) -> PairOut:
     """A pair as the evaluator sees it: its key, its place, and its pictures' URLs."""
     evaluation = evaluations.get_evaluation(session, evaluation_id=person.evaluation_id)
-    kind = shown_kind(evaluation)
+    gold_pair = pair.gold_answer is not None  # an instructed gold pair: stills, the marker
+    kind: Kind = "still" if gold_pair else shown_kind(evaluation)
     total = evaluators.progress(session, evaluator_id=person.id).total
     return PairOut(
         key=pair.key,
         position=pair.position,
         total=total,
-        question=evaluation.question,
+        question=gold.INSTRUCTED_PROMPT if gold_pair else evaluation.question,
         left=_side(pair.key, "left", kind),
         right=_side(pair.key, "right", kind),
         reminder=reminder.urls(session, evaluation),
@@ -160,7 +162,8 @@ def pair_picture(
     session: SessionDep,
     settings: SettingsDep,
 ) -> Response:
-    """One side of one of the evaluator's pairs: its still (JPEG) or clip (animated WebP)."""
+    """One side of one of the evaluator's pairs: its still (JPEG) or clip (animated WebP); a
+    gold pair's stills only, the marker drawn on its answer's."""
     pair = evaluators.pair_by_key(session, evaluator_id=person.id, key=key)
     slot, window = (
         (pair.a, pair.window_a) if (side == "left") == pair.a_left else (pair.b, pair.window_b)
@@ -171,9 +174,11 @@ def pair_picture(
         if stimulus is None
         else (stimulus.clip_path if kind == "clip" else stimulus.still_path)
     )
-    if path is None:
+    if path is None or (pair.gold_answer is not None and kind == "clip"):
         raise NotFoundError(f"no {kind} of this pair yet")
     data = (stimuli_dir(settings.data_dir) / Path(path)).read_bytes()
+    if pair.gold_answer == slot:
+        data = with_marker(data)
     return Response(data, media_type=MEDIA_TYPES[kind], headers={"Cache-Control": CACHE})
 
 

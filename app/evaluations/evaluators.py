@@ -21,6 +21,7 @@ from app.core.auth import new_token
 from app.core.errors import ConflictError, NotFoundError
 from app.core.limits import MAX_BATCH, check_text
 from app.db import writing
+from app.evaluations import gold
 from app.evaluations.service import get_evaluation, get_ready_evaluation
 from app.labelling.participants import Progress
 from app.models import (
@@ -82,17 +83,17 @@ def stage(session: Session, person: Evaluator) -> None:
 
 
 def _pairs(session: Session, evaluation: Evaluation, person: Evaluator) -> list[EvaluationPair]:
-    """The evaluator's stretch of the pair sequence, with seeded windows."""
+    """The evaluator's stretch of the pair sequence, with seeded windows, and their gold
+    pairs among them (:mod:`app.evaluations.gold`); positions count both."""
     windows = _windows_per_slot(session, evaluation.id)
     n_runs = len(windows)
     plan = evaluator_pairs(
         n_runs, evaluation.pairs_per_evaluator, person.sequence_index, evaluation.seed
     )
     rng = np.random.default_rng([evaluation.seed, person.sequence_index, 1])
-    return [
+    real = [
         EvaluationPair(
             evaluator_id=person.id,
-            position=i,
             key=secrets.token_urlsafe(16),
             a=int(a),
             b=int(b),
@@ -101,8 +102,18 @@ def _pairs(session: Session, evaluation: Evaluation, person: Evaluator) -> list[
             a_left=bool(left),
             tie=False,
         )
-        for i, (a, b, left) in enumerate(zip(plan.a, plan.b, plan.a_left, strict=True))
+        for a, b, left in zip(plan.a, plan.b, plan.a_left, strict=True)
     ]
+    places = gold.gold_places(evaluation, person)
+    extra = iter(gold.gold_pairs(evaluation, person, windows))
+    ordered = []
+    for i, pair in enumerate(real):
+        ordered += [next(extra) for place in places if place == i]
+        ordered.append(pair)
+    ordered += list(extra)  # none: places are below the real pairs' count
+    for position, pair in enumerate(ordered):
+        pair.position = position
+    return ordered
 
 
 def _windows_per_slot(session: Session, evaluation_id: int) -> list[int]:
@@ -213,6 +224,10 @@ def answer(
                 answered_at=utcnow(),
             )
         )
+        if pair.gold_answer is not None:  # a gold answer: the gate reads the gold score
+            gold.gate_after_answer(
+                session, evaluator, get_evaluation(session, evaluation_id=evaluator.evaluation_id)
+            )
         _finish_if_done(session, evaluator)
     session.refresh(pair)
     if (pair.winner, pair.tie) != (winner, tie):

@@ -19,11 +19,11 @@ from fastapi.responses import HTMLResponse, RedirectResponse
 from sqlalchemy.orm import Session
 
 from app.core.errors import ConflictError
-from app.evaluations import crowd, evaluators, reminder
+from app.evaluations import crowd, evaluators, practice, reminder
 from app.evaluations import service as evaluations
 from app.evaluations.evaluator_api import pair_out
 from app.http.csrf import CsrfChecked, FormFields
-from app.http.deps import SessionDep
+from app.http.deps import SessionDep, SettingsDep
 from app.http.guards import enter_by_invite, page_member
 from app.http.member_auth import EvaluatorCookie
 from app.http.rendering import PageRoute, RedirectTo, redirect, render
@@ -36,6 +36,7 @@ router = APIRouter(route_class=PageRoute, include_in_schema=False)
 
 INSTRUCTIONS = "/evaluate"
 PAIR = "/evaluate/pair"
+PRACTICE = "/evaluate/practice"
 THANKS = "/evaluate/thanks"
 SHARE = "/evaluate/share"
 ENDED = "/evaluate/ended"
@@ -115,12 +116,16 @@ def _message(
 
 
 @router.get(INSTRUCTIONS)
-def instructions(request: Request, session: SessionDep, person: PageEvaluator) -> Response:
+def instructions(
+    request: Request, session: SessionDep, person: PageEvaluator, settings: SettingsDep
+) -> Response:
     """What the evaluator is asked, and a Start (or Continue) button."""
     context = context_of(session, person)
     if context["progress"].finished:
         raise RedirectTo(THANKS)
+    pairs = len(practice.practice(session, evaluator=person, data_dir=settings.data_dir).pairs)
     context |= {"advisor_text": ADVISOR_TEXT, "share_label": evaluators.SHARE_LABEL}
+    context |= {"practice_pairs": pairs, "start_url": PRACTICE if pairs else PAIR}
     return render(request, "evaluate.html", context)
 
 

@@ -15,7 +15,7 @@ from sqlalchemy.orm import Session
 from app.core.errors import ServiceError
 from app.core.json_types import IntParam, from_form
 from app.core.limits import MAX_BATCH, MAX_NAME_CHARS
-from app.evaluations import evaluators, results
+from app.evaluations import evaluators, gold, results
 from app.evaluations import service as evaluations
 from app.evaluations.api import evaluator_out
 from app.evaluations.link_pages import link_context
@@ -36,12 +36,18 @@ FORM = {
     "stimulus": "clip",
     "pairs_per_evaluator": _PAIRS,
     "show_bracket": "false",  # a checkbox: "on" when ticked, absent otherwise
+    "gold_pairs": "0",
+    "gold_gate": "",  # empty: no gate
+    "practice_pairs": "0",
 }
 LABELS = {
     "evaluator_kind": "Who answers",
     "show_bracket": "Remind the advisor of their bracket",
     "stimulus": "What they see",
     "pairs_per_evaluator": "Pairs per evaluator",
+    "gold_pairs": "Gold pairs per evaluator",
+    "gold_gate": "Gold gate",
+    "practice_pairs": "Practice pairs",
 }
 
 
@@ -78,7 +84,10 @@ def create_evaluation(
 def _design(form: dict[str, str]) -> EvaluationDesign:
     """The form's design, or :class:`InputError` saying which field is wrong and why."""
     try:
-        return from_form(EvaluationDesign, {name: value.strip() for name, value in form.items()})
+        fields = {name: value.strip() for name, value in form.items()}
+        if not fields.get("gold_gate"):  # an empty gate: none
+            fields.pop("gold_gate", None)
+        return from_form(EvaluationDesign, fields)
     except ValidationError as exc:
         error = exc.errors()[0]
         where = LABELS.get(str(error["loc"][0]), "The form")
@@ -103,6 +112,7 @@ def evaluation_page(
         "result": answer,
         "slots": list(zip(slots, answer["win_rates"], strict=True)),
         "tree_vs_asked": results.TREE_VS_ASKED,
+        "gate_excluded": gold.gate_excluded(session, evaluation_id=evaluation_id),
         "invited": invited,
         "max_batch": MAX_BATCH,
         "max_name": MAX_NAME_CHARS,

@@ -1,8 +1,9 @@
 """An evaluation's answer (issue 41 §2): the kept evaluators' answers pooled per run pair,
 tested by :func:`engine.evaluation.stats.evaluate`, and its export.
 
-Kept: evaluators not withdrawn, not excluded, and within their time (the members' rule,
-:func:`app.recruiting.seats.kept_in_data`); an unanswered pair counts nowhere. The interval's
+Kept: evaluators not withdrawn, not excluded (the gold gate excludes, :mod:`app.evaluations.gold`),
+and within their time (the members' rule, :func:`app.recruiting.seats.kept_in_data`); an
+unanswered pair and a gold pair count nowhere, and the exports leave gold pairs out. The interval's
 bootstrap is seeded by the evaluation, so the same answers always read the same.
 """
 
@@ -63,6 +64,7 @@ def kept_pairs(session: Session, *, evaluation_id: int) -> list[EvaluationPair]:
         .where(
             Evaluator.evaluation_id == evaluation_id,
             EvaluationPair.answered_at.is_not(None),
+            EvaluationPair.gold_answer.is_(None),  # gold pairs never enter the result
             *kept,
         )
         .order_by(EvaluationPair.evaluator_id, EvaluationPair.position)

@@ -10,6 +10,7 @@ from app.core.json_types import JsonFloat, JsonInt, UtcDatetime
 from app.core.limits import MAX_BATCH, MAX_NAME_CHARS
 from app.evaluations import service
 from app.models import StudyStatus
+from engine.practice import MAX_PRACTICE_PAIRS
 
 _FORBID = ConfigDict(extra="forbid")
 RunId = Annotated[JsonInt, Field(ge=1, le=2**31 - 1)]
@@ -43,6 +44,29 @@ class EvaluationDesign(BaseModel):
     pairs_per_evaluator: JsonInt = Field(service.DEFAULT_PAIRS, ge=1, le=service.MAX_PAIRS)
     target_win_rate: JsonFloat = Field(service.DEFAULT_TARGET, gt=0.5, lt=1)
     name: str | None = Field(None, min_length=1, max_length=MAX_NAME_CHARS)
+    gold_pairs: JsonInt = Field(
+        0,
+        ge=0,
+        le=service.MAX_GOLD_PAIRS,
+        description='Instructed gold pairs per evaluator ("choose the picture with the '
+        'marker"), placed at seeded positions among the real pairs and never counted in the '
+        "result.",
+    )
+    gold_gate: JsonFloat | None = Field(
+        None,
+        gt=0,
+        le=1,
+        description="Leave out an evaluator whose gold accuracy is clearly below this "
+        "fraction (the upper bound of its 95% Clopper-Pearson interval is below it); "
+        "only with gold_pairs. Null: no gate.",
+    )
+    practice_pairs: JsonInt = Field(
+        0,
+        ge=0,
+        le=MAX_PRACTICE_PAIRS,
+        description="Practice pairs before the first real pair: 0 (none) or 2 to 5, on "
+        "practice states of the env (never the evaluation's agents); nothing is stored.",
+    )
 
     def spec(
         self,
@@ -61,6 +85,9 @@ class EvaluationDesign(BaseModel):
             target_win_rate=self.target_win_rate,
             name=self.name,
             experiment_id=experiment_id,
+            gold_pairs=self.gold_pairs,
+            gold_gate=self.gold_gate,
+            practice_pairs=self.practice_pairs,
         )
 
 
@@ -85,6 +112,9 @@ class EvaluationOut(BaseModel):
     show_bracket: bool
     stimulus: str
     pairs_per_evaluator: int
+    gold_pairs: int
+    gold_gate: float | None
+    practice_pairs: int
     target_win_rate: float
     needed_evaluators: int | None = Field(
         description="The fewest evaluators (of pairs_per_evaluator pairs each) that detect "

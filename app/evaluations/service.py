@@ -32,6 +32,7 @@ from app.models import (
 from app.runs import experiments
 from app.runs.imported import is_imported
 from engine.errors import InputError
+from engine.practice import practice_pairs_error
 
 EvaluatorKind = Literal["advisor", "others"]
 StimulusKind = Literal["still", "clip"]
@@ -52,6 +53,8 @@ DEFAULT_TARGET = 0.8
 MIN_RUNS_PER_ARM = 2
 MAX_RUNS_PER_ARM = 20
 MAX_PAIRS = 200
+#: Most instructed gold pairs per evaluator (each one is an answer that is not a judgement).
+MAX_GOLD_PAIRS = 5
 
 
 @dataclass(frozen=True)
@@ -70,6 +73,9 @@ class EvaluationSpec:
     target_win_rate: float = DEFAULT_TARGET
     name: str | None = None
     experiment_id: int | None = None
+    gold_pairs: int = 0
+    gold_gate: float | None = None
+    practice_pairs: int = 0
 
 
 def experiment_arms(session: Session, *, experiment_id: int) -> tuple[tuple[int, ...], ...]:
@@ -114,6 +120,9 @@ def create_evaluation(session: Session, *, spec: EvaluationSpec) -> Evaluation:
         stimulus=spec.stimulus,
         pairs_per_evaluator=spec.pairs_per_evaluator,
         target_win_rate=spec.target_win_rate,
+        gold_pairs=spec.gold_pairs,
+        gold_gate=spec.gold_gate,
+        practice_pairs=spec.practice_pairs,
         seed=secrets.randbits(31),
         evaluator_counter=0,
         status=StudyStatus.PREPARING,
@@ -143,6 +152,21 @@ def _check_design(spec: EvaluationSpec) -> None:
         raise InputError("a run is listed twice")
     if spec.show_bracket and spec.evaluator_kind != "advisor":
         raise InputError("show_bracket reminds the advisor of their bracket: advisor only")
+    _check_quality(spec)
+
+
+def _check_quality(spec: EvaluationSpec) -> None:
+    """Gold pairs (0 to 5), the gate (a fraction in (0, 1], only with gold pairs) and
+    practice pairs (0, or 2 to 5; :func:`engine.practice.practice_pairs_error`)."""
+    if not 0 <= spec.gold_pairs <= MAX_GOLD_PAIRS:
+        raise InputError(f"gold_pairs must be in 0..{MAX_GOLD_PAIRS}, got {spec.gold_pairs}")
+    if spec.gold_gate is not None:
+        if not 0 < spec.gold_gate <= 1:
+            raise InputError(f"gold_gate must be above 0 and at most 1, got {spec.gold_gate}")
+        if spec.gold_pairs == 0:
+            raise InputError("gold_gate reads gold answers: set gold_pairs above 0")
+    if (message := practice_pairs_error(spec.practice_pairs)) is not None:
+        raise InputError(message)
 
 
 def _runs(session: Session, ids: tuple[int, ...]) -> list[Run]:

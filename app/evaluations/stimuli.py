@@ -20,6 +20,7 @@ from sqlalchemy import delete, update
 from sqlalchemy.orm import Session, sessionmaker
 
 from app.db import writing
+from app.evaluations import practice
 from app.evaluations.service import slots
 from app.jobs.settings import run_dir
 from app.models import Evaluation, EvaluationRun, EvaluationStimulus, Run, StudyStatus
@@ -56,8 +57,9 @@ def prepare_evaluation(
     data_dir: Path,
     runs_dir: Path,
 ) -> None:
-    """Render a ``preparing`` evaluation's stills, mark it ``ready``, then render its clips
-    (a clip evaluation only) and mark them ready.
+    """Render a ``preparing`` evaluation's stills and its practice states
+    (:mod:`app.evaluations.practice`), mark it ``ready``, then render its clips (a clip
+    evaluation only) and mark them ready.
 
     Never raises: a failure is stored on the evaluation (``failed``, ``error``) and logged;
     clips that fail leave the evaluation on stills, with the error stored.
@@ -76,6 +78,7 @@ def prepare_evaluation(
             s.slot: _render(s, policies, env_id, runs_dir, out, renderer, clips=False)
             for s in found
         }
+        practice.prepare(renderer, data_dir=data_dir, evaluation=evaluation)
         with sessions() as session, writing(session):
             _store(session, evaluation_id, stills, design)
     except Exception as exc:  # any failure must end up on the evaluation, not in a log only

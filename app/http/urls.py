@@ -16,6 +16,11 @@ def image_url(study_id: int, candidate_id: int, size: str = "full", marker: bool
     return base if size == "full" else f"{base}?size={size}"
 
 
+def clip_url(study_id: int, candidate_id: int) -> str:
+    """Where a candidate's clip is served (see ``candidate_clip``), to whom its image is."""
+    return f"/api/studies/{study_id}/candidates/{candidate_id}/clip"
+
+
 def invite_url(request: Request, token: str) -> str:
     """The participant's invite link under the base URL this request came in on."""
     return member_invite_url(request, STUDY, token)

@@ -12,7 +12,7 @@ from app.core.errors import ForbiddenError
 from app.core.json_types import IntParam
 from app.http.deps import DbId, ResearcherDep, RuntimeDep, SessionDep, ViewerDep
 from app.http.member_auth import InviteTokenDep, ParticipantDep
-from app.http.urls import image_url
+from app.http.urls import clip_url, image_url
 from app.labelling import disagreement, gold_answers, participants, quality, study_link, trees
 from app.labelling import service as labelling
 from app.labelling.schemas import (
@@ -103,8 +103,8 @@ def next_match_body(study_id: int, upcoming: labelling.NextMatch) -> dict[str, A
         "n_rounds": upcoming.n_rounds,
         "match_number": upcoming.number,
         "matches_in_round": upcoming.in_round,
-        "a": _side(study_id, shown.a, shown.a == marked),
-        "b": _side(study_id, shown.b, shown.b == marked),
+        "a": _side(study_id, shown.a, shown.a == marked, upcoming.clips),
+        "b": _side(study_id, shown.b, shown.b == marked, upcoming.clips),
         "left": shown.left,
         "progress": {"done": upcoming.progress.done, "total": upcoming.progress.total},
         "gold": None if gold is None else {"item_id": gold.item_id, "prompt": gold.prompt},
@@ -112,11 +112,14 @@ def next_match_body(study_id: int, upcoming: labelling.NextMatch) -> dict[str, A
     }
 
 
-def _side(study_id: int, candidate_id: int, marked: bool = False) -> dict[str, Any]:
+def _side(
+    study_id: int, candidate_id: int, marked: bool = False, clips: bool = False
+) -> dict[str, Any]:
     return {
         "candidate_id": candidate_id,
         "image_url": image_url(study_id, candidate_id, marker=marked),
         "thumb_url": image_url(study_id, candidate_id, "thumb"),
+        "clip_url": clip_url(study_id, candidate_id) if clips else None,
     }
 
 

@@ -148,7 +148,7 @@ def _facts(study: Study, people: int, tables: dict[Table, Rows], license: str) -
 def _labels(session: Session, study_id: int, names: dict[int, str]) -> Rows:
     """The consenting participants' labels, grouped by pseudonym (not by who came first),
     each participant's in the order they gave them."""
-    kept = ("kind", "round", "left", "right", "winner", "side", "tie", "response_ms")
+    kept = ("kind", "round", "left", "right", "winner", "side", "tie", "stimulus", "response_ms")
     rows = [
         {"participant": names[r["participant_id"]]} | {k: r[k] for k in kept}
         for r in label_export.records(session, study_id=study_id)

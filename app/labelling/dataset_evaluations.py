@@ -61,6 +61,7 @@ def evaluation_rows(session: Session, *, study_id: int, hashes: Pseudonyms) -> R
             Evaluator.evaluation_id.in_(ids),
             Evaluator.share_consent.is_(True),
             EvaluationPair.answered_at.is_not(None),
+            EvaluationPair.gold_answer.is_(None),  # gold pairs are checks, not judgements
             *kept,
         )
     ).all()

@@ -21,8 +21,8 @@ from engine.envs import env_model, make_env, restore
 from engine.rewards import posture_features
 
 Rows = list[dict[str, Any]]
-#: Every label so far answers two still pictures; a label that records another stimulus
-#: (issue 41's clips) carries a ``stimulus`` of its own, which wins.
+#: A label records what its pair showed (``still``, or ``clip`` in a study with clips,
+#: issue 41 §3); a row without one answered two still pictures.
 STILL = "still"
 
 

@@ -66,6 +66,7 @@ LABELS = Table(
         Column("winner", "int64", "The candidate the participant preferred."),
         Column("side", "string", "`left` or `right`: the side chosen."),
         Column("tie", "bool", "The participant could not tell; the winner is a seeded coin's."),
+        Column("stimulus", "string", "What the pair showed: `still` (pictures) or `clip`."),
         Column("response_ms", "int64", "Milliseconds from both pictures shown to the choice."),
     ),
 )
@@ -116,7 +117,7 @@ PREFERENCES = Table(
     (
         PSEUDONYM,
         Column("kind", "string", "`bracket` or `disagreement`, as in `labels`."),
-        Column("stimulus", "string", "What the pair showed of each state: `still`, a picture."),
+        Column("stimulus", "string", "What the pair showed: `still` (pictures) or `clip`."),
         Column("chosen", "int64", "The candidate preferred (the seeded coin's on a tie)."),
         Column("rejected", "int64", "The other candidate of the pair."),
         Column("tie", "bool", "The participant could not tell: read the pair as half each way."),

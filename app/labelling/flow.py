@@ -37,7 +37,7 @@ from app.db import writing
 from app.labelling import events
 from app.labelling import flow_sql as sql
 from app.labelling.gold_placement import due_gold
-from app.labelling.open_matches import NextMatch, next_match
+from app.labelling.open_matches import NextMatch, next_match, pair_has_clips
 from app.labelling.participants import ParticipantKey, Progress
 from app.labelling.shape import BracketShape, shape_of
 from app.labelling.sides import a_on_left, a_wins_tie
@@ -71,12 +71,14 @@ def _connection(db: Session | Connection) -> Connection:
 @dataclass(frozen=True)
 class Decision:
     """A participant's answer to a match: ``winner``, or ``tie`` ("can't tell"; the winner
-    is then the seeded coin's, :func:`app.labelling.sides.a_wins_tie`)."""
+    is then the seeded coin's, :func:`app.labelling.sides.a_wins_tie`); ``stimulus``: what
+    the page showed, ``still`` or ``clip``."""
 
     match_id: int
     winner: int | None
     tie: bool
     response_ms: int | None
+    stimulus: str = "still"
 
     def same_as(self, winner: int, tie: bool) -> bool:
         """Whether a stored label (``winner``, ``tie``) is this decision."""
@@ -92,6 +94,7 @@ def submit_label(
     tie: bool = False,
     response_ms: int | None = None,
     with_next: bool = False,
+    stimulus: str = "still",
 ) -> LabelResult:
     """Store ``participant``'s decision of a match; sending the same one again is a no-op.
 
@@ -102,12 +105,14 @@ def submit_label(
         response_ms: time the participant took, measured by the client; when ``None`` it
             is estimated as the time since the match opened or since their previous write.
         with_next: also read the next open match, in the same transaction.
+        stimulus: what the page showed: ``still``, or ``clip`` where both clips are rendered.
 
     Raises:
         AuthError: the participant no longer exists.
         NotFoundError: no such match among this participant's.
         InputError: ``winner`` did not play the match, ``response_ms`` is out of range,
-            neither or both of ``winner`` and ``tie``, or a tie the study does not allow.
+            neither or both of ``winner`` and ``tie``, a tie the study does not allow, or
+            ``clip`` where the pair has no clips.
         ConflictError: the match is already decided the other way, or a gold item is due
             before it.
     """
@@ -118,7 +123,9 @@ def submit_label(
     shape = shape_of(db, participant.study_id)
     if tie and not shape.allow_ties:
         raise InputError('this study does not allow "can\'t tell": choose a picture')
-    decision = Decision(match_id, winner, tie, response_ms)
+    if stimulus not in ("still", "clip"):
+        raise InputError(f'stimulus must be "still" or "clip", got {stimulus!r}')
+    decision = Decision(match_id, winner, tie, response_ms, stimulus)
     try:
         with writing(db):  # type: ignore[type-var]  # a Session or a Connection, both fine
             return _submit(_connection(db), participant, shape, decision, with_next)
@@ -154,6 +161,8 @@ def _submit(
     rnd, slot, a, b, _, _, existing, was_tie, _, done, sibling = row
     if decision.winner is not None and decision.winner not in (a, b):
         raise InputError(f"winner {decision.winner} did not play match {match_id} ({a} vs {b})")
+    if decision.stimulus == "clip" and not pair_has_clips(conn, shape, participant.study_id, a, b):
+        raise InputError("this pair has no clips to show: the label's stimulus is a still")
     if existing is not None:
         return _same_or_conflict(
             conn, participant, decision, (existing, was_tie), Progress(done, shape.n - 1), with_next
@@ -226,6 +235,7 @@ def _insert_label(
             # a tie chose no side: it says nothing of position bias
             "chose_left": None if decision.tie else winner == (a if a_left else b),
             "tie": decision.tie,
+            "stimulus": decision.stimulus,
         },
     )
     return winner

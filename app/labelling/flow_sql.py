@@ -7,7 +7,7 @@ from __future__ import annotations
 from sqlalchemy import BindParameter, bindparam, func, insert, select, update
 from sqlalchemy.orm import aliased
 
-from app.models import Label, Match, Member, Participant
+from app.models import Candidate, Label, Match, Member, Participant
 from app.recruiting.seats import within_time
 
 PID: BindParameter[int] = bindparam("pid")
@@ -65,5 +65,11 @@ MATCH_ROW = (
 INSERT_LABEL, INSERT_MATCH = insert(Label), insert(Match)
 TOUCH = update(Participant).where(Participant.id == PID).values(last_active_at=bindparam("now"))
 FINISH = update(Member).where(Member.id == PID).values(finished_at=bindparam("now"))
+#: How many of a pair's two candidates (``sid``, ``a``, ``b``) have their clip rendered.
+PAIR_CLIPS = select(func.count()).where(
+    Candidate.study_id == bindparam("sid"),
+    Candidate.id.in_((bindparam("a"), bindparam("b"))),
+    Candidate.clip_path.is_not(None),
+)
 LABEL_WINNER = select(Label.winner, Label.tie).where(Label.match_id == MID)
 DONE_ONLY = select(DONE)

@@ -5,7 +5,9 @@ or ``disagreement`` for a pair asked after the bracket, which has no match id or
 :mod:`app.labelling.disagreement`), the match and its round,
 the candidates shown on the left and on the right, the winner and the side chosen, the
 response time, when the pair was shown and when it was labelled, and ``tie`` (the
-participant could not tell; the winner is then the seeded coin's). ``shown_at`` is
+participant could not tell; the winner is then the seeded coin's), and ``stimulus``: what
+the pair showed, ``still`` (the pictures) or ``clip`` (motion clips, issue 41 §3; a
+disagreement pair is always stills). ``shown_at`` is
 ``labelled_at`` minus the response time (the page measures that from both pictures being
 on screen), so it is empty when no response time was stored. Per participant, their quality
 flags, reliability and gold answers (:mod:`app.labelling.quality`) ride along, and whether
@@ -49,6 +51,7 @@ COLUMNS = (
     "labelled_at",
     "flags",
     "tie",
+    "stimulus",
     "reliability",
     "gold_right",
     "gold_asked",
@@ -100,6 +103,7 @@ def records(
             Label.response_ms,
             Label.created_at,
             Label.tie,
+            Label.stimulus,
         )
         .join(Match, Match.id == Label.match_id)
         .join(Participant, Participant.id == Label.participant_id)
@@ -108,8 +112,8 @@ def records(
     )
     out = [
         _record(study_id, people, "bracket", pid, ext, ext_ids, mid, rnd, a, b, a_left, w, ms, at)
-        | {"side": _side(chose_left), "tie": bool(tie)}  # side None: stored before sides were
-        for pid, ext, ext_ids, mid, rnd, a, b, a_left, w, chose_left, ms, at, tie in rows
+        | {"side": _side(chose_left), "tie": bool(tie), "stimulus": stim}  # side None: old
+        for pid, ext, ext_ids, mid, rnd, a, b, a_left, w, chose_left, ms, at, tie, stim in rows
     ]
     return out + _pair_records(session, study_id, people, kept)
 
@@ -193,6 +197,7 @@ def _record(
         "shown_at": None if shown is None else shown.isoformat(),
         "labelled_at": labelled.isoformat(),
         "tie": False,  # a disagreement pair is always decided (a bracket label's is its own)
+        "stimulus": "still",  # and always shown as pictures (a bracket label's is its own)
         **people[pid],
     }
 
@@ -240,6 +245,7 @@ def to_parquet(rows: list[dict[str, Any]]) -> bytes:
             ("labelled_at", pa.string()),
             ("flags", pa.list_(pa.string())),
             ("tie", pa.bool_()),
+            ("stimulus", pa.string()),
             ("reliability", pa.float64()),
             ("gold_right", pa.int64()),
             ("gold_asked", pa.int64()),

@@ -32,8 +32,8 @@ router = APIRouter(prefix="/matches", tags=["matches"])
             "gold gate: the study takes no more labels from them."
         },
         422: {
-            "description": "The winner did not play this match, or a tie where the study "
-            'does not allow "can\'t tell".'
+            "description": "The winner did not play this match, a tie where the study "
+            'does not allow "can\'t tell", or stimulus "clip" where the pair has no clips.'
         },
     },
 )
@@ -62,6 +62,7 @@ def _label(
             tie=body.tie,
             response_ms=body.response_ms,
             with_next=True,
+            stimulus=body.stimulus,
         )
     return result, person.study_id
 

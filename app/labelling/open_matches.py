@@ -12,7 +12,7 @@ from sqlalchemy.orm import Session
 from app.labelling import flow_sql as sql
 from app.labelling.gold_placement import GoldPair, due_gold
 from app.labelling.participants import ParticipantKey, Progress
-from app.labelling.shape import shape_of
+from app.labelling.shape import BracketShape, shape_of
 
 
 @dataclass(frozen=True)
@@ -36,7 +36,8 @@ class OpenMatch:
 class NextMatch:
     """The participant's next match: "Round ``round`` of ``n_rounds``, match ``number`` of
     ``in_round``"; ``gold``: a gold item to answer before it; ``allow_ties``: whether
-    "can't tell" is an answer."""
+    "can't tell" is an answer; ``clips``: the pair is shown as clips (both are rendered,
+    and it is not a gold item)."""
 
     match: OpenMatch
     n_rounds: int
@@ -45,6 +46,7 @@ class NextMatch:
     progress: Progress
     gold: GoldPair | None = None
     allow_ties: bool = False
+    clips: bool = False
 
 
 def next_match(
@@ -67,6 +69,7 @@ def next_match(
     decided = row[6] if done is None else done
     gold = due_gold(conn, participant_id=participant.id, done=decided)
     number, in_round = shape.position(match.round, match.slot)
+    clips = gold is None and pair_has_clips(conn, shape, participant.study_id, match.a, match.b)
     return NextMatch(
         match,
         shape.n_rounds,
@@ -75,4 +78,14 @@ def next_match(
         Progress(decided, shape.n - 1),
         gold,
         shape.allow_ties,
+        clips,
     )
+
+
+def pair_has_clips(conn: Connection, shape: BracketShape, study_id: int, a: int, b: int) -> bool:
+    """Whether both candidates' clips are rendered, in a study with clips (no query in
+    another: a pair of stills)."""
+    if not shape.clips:
+        return False
+    found = conn.execute(sql.PAIR_CLIPS, {"sid": study_id, "a": a, "b": b}).scalar_one()
+    return bool(found == 2)

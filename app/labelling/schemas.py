@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Annotated
+from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, StrictBool
 
@@ -28,6 +28,11 @@ class MatchSide(BaseModel):
     candidate_id: int
     image_url: str
     thumb_url: str
+    clip_url: str | None = Field(
+        None,
+        description="Its motion clip, where the study has clips and both of this pair's are "
+        'rendered (label the pair with stimulus "clip" once one has played); null: stills.',
+    )
 
 
 class GoldDueOut(BaseModel):
@@ -78,6 +83,11 @@ class MatchLabelIn(LabelIn):
         None, ge=0, le=2**31 - 1, description="The preferred candidate's id; omit with tie."
     )
     tie: StrictBool = Field(False, description="The participant cannot tell.")
+    stimulus: Literal["still", "clip"] = Field(
+        "still",
+        description='What the page showed: "still" (the pictures) or "clip" (the pair\'s '
+        "clips; refused where they are not rendered).",
+    )
 
 
 class LabelOut(BaseModel):

@@ -18,7 +18,8 @@ from app.models import BracketSlot, Study
 class BracketShape:
     """A ready study's bracket: ``n`` candidates and the first round's byes; ``seed`` is the
     study's (it seeds which side each match shows on the left, and the coin of a tie);
-    ``allow_ties``: whether a participant may answer "can't tell"."""
+    ``allow_ties``: whether a participant may answer "can't tell"; ``clips``: whether the
+    study opted in to motion clips (each pair shows them once both are rendered)."""
 
     n: int
     first_round: tuple[tuple[int, int | None], ...]  # (a, b) by slot; b is None for a bye
@@ -26,6 +27,7 @@ class BracketShape:
     real_before: tuple[int, ...]  # first-round slot -> real matches in earlier slots
     seed: int = 0
     allow_ties: bool = False
+    clips: bool = False
 
     @property
     def n_rounds(self) -> int:
@@ -50,8 +52,10 @@ def shape_of(db: Session | Connection, study_id: int) -> BracketShape:
     engine = engine_of(db)
     if (shape := _shapes.get(engine, {}).get(study_id)) is not None:
         return shape
-    n, seed, allow_ties = db.execute(
-        select(Study.n_candidates, Study.seed, Study.allow_ties).where(Study.id == study_id)
+    n, seed, allow_ties, clips = db.execute(
+        select(Study.n_candidates, Study.seed, Study.allow_ties, Study.clips).where(
+            Study.id == study_id
+        )
     ).one()
     slots = tuple(
         (a, b)
@@ -72,6 +76,7 @@ def shape_of(db: Session | Connection, study_id: int) -> BracketShape:
         tuple(real_before),
         seed,
         allow_ties,
+        clips,
     )
     with _shapes_lock:
         return _shapes.setdefault(engine, {}).setdefault(study_id, shape)

@@ -26,6 +26,7 @@ LABEL_COLUMNS = (
     "labelled_at",
     "response_ms",
     "tie",
+    "stimulus",
 )
 
 
@@ -104,6 +105,7 @@ def labels_csv(session: Session, *, study_id: int, include_excluded: bool = Fals
             Label.created_at,
             Label.response_ms,
             Label.tie,
+            Label.stimulus,
         )
         .join(Match, Match.id == Label.match_id)
         .join(Participant, Participant.id == Match.participant_id)
@@ -113,7 +115,7 @@ def labels_csv(session: Session, *, study_id: int, include_excluded: bool = Fals
     return csv_export.csv_text(
         LABEL_COLUMNS,
         (
-            (study_id, pid, mid, rnd, slot, a, b, winner, as_utc(at).isoformat(), ms, bool(tie))
-            for pid, mid, rnd, slot, a, b, winner, at, ms, tie in rows
+            (study_id, pid, mid, rnd, slot, a, b, w, as_utc(at).isoformat(), ms, bool(tie), stim)
+            for pid, mid, rnd, slot, a, b, w, at, ms, tie, stim in rows
         ),
     )

@@ -7,6 +7,7 @@ from typing import Annotated, Any
 
 from fastapi import APIRouter, Request, Response
 from fastapi.responses import FileResponse
+from sqlalchemy.orm import Session
 
 from app.core.errors import NotFoundError
 from app.core.json_types import IntParam
@@ -18,12 +19,13 @@ from app.http.deps import (
     RuntimeDep,
     SessionDep,
     SettingsDep,
+    Viewer,
     ViewerDep,
 )
 from app.http.files import attachment
-from app.http.urls import image_url, invite_url
+from app.http.urls import clip_url, image_url, invite_url
 from app.labelling import participants, study_link, trees
-from app.models import OpenLink, Participant, utcnow
+from app.models import Candidate, OpenLink, Participant, utcnow
 from app.recruiting import seats
 from app.recruiting import service as recruiting
 from app.runs import power
@@ -42,6 +44,7 @@ from app.studies.schemas import (
     StudyCreate,
     StudyOut,
 )
+from engine.evaluation.clips import CLIP_MEDIA_TYPE
 from engine.render.image import with_marker
 from engine.treefile import tree_to_json
 
@@ -93,6 +96,7 @@ def list_candidates(study_id: DbId, session: SessionDep, _: ResearcherDep) -> li
             c,
             image_url=image_url(study_id, c.id),
             thumb_url=image_url(study_id, c.id, "thumb"),
+            clip_url=None if c.clip_path is None else clip_url(study_id, c.id),
         )
         for c in studies.list_candidates(session, study_id=study_id)
     ]
@@ -116,11 +120,7 @@ def candidate_image(
     """A candidate's rendered image (``size=thumb`` for a small one; ``marker=true`` with
     the marker of an instructed-response gold item drawn on it), for the researcher and
     the study's participants (``<img>`` tags send the role's cookie)."""
-    if not viewer.researcher and (
-        viewer.participant is None or viewer.participant.study_id != study_id
-    ):
-        raise NotFoundError(f"candidate {candidate_id} of study {study_id} not found")
-    cand = studies.get_candidate(session, study_id=study_id, candidate_id=candidate_id)
+    cand = _viewed_candidate(session, viewer, study_id, candidate_id)
     path = image_file(settings.data_dir, cand.image_path if size == "full" else cand.thumb_path)
     if not path.is_file():
         raise NotFoundError(f"the image of candidate {candidate_id} is missing on disk")
@@ -128,6 +128,40 @@ def candidate_image(
     if marker:
         return Response(with_marker(path.read_bytes()), media_type=MEDIA_TYPE, headers=headers)
     return FileResponse(path, media_type=MEDIA_TYPE, headers=headers)
+
+
+@router.get(
+    "/{study_id}/candidates/{candidate_id}/clip",
+    name="candidate_clip",
+    response_class=FileResponse,
+    responses={200: {"content": {CLIP_MEDIA_TYPE: {}}}},
+)
+def candidate_clip(
+    study_id: DbId,
+    candidate_id: CandidateId,
+    session: SessionDep,
+    settings: SettingsDep,
+    viewer: ViewerDep,
+) -> Response:
+    """A candidate's motion clip (animated WebP; studies with clips, once rendered), to
+    whom its image is served; 404 until it is rendered."""
+    cand = _viewed_candidate(session, viewer, study_id, candidate_id)
+    path = None if cand.clip_path is None else image_file(settings.data_dir, cand.clip_path)
+    if path is None or not path.is_file():
+        raise NotFoundError(f"candidate {candidate_id} of study {study_id} has no clip")
+    headers = {"Cache-Control": "private, max-age=86400"}
+    return FileResponse(path, media_type=CLIP_MEDIA_TYPE, headers=headers)
+
+
+def _viewed_candidate(
+    session: Session, viewer: Viewer, study_id: int, candidate_id: int
+) -> Candidate:
+    """The candidate, for the researcher and the study's own participants only."""
+    if not viewer.researcher and (
+        viewer.participant is None or viewer.participant.study_id != study_id
+    ):
+        raise NotFoundError(f"candidate {candidate_id} of study {study_id} not found")
+    return studies.get_candidate(session, study_id=study_id, candidate_id=candidate_id)
 
 
 @router.post("/{study_id}/participants", status_code=201)

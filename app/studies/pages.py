@@ -26,6 +26,7 @@ from app.models import StudyStatus
 from app.runs import power as study_power
 from app.runs.experiments import DEFAULT_SEEDS
 from app.studies import service as studies
+from app.studies.clips import CLIPS_WARNING, clips_state
 from app.studies.crowd_pages import crowd_context
 from app.studies.schemas import StudyCreate
 from app.webhooks.outbox import Owner
@@ -63,13 +64,19 @@ FORM_DEFAULTS = {
     "disagreement_pairs": "0",
     "practice_pairs": "0",
     "allow_ties": "",
+    "clips": "",
     "instructions": DEFAULT_INSTRUCTIONS,
 }
 
 
 #: Fields a posted form may leave out (a form from before they existed, a checkbox not
 #: ticked): their defaults.
-OPTIONAL_FIELDS = {"disagreement_pairs": "0", "practice_pairs": "0", "allow_ties": ""}
+OPTIONAL_FIELDS = {
+    "disagreement_pairs": "0",
+    "practice_pairs": "0",
+    "allow_ties": "",
+    "clips": "",
+}
 
 
 @router.get("/studies")
@@ -92,6 +99,7 @@ def _form_page(
             "max_candidates": MAX_CANDIDATES,
             "max_pairs": MAX_PAIRS,
             "practice_range": (MIN_PRACTICE_PAIRS, MAX_PRACTICE_PAIRS),
+            "clips_warning": CLIPS_WARNING,
         },
         status_code=status_code,
     )
@@ -122,9 +130,9 @@ def create_study(
 
 def _form_body(values: dict[str, str]) -> dict[str, Any]:
     """The form's text fields as ``StudyCreate`` reads them: trimmed (the instructions as
-    typed), and the ties checkbox as a boolean (a browser sends it only when ticked)."""
+    typed), and the checkboxes as booleans (a browser sends one only when ticked)."""
     body: dict[str, Any] = {k: v if k == "instructions" else v.strip() for k, v in values.items()}
-    body["allow_ties"] = bool(body["allow_ties"])
+    body["allow_ties"], body["clips"] = bool(body["allow_ties"]), bool(body["clips"])
     return body
 
 
@@ -144,6 +152,7 @@ def study_page(
         "study.html",
         {
             "study": study,
+            "clips_state": clips_state(study),
             "invited": invited,
             "max_batch": MAX_BATCH,
             "thumb_template": thumb_template(study_id),

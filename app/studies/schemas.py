@@ -74,6 +74,12 @@ class StudyCreate(BaseModel):
         "stored.",
         json_schema_extra={"minimum": 0, "maximum": MAX_PRACTICE_PAIRS},
     )
+    clips: StrictBool = Field(
+        False,
+        description="Show participants 2 s motion clips of the candidates, rendered in the "
+        "background after the study is ready (stills until then). The clip shows motion, "
+        "but F, the advice reward, rewards the posture alone.",
+    )
 
     def spec(self) -> StudySpec:
         """The study this request asks for, as the services take it."""
@@ -93,6 +99,8 @@ class StudyOut(BaseModel):
     disagreement_pairs: int
     allow_ties: bool
     practice_pairs: int
+    clips: bool
+    clips_ready: bool = Field(description="Every candidate's clip is rendered.")
     instructions: str
     status: StudyStatus
     error: str | None
@@ -110,6 +118,17 @@ class CandidateOut(BaseModel):
     qvel: list[float]
     image_url: str
     thumb_url: str
+    clip_url: str | None = Field(
+        None, description="Its motion clip (animated WebP), once rendered (studies with clips)."
+    )
+    clip_policy: str | None = Field(
+        None,
+        description='What rolled it forward in its clip ("baseline run 3", "random '
+        'actions"); null without a clip.',
+    )
+    clip_seed: int | None = Field(
+        None, description="The reset seed of its clip (which also seeds random actions)."
+    )
 
 
 class AdvicePowerOut(BaseModel):

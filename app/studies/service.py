@@ -33,6 +33,7 @@ from app.studies.baseline import (
     study_baseline_id,
     study_policy,
 )
+from app.studies.clips import add_clips
 from app.studies.images import ImageSize, render_candidates
 from app.studies.practice_states import prepare_practice
 from engine import candidates as engine_candidates
@@ -62,6 +63,7 @@ class StudySpec:
     disagreement_pairs: int = 0
     allow_ties: bool = False
     practice_pairs: int = 0
+    clips: bool = False
 
 
 def create_study(session: Session, *, spec: StudySpec) -> Study:
@@ -127,7 +129,8 @@ def prepare_study(
     data_dir: Path,
     runs_dir: Path | None = None,
 ) -> None:
-    """Sample, seed and render a ``preparing`` study, then mark it ``ready``.
+    """Sample, seed and render a ``preparing`` study, mark it ``ready``, then render the
+    clips of a study with clips (:mod:`app.studies.clips`: after ``ready``, never failing it).
 
     ``runs_dir`` holds the run directories (``data_dir / "runs"`` when None), where an
     ``informative`` study finds its baseline's checkpoint.
@@ -165,6 +168,8 @@ def prepare_study(
                     status=StudyStatus.FAILED, error=f"{type(exc).__name__}: {exc}".splitlines()[0]
                 )
             )
+        return
+    add_clips(sessions, study_id=study_id, renderer=renderer, data_dir=data_dir, runs_dir=runs)
 
 
 def _sample(

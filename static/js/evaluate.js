@@ -2,13 +2,15 @@
 // with a clip plays it, with a Pause/Play toggle (WCAG 2.2.2: pausing swaps the clip for its
 // still). Under prefers-reduced-motion the stills stay, each with a Play control. The keys of
 // the bracket page choose: ← the left agent, → the right one, T "Can't tell". The form posts
-// what was shown (`stimulus`: "clip" once a clip has played) and the time to answer.
+// what was shown (`stimulus`: "clip" once a clip has played) and the time to answer. The
+// toggle itself is static/js/clip_motion.js's, shared with the bracket page.
+/* global ACVMotion */
 "use strict";
 
 (function () {
   const form = document.getElementById("pair");
   if (!form) return;
-  const reduced = window.matchMedia("(prefers-reduced-motion: reduce)").matches;
+  const reduced = ACVMotion.reduced();
   const KEYS = { ArrowLeft: "pick-left", ArrowRight: "pick-right", t: "tie", T: "tie" };
   let sent = false;
 
@@ -16,12 +18,7 @@
   function show(side, playing) {
     const img = document.getElementById(`img-${side}`);
     const toggle = document.getElementById(`motion-${side}`);
-    img.src = playing ? img.dataset.clip : img.dataset.still;
-    img.dataset.playing = String(playing);
-    const hidden = Object.assign(document.createElement("span"),
-      { className: "visually-hidden", textContent: `the ${side} agent` });
-    toggle.replaceChildren(`${playing ? "Pause" : "Play"} `, hidden);
-    toggle.dataset.playing = String(playing);
+    ACVMotion.show(img, toggle, playing, `the ${side} agent`);
     if (playing) document.getElementById("stimulus").value = "clip";
   }
 

@@ -7,8 +7,11 @@
 // back the latest label while no later match depends on it. A label's answer carries the
 // next match (the page updates its live bracket from that answer, so a decision costs one
 // request), and the next match's pictures are fetched while the participant decides, so
-// the next pair appears at once.
-/* global ACV */
+// the next pair appears at once. Where the match carries clips (`clip_url`: a study with
+// clips, both rendered), each side plays its clip with a Pause/Play toggle that swaps it for
+// its still (static/js/clip_motion.js); under prefers-reduced-motion the stills show, each
+// with Play. The label says what was shown: `stimulus` "clip" once a clip has played.
+/* global ACV, ACVMotion */
 "use strict";
 
 const API = {
@@ -30,6 +33,7 @@ const shownKey = (next) => (next.gold ? `gold-${next.gold.item_id}` : String(nex
 // date here from each label's answer, so that a decision costs one request.
 const state = {
   match: null, shown: false, shownAt: null, busy: false, canUndo: false, rounds: [],
+  stimulus: "still",
 };
 const $ = (id) => document.getElementById(id);
 
@@ -97,11 +101,12 @@ async function showMatch(next) {
   const onScreen = placed(next);
   const images = [[$("img-a"), onScreen.a], [$("img-b"), onScreen.b]];
   const instructed = Boolean(next.gold && next.gold.prompt);
-  for (const [img, side] of images) {
-    img.src = side.image_url;
+  state.stimulus = "still";
+  images.forEach(([img, side], k) => {
+    showSide(img, $(k === 0 ? "motion-a" : "motion-b"), side, k === 0 ? "left" : "right");
     img.alt = `candidate ${side.candidate_id}`;
     img.parentElement.classList.remove("chosen");
-  }
+  });
   // The marker is drawn on a picture: say in words which one has it, for screen readers.
   images.forEach(([img, side], k) => {
     const where = k === 0 ? "left" : "right";
@@ -114,6 +119,25 @@ async function showMatch(next) {
   box.classList.remove("loading");
   await settled();
   if (state.match === next) state.shown = true;  // the clock starts when the controls answer
+}
+
+// A side's picture, or its clip (playing unless the participant asked for reduced motion)
+// with its toggle shown.
+function showSide(img, toggle, side, where) {
+  img.dataset.still = side.image_url;
+  toggle.hidden = !side.clip_url;
+  if (!side.clip_url) {
+    delete img.dataset.clip;
+    img.src = side.image_url;
+    return;
+  }
+  img.dataset.clip = side.clip_url;
+  play(img, toggle, !ACVMotion.reduced(), where);
+}
+
+function play(img, toggle, playing, where) {
+  ACVMotion.show(img, toggle, playing, `the ${where} candidate`);
+  if (playing) state.stimulus = "clip";
 }
 
 // Pictures fetched ahead, kept referenced so that the browser keeps them decoded.
@@ -224,7 +248,8 @@ function answer(match, side, responseMs) {
       { winner: placed(match)[side].candidate_id, response_ms: responseMs });
   }
   const decision = side === "tie" ? { tie: true } : { winner: placed(match)[side].candidate_id };
-  return ACV.api("POST", API.label(match.match_id), { ...decision, response_ms: responseMs });
+  return ACV.api("POST", API.label(match.match_id),
+    { ...decision, response_ms: responseMs, stimulus: state.stimulus });
 }
 
 function choose(side) {
@@ -328,6 +353,11 @@ function onKey(event) {
   if (!$("labelling")) return;
   for (const el of document.querySelectorAll("#labelling [data-side]")) {
     el.addEventListener("click", () => choose(el.dataset.side));
+  }
+  for (const toggle of document.querySelectorAll("#labelling [data-motion]")) {
+    const img = $(`img-${toggle.dataset.motion}`);
+    const where = toggle.dataset.motion === "a" ? "left" : "right";
+    toggle.addEventListener("click", () => play(img, toggle, img.dataset.playing !== "true", where));
   }
   $("undo").addEventListener("click", undo);
   $("tie").addEventListener("click", () => choose("tie"));

@@ -296,6 +296,7 @@ def test_exports_have_one_row_per_label(client, four) -> None:
         "labelled_at",
         "flags",
         "tie",
+        "stimulus",
         "reliability",
         "gold_right",
         "gold_asked",

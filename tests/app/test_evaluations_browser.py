@@ -97,11 +97,15 @@ class Blindness:
         self.urls: list[str] = []
         page.on("request", lambda request: self.urls.append(request.url))
 
-    def check(self, page: Page, run_ids: set[str]) -> None:
-        """No run id in a URL's path segments or query values; no arm's name anywhere."""
+    def check(self, page: Page, run_ids: set[str], *, practice: bool = False) -> None:
+        """No run id in a URL's path segments or query values; no arm's name anywhere.
+        ``practice``: practice URLs are left out of the first rule (their numbers are
+        practice positions, 0 to 4, which may equal a run id by chance)."""
         html = page.content()
         for url in self.urls + URL_ATTRS.findall(html):
             parts = urlsplit(url)
+            if practice and "/practice" in parts.path:
+                continue
             values = set(parts.path.split("/")) | {v for _, v in parse_qsl(parts.query)}
             assert not values & run_ids, url
         for text in (html.lower(), " ".join(self.urls).lower()):
@@ -314,4 +318,56 @@ def test_the_advisors_bracket_reminder(
     rows = api.get(f"/api/evaluations/{evaluation_id}/answers.jsonl").text.splitlines()
     assert len(rows) == 1 and '"reminder": true' in rows[0]
     seen.check(page, run_ids)
+    assert errors == []
+
+
+@pytest.mark.parametrize("viewport", [DESKTOP, PHONE], ids=["desktop", "phone"])
+def test_practice_then_a_gold_pair(
+    server, api: httpx.Client, experiment, browser: Browser, screens: Path, viewport
+) -> None:
+    """An evaluation with practice and gold pairs: the practice pairs come first, with their
+    feedback; then the pairs, a gold one ("choose the picture with the marker") among them,
+    looking like any other. Every state is audited and blind."""
+    where = "on a phone" if viewport == PHONE else "on a desktop"
+    body = {"stimulus": "still", "pairs_per_evaluator": 2, "gold_pairs": 2, "practice_pairs": 2}
+    made = api.post(f"/api/experiments/{experiment['id']}/evaluations", json=body)
+    assert made.status_code == 201, made.text
+    evaluation_id = made.json()["id"]
+    wait_for(
+        lambda: api.get(f"/api/evaluations/{evaluation_id}").json(),
+        lambda found: found["status"] != "preparing",
+        what="the evaluation's stills",
+        timeout_s=600,
+    )
+    (person,) = api.post(f"/api/evaluations/{evaluation_id}/evaluators", json={"count": 1}).json()
+    slots = api.get(f"/api/evaluations/{evaluation_id}/result").json()["slots"]
+    run_ids = {str(s["run_id"]) for s in slots}
+
+    errors: list[str] = []
+    _, page = new_page(browser, errors, viewport=viewport)
+    seen = Blindness(page)
+    page.goto(person["invite_url"])
+    expect(page.locator("#practice-note")).to_be_visible()
+    expect(page.locator("#start")).to_have_text("Start practice")
+    page.click("#start")
+    for position in range(2):
+        expect(page.locator("#practice-count")).to_have_text(f"Practice pair {position + 1} of 2.")
+        page.wait_for_function(
+            "() => [...document.querySelectorAll('.pick img')]"
+            ".every(i => i.complete && i.naturalWidth > 0)"
+        )
+        settled(page, f"an evaluation's practice pair {where}")
+        page.click("#practice-left")
+        expect(page.locator("#feedback")).to_be_visible()
+        settled(page, f"an evaluation's practice feedback {where}")
+        seen.check(page, run_ids, practice=True)
+        page.click("#next")
+    key = wait_pair(page, None, kind="still")  # the first pair is a real one
+    expect(page.locator("#question")).not_to_contain_text("marker")
+    page.click("#pick-left")
+    wait_pair(page, key, kind="still")
+    expect(page.locator("#question")).to_have_text("Check: choose the picture with the marker.")
+    settled(page, f"a gold pair {where}")
+    page.screenshot(path=screens / f"evaluate-gold-{viewport['width']}.png", full_page=True)
+    seen.check(page, run_ids, practice=True)
     assert errors == []
