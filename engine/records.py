@@ -1,7 +1,7 @@
 """Record types that the web tier reads from a checkpoint's stored report.
 
 Torch- and MuJoCo-free, so that the server that only reads artefacts imports them without
-the training stack (``tests/app/test_web_without_torch.py``); the executor writes them
+the training stack (``tests/app/platform/test_web_without_torch.py``); the executor writes them
 (:mod:`engine.rl.report`) and the app derives its response bodies from them.
 """
 

@@ -5,7 +5,7 @@ Bounds go *inside* these types' number schemas, so the OpenAPI document states t
 Schema's ``minimum``/``maximum``/``exclusiveMinimum``/``exclusiveMaximum``. (A validator
 function wrapped around ``int`` would leave pydantic nowhere to put a later ``Field(ge=...)``
 but a function of its own, which it documents as the non-keywords ``ge``/``le``/``gt``.)
-``tests/app/test_strict_integers.py`` walks the OpenAPI document for every rule here.
+``tests/app/platform/test_strict_integers.py`` walks the OpenAPI document for every rule here.
 """
 
 from __future__ import annotations

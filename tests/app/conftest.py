@@ -75,7 +75,7 @@ def backend_url(
     request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory
 ) -> tuple[Path, str]:
     """``(data dir, database URL)`` of a fresh database at the migrations' head: a copy of one
-    that ``alembic upgrade head`` built this session (``tests/app/test_migrations.py`` runs
+    that ``alembic upgrade head`` built this session (``tests/app/platform/test_migrations.py`` runs
     the revisions themselves)."""
     data_dir = tmp_path_factory.mktemp(f"acv-{request.param}")
     if request.param == "sqlite":

@@ -34,7 +34,7 @@ from tests.support.postgres import BACKENDS, empty_database
 from tests.support.server import clean_env
 from tests.support.web import ADMIN_TOKEN
 
-REPO = Path(__file__).resolve().parents[2]
+REPO = Path(__file__).resolve().parents[3]
 SERVE = [
     sys.executable,
     "-c",

@@ -49,7 +49,7 @@ from tests.support.labelling import wait_until_prepared
 
 pytestmark = pytest.mark.browser
 COMPLETION, DECLINE, GATE = "C0MPL3TE", "D3CL1NE", "G4T3ST0P"
-#: The check pairs of step 5 (as in tests/app/test_gold_ties.py): a plain one, and an
+#: The check pairs of step 5 (as in tests/app/studies/test_gold_ties.py): a plain one, and an
 #: instructed one (pick the picture with the marker).
 GOLD = [
     {"kind": "pair", "a": 0, "b": 1, "answer": 1},

@@ -8,7 +8,7 @@ The server's run worker is off: each policy is judged here as a worker would jud
 (claimed, :func:`app.runs.imported_judge.judge_imported`, finished), with the judges' scores
 replaced by ones whose truth is known (advised policies follow the advice, the others go
 against it), so that the verdict must say "used" and no rollout is simulated (real judging:
-tests/app/test_agents_judged.py).
+tests/app/runs/test_agents_judged.py).
 """
 
 from __future__ import annotations

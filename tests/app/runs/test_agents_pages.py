@@ -2,7 +2,7 @@
 external experiment's page, an imported policy's comparison, run and list pages, with the
 declared training beside "ACV did not see them train" and nothing the CSP would block; and a
 participant's advice frozen for the policies that trained on it. Nothing is judged here; the
-browser test (tests/app/test_agents_browser.py) shows them judged, checked by axe.
+browser test (tests/app/runs/test_agents_browser.py) shows them judged, checked by axe.
 """
 
 from __future__ import annotations

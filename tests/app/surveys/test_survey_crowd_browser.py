@@ -1,7 +1,7 @@
 """A real browser through a crowd survey (issue 14): the researcher opens the survey's link
 with the survey page's form; a visitor arrives with Prolific's query parameters, consents,
 answers both screens, sees the completion code and is sent to the completion URL (a local
-page, :func:`tests.app.test_crowd_browser.platform`). Another visitor declines; a third
+page, :func:`tests.app.studies.test_crowd_browser.platform`). Another visitor declines; a third
 finds the survey full. axe-core checks every page added or changed.
 
 The request of the completion URL is held (a Playwright route) until the thank-you screen

@@ -17,7 +17,7 @@ from app.http.ratelimit import LoginLimiter
 from tests.support.crowd import configure, joined_player, visit
 from tests.support.web import ADMIN
 
-APP = Path(__file__).resolve().parents[2] / "app"
+APP = Path(__file__).resolve().parents[3] / "app"
 
 #: Every operation answering ``text/csv``; a new one must be added here and to a test below.
 CSV_ROUTES = {

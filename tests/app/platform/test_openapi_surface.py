@@ -2,7 +2,7 @@
 drop one): the surface recorded in ``openapi_surface.json`` is a subset of today's.
 
 After a deliberate change to the API, write the file again with
-``python -m tests.app.test_openapi_surface`` and say why in the commit.
+``python -m tests.app.platform.test_openapi_surface`` and say why in the commit.
 """
 
 from __future__ import annotations

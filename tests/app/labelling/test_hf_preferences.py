@@ -22,7 +22,7 @@ from tests.support.hf import consent, export, load, unzipped
 from tests.support.studies import Player
 from tests.support.web import ADMIN
 
-REPO = Path(__file__).resolve().parents[2]
+REPO = Path(__file__).resolve().parents[3]
 EXAMPLE = REPO / "examples" / "bradley_terry.py"
 N_CANDIDATES, PLAYERS = 8, 3
 

@@ -30,7 +30,7 @@ from tests.support.web import ADMIN, ADMIN_TOKEN
 
 pytestmark = pytest.mark.process
 
-REPO = Path(__file__).resolve().parents[2]
+REPO = Path(__file__).resolve().parents[3]
 START_TIMEOUT_S = 180.0
 #: Fresh connections tried at most before both processes must have served a label.
 MAX_CONNECTIONS = 400

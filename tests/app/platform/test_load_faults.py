@@ -24,7 +24,7 @@ from tests.support.wait import wait_for
 
 pytestmark = pytest.mark.process  # acv serve (and acv worker) under load, killed midway
 
-REPO = Path(__file__).resolve().parents[2]
+REPO = Path(__file__).resolve().parents[3]
 PARTICIPANTS, CANDIDATES = 8, 8
 #: A PPO budget that would take hours: the run is stopped once it has shown progress.
 ENDLESS_RUN = {

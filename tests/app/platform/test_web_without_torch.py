@@ -29,7 +29,7 @@ from tests.support.web import ADMIN, ADMIN_TOKEN
 
 pytestmark = pytest.mark.postgres_only  # serving without torch is the subject, not storage
 
-REPO = Path(__file__).resolve().parents[2]
+REPO = Path(__file__).resolve().parents[3]
 BLOCKER = '''
 import sys
 

@@ -1,7 +1,7 @@
 """``GET /api/experiments/{id}/advice-tree`` when there is no tree to give (issue 44): an
 experiment whose advised arm is missing, or whose advised runs train without advice, is a
 409 naming why, to researchers only. (The download itself, its hash headers, the 404 and the
-anonymous 401 are in tests/app/test_agents_api.py.)
+anonymous 401 are in tests/app/runs/test_agents_api.py.)
 
 ``POST /api/experiments`` never stores such an experiment (it always queues advised runs on
 advice), so the rows are written as a migration or a hand edit would leave them."""

@@ -1,7 +1,7 @@
 """Policies from elsewhere through the API (issue 44 §2): an external experiment, imports of
 ONNX policies into its arms, and every refusal a 4xx naming its rule with nothing stored.
 
-No policy is judged here (the run worker is off): judging is tests/app/test_agents_judged.py.
+No policy is judged here (the run worker is off): judging is tests/app/runs/test_agents_judged.py.
 """
 
 from __future__ import annotations
