@@ -10,18 +10,18 @@ from __future__ import annotations
 from fastapi import APIRouter
 
 from app.evaluations import api as evaluations_api
-from app.evaluations import crowd_api as evaluation_crowd_api
-from app.evaluations import crowd_pages as evaluation_link_pages
+from app.evaluations import crowd_api as evaluations_crowd_api
+from app.evaluations import crowd_pages as evaluations_crowd_pages
 from app.evaluations import evaluator_api, link_pages, researcher_pages, withdraw_pages
-from app.evaluations import export_api as evaluation_export_api
-from app.evaluations import pages as evaluation_pages
-from app.evaluations import practice_api as evaluation_practice_api
-from app.evaluations import practice_pages as evaluation_practice_pages
+from app.evaluations import export_api as evaluations_export_api
+from app.evaluations import pages as evaluations_pages
+from app.evaluations import practice_api as evaluations_practice_api
+from app.evaluations import practice_pages as evaluations_practice_pages
 from app.http import auth_pages, errors
-from app.labelling import api as participants_api
-from app.labelling import crowd_pages as study_link_pages
+from app.labelling import api as labelling_api
+from app.labelling import crowd_pages as labelling_crowd_pages
 from app.labelling import dataset_api, matches_api, pair_pages, practice_api, practice_pages
-from app.labelling import pages as participant_pages
+from app.labelling import pages as labelling_pages
 from app.runs import (
     advisors_api,
     agents_api,
@@ -34,16 +34,16 @@ from app.runs import (
 from app.runs import api as runs_api
 from app.runs import pages as runs_pages
 from app.studies import api as studies_api
-from app.studies import crowd_api as study_crowd_api
-from app.studies import crowd_pages as study_crowd_pages
-from app.studies import dashboard_api as study_dashboard_api
+from app.studies import crowd_api as studies_crowd_api
+from app.studies import crowd_pages as studies_crowd_pages
+from app.studies import dashboard_api as studies_dashboard_api
 from app.studies import downloads
-from app.studies import gold_api as study_gold_api
-from app.studies import gold_pages as study_gold_pages
+from app.studies import gold_api as studies_gold_api
+from app.studies import gold_pages as studies_gold_pages
 from app.studies import pages as studies_pages
 from app.surveys import api as surveys_api
-from app.surveys import crowd_api as survey_crowd_api
-from app.surveys import crowd_pages as survey_link_pages
+from app.surveys import crowd_api as surveys_crowd_api
+from app.surveys import crowd_pages as surveys_crowd_pages
 from app.surveys import pages as surveys_pages
 from app.webhooks import api as webhooks_api
 from app.webhooks import pages as webhooks_pages
@@ -51,7 +51,7 @@ from app.webhooks import pages as webhooks_pages
 api_router = APIRouter(prefix="/api", responses=errors.RESPONSES)
 for _router in (
     studies_api.router,
-    participants_api.router,
+    labelling_api.router,
     dataset_api.router,
     practice_api.router,
     matches_api.router,
@@ -62,24 +62,24 @@ for _router in (
     agents_api.router,
     experiments_api.router,
     surveys_api.router,
-    study_crowd_api.link_router,
-    study_crowd_api.router,
-    study_gold_api.router,
-    study_dashboard_api.router,
-    survey_crowd_api.router,
+    studies_crowd_api.link_router,
+    studies_crowd_api.router,
+    studies_gold_api.router,
+    studies_dashboard_api.router,
+    surveys_crowd_api.router,
     webhooks_api.router,
     evaluations_api.router,
-    evaluation_practice_api.router,
+    evaluations_practice_api.router,
     evaluator_api.router,
-    evaluation_crowd_api.router,
-    evaluation_export_api.router,
+    evaluations_crowd_api.router,
+    evaluations_export_api.router,
 ):
     api_router.include_router(_router)
 
 pages_router = APIRouter()
 for _pages in (
     auth_pages,
-    participant_pages,
+    labelling_pages,
     practice_pages,
     pair_pages,
     downloads,
@@ -88,15 +88,15 @@ for _pages in (
     compare_pages,
     experiment_pages,
     surveys_pages,
-    study_link_pages,
-    study_crowd_pages,
-    study_gold_pages,
-    survey_link_pages,
+    labelling_crowd_pages,
+    studies_crowd_pages,
+    studies_gold_pages,
+    surveys_crowd_pages,
     webhooks_pages,
-    evaluation_pages,
-    evaluation_practice_pages,
+    evaluations_pages,
+    evaluations_practice_pages,
     researcher_pages,
-    evaluation_link_pages,
+    evaluations_crowd_pages,
     link_pages,
     withdraw_pages,
 ):

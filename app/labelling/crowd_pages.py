@@ -13,12 +13,12 @@ from app.http.rendering import RedirectTo, redirect, render
 from app.labelling import check as crowd_check
 from app.labelling import dataset, participants, study_link
 from app.labelling.pages import THANKS, where_next
-from app.recruiting import pages as open_links
+from app.recruiting import pages as recruiting_pages
 from app.studies import service as studies
 
 CHECK = "/participate/check"
-router = open_links.open_link_router(
-    open_links.LinkPages(
+router = recruiting_pages.open_link_router(
+    recruiting_pages.LinkPages(
         kind=study_link.LINK,
         name_of=lambda session, study_id: studies.get_ready_study(session, study_id=study_id).name,
         next_path=lambda session, person: where_next(

@@ -34,8 +34,7 @@ from sqlalchemy.orm import Session
 
 from app.core.errors import AuthError, ConflictError, NotFoundError
 from app.db import writing
-from app.labelling import events
-from app.labelling import flow_sql as sql
+from app.labelling import events, flow_sql
 from app.labelling.gold_placement import due_gold
 from app.labelling.open_matches import NextMatch, next_match, pair_has_clips
 from app.labelling.participants import ParticipantKey, Progress
@@ -131,10 +130,10 @@ def submit_label(
             return _submit(_connection(db), participant, shape, decision, with_next)
     except IntegrityError:  # a concurrent request stored this match's label first
         conn = _connection(db)
-        existing = conn.execute(sql.LABEL_WINNER, {"mid": match_id}).one_or_none()
+        existing = conn.execute(flow_sql.LABEL_WINNER, {"mid": match_id}).one_or_none()
         if existing is None:
             raise ConflictError("the bracket changed concurrently; try again") from None
-        done = conn.execute(sql.DONE_ONLY, {"pid": participant.id}).scalar_one()
+        done = conn.execute(flow_sql.DONE_ONLY, {"pid": participant.id}).scalar_one()
         return _same_or_conflict(
             conn,
             participant,
@@ -153,9 +152,9 @@ def _submit(
     with_next: bool,
 ) -> LabelResult:
     now, pid, match_id = utcnow(), participant.id, decision.match_id
-    if conn.execute(sql.LOCK, {"pid": pid, "now": now}).rowcount == 0:
+    if conn.execute(flow_sql.LOCK, {"pid": pid, "now": now}).rowcount == 0:
         _locked_out(conn, pid)
-    row = conn.execute(sql.MATCH_ROW, {"pid": pid, "mid": match_id}).one_or_none()
+    row = conn.execute(flow_sql.MATCH_ROW, {"pid": pid, "mid": match_id}).one_or_none()
     if row is None:
         raise NotFoundError(f"match {match_id} not found among this participant's matches")
     rnd, slot, a, b, _, _, existing, was_tie, _, done, sibling = row
@@ -175,9 +174,9 @@ def _submit(
         sibling = shape.byes[slot ^ 1]
     if not progress.finished and sibling is not None:
         _open_next_round(conn, shape, pid, rnd, slot, winner, sibling)
-    conn.execute(sql.TOUCH, {"pid": pid, "now": now})
+    conn.execute(flow_sql.TOUCH, {"pid": pid, "now": now})
     if progress.finished:  # then webhook events, in this transaction (one query when none)
-        conn.execute(sql.FINISH, {"pid": pid, "now": now})
+        conn.execute(flow_sql.FINISH, {"pid": pid, "now": now})
         events.finished(conn, participant=participant)
     return LabelResult(
         match_id,
@@ -196,7 +195,7 @@ def _locked_out(conn: Connection, pid: int) -> NoReturn:
         AuthError: no such participant.
         MemberEndedError: they withdrew, or their time is over (a time limit, or the gate).
     """
-    row = conn.execute(sql.LOCKED_OUT, {"pid": pid}).one_or_none()
+    row = conn.execute(flow_sql.LOCKED_OUT, {"pid": pid}).one_or_none()
     if row is None:
         raise AuthError(STUDY.unknown)
     if row.withdrawn_at is not None:
@@ -226,7 +225,7 @@ def _insert_label(
         opened = max(as_utc(t) for t in (created_at, last_active) if t is not None)
         response_ms = max(0, round((now - opened).total_seconds() * 1000))
     conn.execute(
-        sql.INSERT_LABEL,
+        flow_sql.INSERT_LABEL,
         {
             "match_id": decision.match_id,
             "participant_id": pid,
@@ -247,7 +246,7 @@ def _open_next_round(
     """Insert the next-round match of ``winner`` and the winner of the sibling slot."""
     pair = (winner, sibling) if slot % 2 == 0 else (sibling, winner)
     conn.execute(
-        sql.INSERT_MATCH,
+        flow_sql.INSERT_MATCH,
         {
             "participant_id": pid,
             "round": rnd + 1,

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 from sqlalchemy import Connection
 from sqlalchemy.orm import Session
 
-from app.labelling import flow_sql as sql
+from app.labelling import flow_sql
 from app.labelling.gold_placement import GoldPair, due_gold
 from app.labelling.participants import ParticipantKey, Progress
 from app.labelling.shape import BracketShape, shape_of
@@ -61,7 +61,7 @@ def next_match(
     shape = shape_of(db, participant.study_id)
     conn = db.connection() if isinstance(db, Session) else db
     row = conn.execute(
-        sql.OPEN if done is not None else sql.OPEN_AND_DONE, {"pid": participant.id}
+        flow_sql.OPEN if done is not None else flow_sql.OPEN_AND_DONE, {"pid": participant.id}
     ).one_or_none()
     if row is None:
         return None
@@ -87,5 +87,5 @@ def pair_has_clips(conn: Connection, shape: BracketShape, study_id: int, a: int,
     another: a pair of stills)."""
     if not shape.clips:
         return False
-    found = conn.execute(sql.PAIR_CLIPS, {"sid": study_id, "a": a, "b": b}).scalar_one()
+    found = conn.execute(flow_sql.PAIR_CLIPS, {"sid": study_id, "a": a, "b": b}).scalar_one()
     return bool(found == 2)

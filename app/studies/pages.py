@@ -20,10 +20,9 @@ from app.http.deps import DbId, RuntimeDep, SessionDep, SettingsDep
 from app.http.guards import ResearcherPage
 from app.http.rendering import PageRoute, redirect, render, thumb_template
 from app.http.urls import image_url
-from app.labelling import dashboard as live
-from app.labelling import participants
+from app.labelling import dashboard, participants
 from app.models import StudyStatus
-from app.runs import power as study_power
+from app.runs import power as runs_power
 from app.runs.experiments import DEFAULT_SEEDS
 from app.studies import service as studies
 from app.studies.clips import CLIPS_WARNING, clips_state
@@ -173,13 +172,13 @@ def study_page(
 def _live(session: Session, study_id: int) -> dict[str, Any]:
     """The live dashboard's first state (``_study_dashboard.html``); the page's script then
     keeps it current from ``GET /api/studies/{id}/dashboard``."""
-    return {"live": live.dashboard(session, study_id=study_id)}
+    return {"live": dashboard.dashboard(session, study_id=study_id)}
 
 
 def _power(session: Session, study_id: int) -> dict[str, Any]:
     return {
-        "power": study_power.study_power(session, study_id=study_id),
-        "enough": study_power.ENOUGH_MATCHES,
+        "power": runs_power.study_power(session, study_id=study_id),
+        "enough": runs_power.ENOUGH_MATCHES,
         "seeds": DEFAULT_SEEDS,
     }
 
