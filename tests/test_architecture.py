@@ -295,3 +295,37 @@ def test_the_webhooks_know_no_feature(tmp_path: Path) -> None:
         "app.webhooks.x imports app.recruiting",
         "app.webhooks.x imports app.recruiting.links",
     ]
+
+
+def renamed_modules(root: Path = ROOT) -> list[str]:
+    """Imports of a module of ``app/`` or ``engine/`` under a name that is not its own. Allowed:
+    a feature's ``service`` under the feature's name (``studies``), and ``<feature>_<module>``
+    where several features' modules of one name meet (``studies_api`` in ``app/routes.py``)."""
+    found = []
+    for path in sorted([*(root / "app").rglob("*.py"), *(root / "engine").rglob("*.py")]):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if not isinstance(node, ast.ImportFrom) or not node.module:
+                continue
+            package = node.module.split(".")
+            for alias in node.names:
+                is_module = (root.joinpath(*package) / f"{alias.name}.py").is_file()
+                allowed = (alias.name, f"{package[-1]}_{alias.name}")
+                if alias.name == "service":
+                    allowed += (package[-1],)
+                if is_module and alias.asname not in (None, *allowed):
+                    found.append(f"{path.relative_to(root)}: {alias.name} as {alias.asname}")
+    return found
+
+
+def test_modules_are_imported_under_their_own_names() -> None:
+    assert renamed_modules() == []
+
+
+def test_a_module_under_another_name_is_seen(tmp_path: Path) -> None:
+    (tmp_path / "app" / "surveys").mkdir(parents=True)
+    (tmp_path / "engine").mkdir()
+    (tmp_path / "app" / "surveys" / "respond.py").write_text("")
+    (tmp_path / "app" / "surveys" / "api.py").write_text(
+        "from app.surveys import respond as survey_respond\n"
+    )
+    assert renamed_modules(tmp_path) == ["app/surveys/api.py: respond as survey_respond"]

@@ -16,14 +16,13 @@ rendered and stored when the evaluation is prepared, by the studies' own code
 from __future__ import annotations
 
 from pathlib import Path
-from typing import cast
 
 from sqlalchemy.orm import Session
 
 from app.evaluations.evaluators import progress
 from app.evaluations.service import get_evaluation
 from app.labelling.practice import Feedback, Practice, feedback
-from app.models import Evaluation, Evaluator, Study
+from app.models import Evaluation, Evaluator
 from app.studies.practice_states import practice_states, prepare_practice
 from engine.practice import PracticePair, practice_plan
 from engine.render import RenderService
@@ -40,18 +39,10 @@ def practice_dir(data_dir: Path) -> Path:
     return data_dir / "evaluation_practice"
 
 
-def _owner(evaluation: Evaluation) -> Study:
-    """The evaluation as the practice states' owner: the studies' code reads only its id,
-    env, seed and practice pairs, which an evaluation has alike."""
-    return cast(Study, evaluation)
-
-
 def prepare(renderer: RenderService, *, data_dir: Path, evaluation: Evaluation) -> None:
     """Sample, render and store the evaluation's practice states (nothing when it asks
     none); none equals a candidate of any study, as they come from practice's own stream."""
-    prepare_practice(
-        renderer, images_dir=practice_dir(data_dir), study=_owner(evaluation), exclude=()
-    )
+    prepare_practice(renderer, images_dir=practice_dir(data_dir), study=evaluation, exclude=())
 
 
 def practice(session: Session, *, evaluator: Evaluator, data_dir: Path) -> Practice:
@@ -60,7 +51,7 @@ def practice(session: Session, *, evaluator: Evaluator, data_dir: Path) -> Pract
     evaluation = get_evaluation(session, evaluation_id=evaluator.evaluation_id)
     if evaluation.practice_pairs == 0 or progress(session, evaluator_id=evaluator.id).done:
         return Practice([], None)
-    states = practice_states(practice_dir(data_dir), _owner(evaluation))
+    states = practice_states(practice_dir(data_dir), evaluation)
     if states is None:
         return Practice([], None)
     plan = practice_plan(

@@ -10,8 +10,7 @@ from app.http.csrf import CsrfChecked, FormFields
 from app.http.deps import SessionDep
 from app.http.guards import PageParticipant
 from app.http.rendering import RedirectTo, redirect, render
-from app.labelling import check as crowd_check
-from app.labelling import dataset, participants, study_link
+from app.labelling import check, dataset, participants, study_link
 from app.labelling.pages import THANKS, where_next
 from app.recruiting import pages as recruiting_pages
 from app.studies import service as studies
@@ -32,7 +31,7 @@ router = recruiting_pages.open_link_router(
 @router.get(CHECK)
 def check_page(request: Request, session: SessionDep, person: PageParticipant) -> Response:
     """One first-round pair again, sides swapped (only when the study asks for it)."""
-    pair = crowd_check.pending_pair(session, participant=person)
+    pair = check.pending_pair(session, participant=person)
     if pair is None:
         raise RedirectTo(THANKS)
     return render(
@@ -49,5 +48,5 @@ def check_answer(session: SessionDep, person: PageParticipant, fields: FormField
         winner = int(fields.get("winner", ""))
     except ValueError:
         winner = -1
-    crowd_check.answer(session, participant=person, winner=winner)
+    check.answer(session, participant=person, winner=winner)
     return redirect(THANKS)

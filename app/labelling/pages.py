@@ -17,8 +17,7 @@ from app.http.csrf import CsrfChecked, FormFields
 from app.http.deps import SessionDep, SettingsDep
 from app.http.guards import PageParticipant, enter_by_invite
 from app.http.rendering import PageRoute, RedirectTo, redirect, render, thumb_template
-from app.labelling import check as crowd_check
-from app.labelling import dataset, disagreement, participants, practice, study_link
+from app.labelling import check, dataset, disagreement, participants, practice, study_link
 from app.models import Participant
 from app.recruiting import members, seats
 from app.recruiting import service as recruiting
@@ -165,7 +164,7 @@ def thanks(request: Request, session: SessionDep, person: PageParticipant) -> Re
         raise RedirectTo(LABEL)
     if disagreement.pending(session, participant=person) is not None:
         raise RedirectTo(PAIRS)
-    if crowd_check.pending_pair(session, participant=person) is not None:
+    if check.pending_pair(session, participant=person) is not None:
         raise RedirectTo("/participate/check")
     context["crowd"] = recruiting.completion(session, study_link.LINK, member=person)
     return render(request, "thanks.html", context)

@@ -18,11 +18,10 @@ import logging
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
-from app.models import Study
 from app.studies.images import SPECS
 from engine.practice import sample_practice_states
 from engine.render import RenderService
@@ -33,6 +32,20 @@ log = logging.getLogger(__name__)
 
 FORMAT = "acv.practice/1"
 MANIFEST = "states.json"
+
+
+class PracticeOwner(Protocol):
+    """What practice states are drawn for and tied to: a study, or an agent evaluation (whose
+    evaluators practise on the env's states, never on its agents)."""
+
+    @property
+    def id(self) -> int: ...
+    @property
+    def env_id(self) -> str: ...
+    @property
+    def seed(self) -> int: ...
+    @property
+    def practice_pairs(self) -> int: ...
 
 
 @dataclass(frozen=True)
@@ -56,14 +69,18 @@ def practice_folder(images_dir: Path, study_id: int) -> Path:
 
 
 def prepare_practice(
-    renderer: RenderService, *, images_dir: Path, study: Study, exclude: Sequence[np.ndarray]
+    renderer: RenderService,
+    *,
+    images_dir: Path,
+    study: PracticeOwner,
+    exclude: Sequence[np.ndarray],
 ) -> None:
     """Sample, render and store the study's practice states (nothing when it asks none).
 
     Args:
         renderer: the render service (full-size pictures, as the candidates').
         images_dir: the data dir's images folder.
-        study: the study being prepared.
+        study: the study (or evaluation) being prepared.
         exclude: its candidates' ``qpos``: no practice state equals one.
     """
     if study.practice_pairs == 0:
@@ -80,7 +97,7 @@ def prepare_practice(
     write_atomically(folder / MANIFEST, json.dumps(manifest).encode())
 
 
-def practice_states(images_dir: Path, study: Study) -> PracticeStates | None:
+def practice_states(images_dir: Path, study: PracticeOwner) -> PracticeStates | None:
     """The study's stored practice states; None when it asks none, or when they are missing
     or belong to another study (a data dir kept across databases), which is logged."""
     if study.practice_pairs == 0:
@@ -98,7 +115,7 @@ def practice_states(images_dir: Path, study: Study) -> PracticeStates | None:
     return found
 
 
-def _owner(study: Study) -> dict[str, Any]:
+def _owner(study: PracticeOwner) -> dict[str, Any]:
     """What ties stored practice states to their study."""
     return {
         "format": FORMAT,

@@ -273,8 +273,9 @@ def _check_exports(client: TestClient, study_id: int, people: list[int], gone: i
     kept = [r for r in csv.DictReader(io.StringIO(asked)) if r["participant_id"] == str(gone)]
     assert len([r for r in everyone if r["participant_id"] == gone]) == len(kept) > 0
     table = list(csv.DictReader(io.StringIO(client.get(base + ".csv", headers=ADMIN).text)))
-    assert list(table[0])[-7:] == [
+    assert list(table[0])[-8:] == [
         "tie",
+        "stimulus",
         "reliability",
         "gold_right",
         "gold_asked",
