@@ -13,6 +13,7 @@ from app.core.json_types import IntParam
 from app.evaluations import practice
 from app.http.deps import SessionDep, SettingsDep
 from app.http.member_auth import EvaluatorDep
+from app.labelling import practice_schemas
 from app.labelling.practice import PROMPTS, picture
 from app.labelling.practice_schemas import PracticeAnswerIn, PracticeFeedbackOut, PracticePairOut
 from app.studies.images import MEDIA_TYPE
@@ -24,20 +25,12 @@ Position = Annotated[int, IntParam(ge=0, le=MAX_PRACTICE_PAIRS - 1)]
 
 
 def practice_image_url(position: int, side: Side) -> str:
-    """Where the picture on ``side`` of the caller's practice pair ``position`` is served
-    (the URL says nothing of the marker)."""
-    return f"{PATH}/{position}/image?side={side}"
+    """Where the picture on ``side`` of the caller's practice pair ``position`` is served."""
+    return practice_schemas.practice_image_url(PATH, position, side)
 
 
 def pair_out(pair: PracticePair, total: int) -> PracticePairOut:
-    return PracticePairOut(
-        position=pair.position,
-        total=total,
-        kind=pair.kind,
-        prompt=PROMPTS[pair.kind],
-        left_url=practice_image_url(pair.position, "left"),
-        right_url=practice_image_url(pair.position, "right"),
-    )
+    return practice_schemas.practice_pair_out(pair, total, api_path=PATH, prompt=PROMPTS[pair.kind])
 
 
 @router.get("")

@@ -11,7 +11,7 @@ from fastapi.responses import FileResponse
 from app.core.json_types import IntParam
 from app.http.deps import SessionDep, SettingsDep
 from app.http.member_auth import ParticipantDep
-from app.labelling import practice
+from app.labelling import practice, practice_schemas
 from app.labelling.practice_schemas import PracticeAnswerIn, PracticeFeedbackOut, PracticePairOut
 from app.studies.images import MEDIA_TYPE
 from engine.practice import MAX_PRACTICE_PAIRS, PracticePair, Side
@@ -22,19 +22,13 @@ Position = Annotated[int, IntParam(ge=0, le=MAX_PRACTICE_PAIRS - 1)]
 
 
 def practice_image_url(position: int, side: Side) -> str:
-    """Where the picture on ``side`` of the caller's practice pair ``position`` is served
-    (the URL says nothing of the marker)."""
-    return f"{PATH}/{position}/image?side={side}"
+    """Where the picture on ``side`` of the caller's practice pair ``position`` is served."""
+    return practice_schemas.practice_image_url(PATH, position, side)
 
 
 def pair_out(pair: PracticePair, total: int) -> PracticePairOut:
-    return PracticePairOut(
-        position=pair.position,
-        total=total,
-        kind=pair.kind,
-        prompt=practice.PROMPTS[pair.kind],
-        left_url=practice_image_url(pair.position, "left"),
-        right_url=practice_image_url(pair.position, "right"),
+    return practice_schemas.practice_pair_out(
+        pair, total, api_path=PATH, prompt=practice.PROMPTS[pair.kind]
     )
 
 
