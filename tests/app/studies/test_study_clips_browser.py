@@ -13,7 +13,14 @@ import pytest
 from playwright.sync_api import Browser, Page, expect
 
 from tests.support.a11y import assert_accessible
-from tests.support.browser import DESKTOP, PHONE, fits_width, new_page, wait_for_match
+from tests.support.browser import (
+    ADMIN_TOKEN,
+    DESKTOP,
+    PHONE,
+    fits_width,
+    new_page,
+    wait_for_match,
+)
 from tests.support.labelling import wait_until_prepared
 from tests.support.wait import wait_for
 
@@ -95,3 +102,17 @@ def test_the_bracket_plays_clips_pauses_to_stills_and_records_them(
     expect(calm.locator("#motion-a")).to_have_text("Pause the left candidate")
     context.close()
     assert errors == [] and calm_errors == []
+
+
+@pytest.mark.parametrize("viewport", [DESKTOP, PHONE], ids=["desktop", "phone"])
+def test_the_study_page_says_its_clips_are_ready(server, browser: Browser, study, viewport) -> None:
+    base, _ = server
+    errors: list[str] = []
+    context, page = new_page(browser, errors, viewport=viewport)
+    page.goto(f"{base}/login#token={ADMIN_TOKEN}")
+    page.wait_for_url(f"{base}/studies")
+    page.goto(f"{base}/studies/{study['id']}")
+    expect(page.locator("#clips-state")).to_have_text("clips ready")
+    audited(page, "the study page of a study whose clips are ready")
+    context.close()
+    assert errors == []
