@@ -42,7 +42,16 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
 ADVICE = ROOT / "tests" / "engine" / "rl" / "data" / "bit_identity" / "advice.json"
-STAGES = ("env", "learner-ppo", "learner-em", "learner-2proc", "learner-resumed", "run", "sb3")
+STAGES = (
+    "env",
+    "learner-ppo",
+    "learner-em",
+    "learner-2proc",
+    "learner-resumed",
+    "run",
+    "run-2proc",
+    "sb3",
+)
 #: (numerator, denominator) stages of the ratios printed within one checkout.
 RATIOS = {
     "learner/env": ("learner-em", "env"),
@@ -52,19 +61,28 @@ RATIOS = {
     "ppo/em (BiPaRS overhead + 1)": ("learner-ppo", "learner-em"),
 }
 #: The same, of wall-clock steps/s: ``learner-2proc`` spends a second process's CPU on purpose.
-WALL_RATIOS = {"2proc/1proc (wall)": ("learner-2proc", "learner-em")}
+WALL_RATIOS = {
+    "2proc/1proc (wall)": ("learner-2proc", "learner-em"),
+    "run 2proc/1proc (wall)": ("run-2proc", "run"),
+}
+#: A two-process stage of the new code, against the one-process stage of the old.
+ONE_PROCESS = {"learner-2proc": "learner-em", "run-2proc": "run"}
 
 
 def make_source(out: Path, algo: str, steps: int, seed: int) -> None:
-    """Train the source run: a 1M-step config of ``algo`` stopped after ``steps`` steps."""
+    """Train the source run: a 1M-step config of ``algo`` stopped after ``steps`` steps. An
+    existing source is resumed from its last checkpoint up to ``steps`` (made later)."""
+    from engine.rl.checkpoint import list_checkpoints
     from engine.rl.config import TrainConfig
     from engine.rl.runner import train
     from engine.treefile import load_tree
 
     cfg = TrainConfig(algo=algo, seed=seed)
-    updates = -(-steps // cfg.batch_size)
+    done = max(list_checkpoints(out), default=0) if out.is_dir() else 0
+    updates = -(-steps // cfg.batch_size) - done // cfg.batch_size
     calls = iter(range(1, updates + 1))
-    train(cfg, load_tree(ADVICE), out, should_stop=lambda: next(calls) >= updates)
+    advice = None if done else load_tree(ADVICE)
+    train(cfg, advice, out, should_stop=lambda: next(calls) >= updates, resume=bool(done))
 
 
 def _clock() -> np.ndarray:
@@ -146,8 +164,10 @@ def _timed(
     return call
 
 
-def stage_run(source: Path, steps: int) -> dict[str, float]:
-    """Resume a copy of the source through ``train`` with checkpoints and their judging."""
+def stage_run(source: Path, steps: int, processes: int = 1) -> dict[str, float]:
+    """Resume a copy of the source through ``train`` with checkpoints and their judging (with
+    ``processes=2``, ``run-2proc``: half of the envs in a helper process, as the worker's
+    ``ACV_SPLIT_LONE_RUN``)."""
     import engine.rl.runner as runner
     from engine.rl.report import checkpoint_report
 
@@ -170,6 +190,7 @@ def stage_run(source: Path, steps: int) -> dict[str, float]:
             should_stop=lambda: next(calls) >= updates,
             resume=True,
             on_checkpoint=_timed(lambda s, _: checkpoint_report(run, s), spent, "judge_s", wall),
+            **({"env_processes": processes} if processes > 1 else {}),  # old code lacks it
         )
         result = _result(start, updates * cfg.batch_size)
     # the resume's start (imports, loading, envs, TensorBoard): up to the first row, less one
@@ -218,6 +239,7 @@ def child(stage: str, source: Path, steps: int, profile: Path | None) -> dict[st
         "learner-2proc": lambda: stage_learner(source, steps, None, False, processes=2),
         "learner-resumed": lambda: stage_learner(source, steps, None, True),
         "run": lambda: stage_run(source, steps),
+        "run-2proc": lambda: stage_run(source, steps, processes=2),
         "sb3": lambda: stage_sb3(source, steps),
     }[stage]
     if profile is None:
@@ -252,6 +274,8 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
     for r in range(args.repeats):
         for code in codes:
             for stage in stages:
+                if stage in args.last_only and code != codes[-1]:
+                    continue
                 res = spawn(code, stage, args.source, args.steps)
                 got[str(code)].setdefault(stage, []).append(res)
                 extra = {
@@ -300,13 +324,24 @@ def _within(by_stage: dict[str, list[dict[str, float]]]) -> dict[str, str]:
 def _versus(
     old: dict[str, list[dict[str, float]]], new: dict[str, list[dict[str, float]]]
 ) -> dict[str, str]:
-    """Per repeat, old/new CPU seconds of each stage, and of each learner per env CPU second."""
+    """Per repeat, old/new CPU seconds of each stage, and of each learner per env CPU second;
+    a two-process stage's new/old wall seconds against the old one-process stage (the
+    issue's "0.5x of today's time")."""
     out = {
         s: spread([o["cpu_s"] / n["cpu_s"] for o, n in zip(old[s], v, strict=True)])
         for s, v in new.items()
+        if s in old
     }
     for s, v in new.items():
-        if "env_cpu_s" in v[0]:
+        if ONE_PROCESS.get(s) in old:
+            pairs = zip(old[ONE_PROCESS[s]], v, strict=True)
+            out[f"{s} vs old {ONE_PROCESS[s]}: new/old wall"] = spread(
+                [n["wall_s"] / o["wall_s"] for o, n in pairs]
+            )
+        if s == "run" and s in old:
+            pairs = zip(old[s], v, strict=True)
+            out["run: new/old wall"] = spread([n["wall_s"] / o["wall_s"] for o, n in pairs])
+        if "env_cpu_s" in v[0] and s in old:
             pairs = zip(old[s], v, strict=True)
             out[f"{s} per env CPU"] = spread(
                 [_learner_cost(o) / _learner_cost(n) for o, n in pairs]
@@ -335,6 +370,13 @@ def main() -> None:
     mes.add_argument("--repeats", type=int, default=3)
     mes.add_argument("--code", action="append", default=[], help="a checkout (repeatable)")
     mes.add_argument("--stages", nargs="+", default=list(STAGES), choices=STAGES)
+    mes.add_argument(
+        "--last-only",
+        nargs="+",
+        default=[],
+        choices=STAGES,
+        help="stages measured with the last --code only (the new code's own, or not code's)",
+    )
     one = sub.add_parser("child", help="one stage in this process (used by measure)")
     one.add_argument("stage", choices=STAGES)
     for name, kind in (("source", Path), ("steps", int)):

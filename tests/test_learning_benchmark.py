@@ -58,3 +58,16 @@ def test_the_benchmark_refuses_what_it_cannot_compare(
 ) -> None:
     with pytest.raises(SystemExit, match=message):
         validation_return(_ppo(**change), validation)
+
+
+def test_the_difference_comes_with_welchs_interval() -> None:
+    welch = load_benchmark("learning").welch_interval
+    got = welch([700.0, 650.0, 600.0], [560.0, 540.0, 520.0])
+    # by hand: difference 110; variances 2500 and 400 over 3, so se = sqrt(966.67) = 31.09;
+    # Welch-Satterthwaite df = 966.67^2 / (833.33^2 / 2 + 133.33^2 / 2) = 2.62
+    assert got["difference"] == 110.0
+    assert got["df"] == 2.62
+    half = got["ci95"][1] - 110.0
+    assert half == pytest.approx(110.0 - got["ci95"][0], abs=0.1)
+    assert 31.09 * 3.18 < half < 31.09 * 4.31  # t(0.975) between df 3 and df 2
+    assert welch([700.0], [560.0, 540.0]) is None  # one seed: no interval
