@@ -18,7 +18,8 @@ as median [range]. The last line is one JSON object. Commands and results: ``doc
 
     .venv/bin/python benchmarks/run_cost.py source --out /work/runs/run-cost/source
     .venv/bin/python benchmarks/run_cost.py measure --source /work/runs/run-cost/source \\
-        [--steps 100000] [--repeats 3] [--code /path/to/old --code .] [--stages run env]
+        [--steps 100000] [--other-steps 40960] [--repeats 3] [--code /path/to/old --code .] \\
+        [--stages run env] [--last-only env]
 """
 
 from __future__ import annotations
@@ -276,7 +277,8 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
             for stage in stages:
                 if stage in args.last_only and code != codes[-1]:
                     continue
-                res = spawn(code, stage, args.source, args.steps)
+                steps = args.steps if stage.startswith("run") else args.other_steps
+                res = spawn(code, stage, args.source, steps or args.steps)
                 got[str(code)].setdefault(stage, []).append(res)
                 extra = {
                     k: round(v, 2) for k, v in res.items() if k.endswith(("_s", "_calls", "k"))
@@ -367,6 +369,9 @@ def main() -> None:
     mes = sub.add_parser("measure", help="time every stage, alternating checkouts")
     mes.add_argument("--source", type=Path, required=True)
     mes.add_argument("--steps", type=int, default=100_000)
+    mes.add_argument(
+        "--other-steps", type=int, default=0, help="steps of the stages but run (default --steps)"
+    )
     mes.add_argument("--repeats", type=int, default=3)
     mes.add_argument("--code", action="append", default=[], help="a checkout (repeatable)")
     mes.add_argument("--stages", nargs="+", default=list(STAGES), choices=STAGES)
