@@ -1,6 +1,8 @@
 """The optional consistency check (issue 14): after the bracket, one first-round pair comes
 back with its sides swapped. It is not part of the bracket; its answer is compared with the
-participant's label of that pair (:mod:`app.labelling.quality`)."""
+participant's label of that pair (:mod:`app.labelling.quality`). It shows clips where a match
+of the bracket would (:func:`app.labelling.open_matches.pair_shows_clips`), and its answer
+records what was shown (``stimulus``)."""
 
 from __future__ import annotations
 
@@ -13,6 +15,7 @@ from sqlalchemy.orm import Session
 
 from app.core.errors import ConflictError
 from app.db import writing
+from app.labelling.open_matches import check_stimulus
 from app.models import (
     ConsistencyCheck,
     CrowdSettings,
@@ -83,12 +86,16 @@ def pending_pair(session: Session, *, participant: Participant) -> CheckPair | N
     return CheckPair(match.id, left, right)
 
 
-def answer(session: Session, *, participant: Participant, winner: int) -> None:
-    """Store the check's answer (sending the same answer again is a no-op).
+def answer(
+    session: Session, *, participant: Participant, winner: int, stimulus: str = "still"
+) -> None:
+    """Store the check's answer and what its page showed (``stimulus``: ``still`` or
+    ``clip``); sending the same answer again is a no-op.
 
     Raises:
         ConflictError: no check is due, or it was answered the other way.
-        InputError: ``winner`` is not one of the pair.
+        InputError: ``winner`` is not one of the pair, or ``stimulus`` is neither ``still``
+            nor ``clip`` (or ``clip`` where the pair has no clips).
     """
     check = session.get(ConsistencyCheck, participant.id)
     if check is None or not _wanted(session, participant):
@@ -96,13 +103,14 @@ def answer(session: Session, *, participant: Participant, winner: int) -> None:
     match = session.get_one(Match, check.match_id)
     if winner not in (match.a, match.b):
         raise InputError(f"winner must be {match.a} or {match.b}")
+    check_stimulus(session, participant.study_id, (match.a, match.b), stimulus)
     if check.winner is not None:
         if check.winner != winner:
             raise ConflictError("the consistency check is already answered")
         return
     now = utcnow()
     with writing(session):
-        check.winner, check.answered_at = winner, now
+        check.winner, check.answered_at, check.stimulus = winner, now, stimulus
         check.response_ms = max(0, round((now - as_utc(check.shown_at)).total_seconds() * 1000))
 
 

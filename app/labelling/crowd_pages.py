@@ -1,6 +1,6 @@
 """A study's open link ``/s/<slug>`` (issue 14; the pages are
 :func:`app.recruiting.pages.open_link_router`'s, as for surveys), and the consistency check
-after the bracket."""
+after the bracket (clips where its pair has them, as on the bracket)."""
 
 from __future__ import annotations
 
@@ -11,6 +11,7 @@ from app.http.deps import SessionDep
 from app.http.guards import PageParticipant
 from app.http.rendering import RedirectTo, redirect, render
 from app.labelling import check, dataset, participants, study_link
+from app.labelling.open_matches import pair_shows_clips
 from app.labelling.pages import THANKS, where_next
 from app.recruiting import pages as recruiting_pages
 from app.studies import service as studies
@@ -34,19 +35,19 @@ def check_page(request: Request, session: SessionDep, person: PageParticipant) -
     pair = check.pending_pair(session, participant=person)
     if pair is None:
         raise RedirectTo(THANKS)
-    return render(
-        request,
-        "crowd_check.html",
-        {"study": studies.get_ready_study(session, study_id=person.study_id), "pair": pair},
-    )
+    study = studies.get_ready_study(session, study_id=person.study_id)
+    clips = pair_shows_clips(session, study.id, pair.left, pair.right)
+    return render(request, "crowd_check.html", {"study": study, "pair": pair, "clips": clips})
 
 
 @router.post(CHECK, dependencies=[CsrfChecked])
 def check_answer(session: SessionDep, person: PageParticipant, fields: FormFields) -> Response:
-    """Store the check's answer (a plain form: two buttons), then the thank-you page."""
+    """Store the check's answer (a plain form: two buttons) and what it showed
+    (``stimulus``, stills for a form without it), then the thank-you page."""
     try:
         winner = int(fields.get("winner", ""))
     except ValueError:
         winner = -1
-    check.answer(session, participant=person, winner=winner)
+    stimulus = fields.get("stimulus", "still")
+    check.answer(session, participant=person, winner=winner, stimulus=stimulus)
     return redirect(THANKS)

@@ -7,9 +7,11 @@ the participant's tree (its heights are their advice's scores) and the baseline'
 stored with each candidate, leaving out pairs the bracket already played; they are stored
 with the side each shows on the left. Undoing a bracket label drops the pairs still
 unanswered: they are chosen again from the new tree once the bracket is finished again
-(unless some pair was answered). They never enter the tree. Their answers are exported with
-the labels (:mod:`app.labelling.label_export`) and counted by the experiment verdict as
-matches of the participant's advice (:func:`answered`).
+(unless some pair was answered). They never enter the tree. A pair shows clips where a
+match of the bracket would (:func:`app.labelling.open_matches.pair_shows_clips`), and its
+answer records what was shown (``stimulus``). Their answers are exported with the labels
+(:mod:`app.labelling.label_export`) and counted by the experiment verdict as matches of the
+participant's advice (:func:`answered`).
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ from sqlalchemy.orm import Session
 from app.core.errors import ConflictError, NotFoundError
 from app.db import writing
 from app.labelling.flow import MAX_RESPONSE_MS
+from app.labelling.open_matches import check_stimulus
 from app.labelling.participants import ParticipantKey, progress
 from app.labelling.sides import a_on_left
 from app.labelling.trees import participant_tree
@@ -75,13 +78,17 @@ def answer(
     position: int,
     winner: int,
     response_ms: int | None = None,
+    stimulus: str = "still",
 ) -> tuple[PairView, bool]:
-    """Store the answer to pair ``position``; returns the pair and whether it was new
-    (sending the same answer again is a no-op).
+    """Store the answer to pair ``position`` and what its page showed (``stimulus``:
+    ``still`` or ``clip``); returns the pair and whether it was new (sending the same answer
+    again is a no-op).
 
     Raises:
         NotFoundError: the participant has no such pair (none yet: bracket unfinished).
-        InputError: ``winner`` is not one of the pair, or ``response_ms`` is out of range.
+        InputError: ``winner`` is not one of the pair, ``response_ms`` is out of range, or
+            ``stimulus`` is neither ``still`` nor ``clip`` (or ``clip`` where the pair has no
+            clips).
         ConflictError: the pair is already answered the other way.
         MemberEndedError: they withdrew, or their time is over.
     """
@@ -100,11 +107,13 @@ def answer(
             raise NotFoundError(f"no disagreement pair {position} for this participant")
         if winner not in (row.a, row.b):
             raise InputError(f"winner must be {row.a} or {row.b}, got {winner}")
+        check_stimulus(session, participant.study_id, (row.a, row.b), stimulus)
         created = row.winner is None
         if not created and row.winner != winner:
             raise ConflictError(f"pair {position} is already answered: {row.winner} won")
         if created:
             _store_answer(session, row, winner, response_ms)
+            row.stimulus = stimulus
     return PairView.of(row, total), created
 
 

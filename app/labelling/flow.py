@@ -36,7 +36,7 @@ from app.core.errors import AuthError, ConflictError, NotFoundError
 from app.db import writing
 from app.labelling import events, flow_sql
 from app.labelling.gold_placement import due_gold
-from app.labelling.open_matches import NextMatch, next_match, pair_has_clips
+from app.labelling.open_matches import NextMatch, check_stimulus, next_match
 from app.labelling.participants import ParticipantKey, Progress
 from app.labelling.shape import BracketShape, shape_of
 from app.labelling.sides import a_on_left, a_wins_tie
@@ -122,8 +122,6 @@ def submit_label(
     shape = shape_of(db, participant.study_id)
     if tie and not shape.allow_ties:
         raise InputError('this study does not allow "can\'t tell": choose a picture')
-    if stimulus not in ("still", "clip"):
-        raise InputError(f'stimulus must be "still" or "clip", got {stimulus!r}')
     decision = Decision(match_id, winner, tie, response_ms, stimulus)
     try:
         with writing(db):  # type: ignore[type-var]  # a Session or a Connection, both fine
@@ -160,8 +158,7 @@ def _submit(
     rnd, slot, a, b, _, _, existing, was_tie, _, done, sibling = row
     if decision.winner is not None and decision.winner not in (a, b):
         raise InputError(f"winner {decision.winner} did not play match {match_id} ({a} vs {b})")
-    if decision.stimulus == "clip" and not pair_has_clips(conn, shape, participant.study_id, a, b):
-        raise InputError("this pair has no clips to show: the label's stimulus is a still")
+    check_stimulus(conn, participant.study_id, (a, b), decision.stimulus, shape)
     if existing is not None:
         return _same_or_conflict(
             conn, participant, decision, (existing, was_tie), Progress(done, shape.n - 1), with_next

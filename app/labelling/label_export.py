@@ -6,8 +6,8 @@ or ``disagreement`` for a pair asked after the bracket, which has no match id or
 the candidates shown on the left and on the right, the winner and the side chosen, the
 response time, when the pair was shown and when it was labelled, and ``tie`` (the
 participant could not tell; the winner is then the seeded coin's), and ``stimulus``: what
-the pair showed, ``still`` (the pictures) or ``clip`` (motion clips, issue 41 §3; a
-disagreement pair is always stills). ``shown_at`` is
+the pair showed, ``still`` (the pictures) or ``clip`` (motion clips, issue 41 §3), as stored
+with the bracket label or the disagreement pair's answer. ``shown_at`` is
 ``labelled_at`` minus the response time (the page measures that from both pictures being
 on screen), so it is empty when no response time was stored. Per participant, their quality
 flags, reliability and gold answers (:mod:`app.labelling.quality`) ride along, and whether
@@ -148,6 +148,7 @@ def _pair_records(
             DisagreementPair.winner,
             DisagreementPair.response_ms,
             DisagreementPair.answered_at,
+            DisagreementPair.stimulus,
         )
         .join(Participant, Participant.id == DisagreementPair.participant_id)
         .where(*kept, DisagreementPair.winner.is_not(None))
@@ -157,7 +158,8 @@ def _pair_records(
         _record(
             study_id, people, "disagreement", pid, ext, ids, None, None, a, b, a_left, w, ms, at
         )
-        for pid, ext, ids, a, b, a_left, w, ms, at in rows
+        | {"stimulus": stim}
+        for pid, ext, ids, a, b, a_left, w, ms, at, stim in rows
     ]
 
 
@@ -197,7 +199,7 @@ def _record(
         "shown_at": None if shown is None else shown.isoformat(),
         "labelled_at": labelled.isoformat(),
         "tie": False,  # a disagreement pair is always decided (a bracket label's is its own)
-        "stimulus": "still",  # and always shown as pictures (a bracket label's is its own)
+        "stimulus": "still",  # the caller puts the pair's stored stimulus here
         **people[pid],
     }
 

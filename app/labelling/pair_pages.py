@@ -1,6 +1,7 @@
 """Disagreement pairs after the bracket (issue 25 §5): one pair a page, a plain form with two
 picture buttons, then the consistency check or the thank-you page
-(:mod:`app.labelling.disagreement`)."""
+(:mod:`app.labelling.disagreement`). A pair with clips shows them as the bracket does
+(``static/js/pair_motion.js``); the form posts what was shown (``stimulus``)."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ from app.http.deps import SessionDep
 from app.http.guards import PageParticipant
 from app.http.rendering import PageRoute, RedirectTo, redirect, render
 from app.labelling import disagreement
+from app.labelling.open_matches import pair_shows_clips
 from app.labelling.pages import PAIRS, THANKS
 from app.studies import service as studies
 
@@ -24,15 +26,20 @@ def pair_page(request: Request, session: SessionDep, person: PageParticipant) ->
     if pair is None:
         raise RedirectTo(THANKS)
     study = studies.get_ready_study(session, study_id=person.study_id)
-    return render(request, "pair.html", {"study": study, "pair": pair})
+    clips = pair_shows_clips(session, study.id, pair.left, pair.right)
+    return render(request, "pair.html", {"study": study, "pair": pair, "clips": clips})
 
 
 @router.post(PAIRS, dependencies=[CsrfChecked])
 def pair_answer(session: SessionDep, person: PageParticipant, fields: FormFields) -> Response:
-    """Store the answer to the pair the form showed, then the next one."""
+    """Store the answer to the pair the form showed (and what it showed: ``stimulus``, stills
+    for a form without it), then the next one."""
     try:
         position, winner = int(fields.get("position", "")), int(fields.get("winner", ""))
     except ValueError:
         position, winner = -1, -1
-    disagreement.answer(session, participant=person, position=position, winner=winner)
+    stimulus = fields.get("stimulus", "still")
+    disagreement.answer(
+        session, participant=person, position=position, winner=winner, stimulus=stimulus
+    )
     return redirect(PAIRS)

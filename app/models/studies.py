@@ -225,6 +225,8 @@ class ConsistencyCheck(Base):
     response_ms: Mapped[int | None] = mapped_column(BigInteger, default=None)
     shown_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
     answered_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), default=None)
+    #: What the pair showed when answered: ``still`` or ``clip`` (issue 41 §3).
+    stimulus: Mapped[str] = mapped_column(String(8), default="still")
 
 
 class DisagreementPair(Base):
@@ -245,6 +247,8 @@ class DisagreementPair(Base):
     response_ms: Mapped[int | None] = mapped_column(BigInteger, default=None)
     shown_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
     answered_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), default=None)
+    #: What the pair showed when answered: ``still`` or ``clip`` (issue 41 §3).
+    stimulus: Mapped[str] = mapped_column(String(8), default="still")
 
 
 class GoldItem(Base):
