@@ -133,7 +133,8 @@ def stage_learner(
 
     torch.set_num_threads(1)
     cfg = _source_config(source, algo)
-    trainer = Trainer(cfg, _advice(source, cfg), env_processes=processes)
+    split = {"env_processes": processes} if processes > 1 else {}  # old code lacks it
+    trainer = Trainer(cfg, _advice(source, cfg), **split)
     if resumed:
         trainer.load_state_dict(load_checkpoint(find_checkpoint(source)))
     spent = {"collect_cpu_s": 0.0, "env_cpu_s": 0.0}
@@ -191,7 +192,7 @@ def stage_run(source: Path, steps: int, processes: int = 1) -> dict[str, float]:
             should_stop=lambda: next(calls) >= updates,
             resume=True,
             on_checkpoint=_timed(lambda s, _: checkpoint_report(run, s), spent, "judge_s", wall),
-            **({"env_processes": processes} if processes > 1 else {}),  # old code lacks it
+            **({"env_processes": processes} if processes > 1 else {}),  # as in stage_learner
         )
         result = _result(start, updates * cfg.batch_size)
     # the resume's start (imports, loading, envs, TensorBoard): up to the first row, less one
