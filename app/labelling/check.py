@@ -15,7 +15,7 @@ from sqlalchemy.orm import Session
 
 from app.core.errors import ConflictError
 from app.db import writing
-from app.labelling.open_matches import check_stimulus
+from app.labelling.flow import check_stimulus
 from app.models import (
     ConsistencyCheck,
     CrowdSettings,

@@ -25,8 +25,7 @@ from sqlalchemy.orm import Session
 
 from app.core.errors import ConflictError, NotFoundError
 from app.db import writing
-from app.labelling.flow import MAX_RESPONSE_MS
-from app.labelling.open_matches import check_stimulus
+from app.labelling.flow import MAX_RESPONSE_MS, check_stimulus
 from app.labelling.participants import ParticipantKey, progress
 from app.labelling.sides import a_on_left
 from app.labelling.trees import participant_tree

@@ -36,11 +36,11 @@ from app.core.errors import AuthError, ConflictError, NotFoundError
 from app.db import writing
 from app.labelling import events, flow_sql
 from app.labelling.gold_placement import due_gold
-from app.labelling.open_matches import NextMatch, check_stimulus, next_match
+from app.labelling.open_matches import NextMatch, next_match, pair_shows_clips
 from app.labelling.participants import ParticipantKey, Progress
 from app.labelling.shape import BracketShape, shape_of
 from app.labelling.sides import a_on_left, a_wins_tie
-from app.models import as_utc, utcnow
+from app.models import STIMULUS_KINDS, as_utc, utcnow
 from app.recruiting.members import STUDY
 from app.recruiting.seats import MemberEndedError
 from engine.errors import InputError
@@ -283,3 +283,18 @@ def _same_or_conflict(
         _next(conn, participant, progress, with_next),
         tie,
     )
+
+
+def check_stimulus(
+    db: Session | Connection,
+    study_id: int,
+    pair: tuple[int, int],
+    stimulus: str,
+    shape: BracketShape | None = None,
+) -> None:
+    """Refuse a ``stimulus`` the page of ``pair`` (a match, or a pair after the bracket, which
+    shows clips where a match would) cannot have shown: :class:`InputError`."""
+    if stimulus not in STIMULUS_KINDS:
+        raise InputError(f'stimulus must be "still" or "clip", got {stimulus!r}')
+    if stimulus == "clip" and not pair_shows_clips(db, study_id, *pair, shape=shape):
+        raise InputError("this pair has no clips to show: its stimulus is a still")

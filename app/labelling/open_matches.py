@@ -13,8 +13,6 @@ from app.labelling import flow_sql
 from app.labelling.gold_placement import GoldPair, due_gold
 from app.labelling.participants import ParticipantKey, Progress
 from app.labelling.shape import BracketShape, shape_of
-from app.models import STIMULUS_KINDS
-from engine.errors import InputError
 
 
 @dataclass(frozen=True)
@@ -100,23 +98,3 @@ def pair_shows_clips(
     asked after the bracket show clips exactly where a match of the bracket would."""
     conn = db.connection() if isinstance(db, Session) else db
     return pair_has_clips(conn, shape or shape_of(db, study_id), study_id, a, b)
-
-
-def check_stimulus(
-    db: Session | Connection,
-    study_id: int,
-    pair: tuple[int, int],
-    stimulus: str,
-    shape: BracketShape | None = None,
-) -> None:
-    """Refuse a ``stimulus`` that the page of ``pair`` cannot have shown: a match of the
-    bracket, or a pair asked after it (which shows clips exactly where a match would).
-
-    Raises:
-        InputError: it is neither ``still`` nor ``clip``, or ``clip`` where the pair has no
-            clips.
-    """
-    if stimulus not in STIMULUS_KINDS:
-        raise InputError(f'stimulus must be "still" or "clip", got {stimulus!r}')
-    if stimulus == "clip" and not pair_shows_clips(db, study_id, *pair, shape=shape):
-        raise InputError("this pair has no clips to show: its stimulus is a still")

@@ -44,7 +44,10 @@ IMAGE = re.compile(r"/api/studies/\d+/candidates/\d+/image")
 def invite(server) -> str:
     """An invite link to a fresh 8-candidate Humanoid study."""
     base, _ = server
-    api = httpx.Client(base_url=base, headers={"Authorization": f"Bearer {ADMIN_TOKEN}"})
+    # a loaded machine may take more than httpx's default 5 s to create and render a study
+    api = httpx.Client(
+        base_url=base, headers={"Authorization": f"Bearer {ADMIN_TOKEN}"}, timeout=120
+    )
     study = api.post(
         "/api/studies", json={"name": "settled", "n_candidates": N_CANDIDATES, "seed": 3}
     ).json()
