@@ -8,6 +8,7 @@ from typing import Any
 import httpx
 import pytest
 
+from tests.support.runs import FINAL, TINY
 from tests.support.wait import wait_for
 
 Match = dict[str, Any]
@@ -46,3 +47,21 @@ def label_bracket(
         )
         assert label.status_code == 201, label.text
     pytest.fail(f"the participant still had matches after {MAX_MATCHES} labels")
+
+
+def served_baseline(api: httpx.Client) -> None:
+    """A finished tiny no-advice ``ppo`` run on Hopper of a 4-candidate host study, made over
+    a served app's API: the baseline that disagreement pairs and candidate clips need."""
+    host = api.post("/api/studies", json={"name": "host", "env_id": "Hopper-v5", "n_candidates": 4})
+    wait_until_prepared(api, host.json()["id"])
+    run = api.post(
+        "/api/runs", json={"study_id": host.json()["id"], "algo": "ppo", "timesteps": 256, **TINY}
+    )
+    assert run.status_code == 202, run.text
+    done = wait_for(
+        lambda: api.get(f"/api/runs/{run.json()['id']}").json(),
+        lambda got: got["status"] in FINAL,
+        what="the baseline run to end",
+        timeout_s=180,
+    )
+    assert done["status"] == "succeeded", done

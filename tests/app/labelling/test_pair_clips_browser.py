@@ -21,8 +21,7 @@ from playwright.sync_api import Browser, Page, expect
 from app.settings import SQLITE_FILE
 from tests.support.a11y import assert_accessible
 from tests.support.browser import DESKTOP, PHONE, fits_width, new_page, wait_until_still
-from tests.support.labelling import label_bracket, wait_until_prepared
-from tests.support.runs import FINAL, TINY
+from tests.support.labelling import label_bracket, served_baseline, wait_until_prepared
 from tests.support.wait import wait_for
 
 pytestmark = pytest.mark.browser
@@ -34,19 +33,7 @@ PAIRS_PATH, CHECK_PATH = "/participate/pairs", "/participate/check"
 def study(api: httpx.Client) -> dict[str, Any]:
     """A 4-candidate Hopper study with clips, asking 2 disagreement pairs and the consistency
     check, after a tiny no-advice ppo run has finished; its clips rendered."""
-    host = api.post("/api/studies", json={"name": "host", "env_id": "Hopper-v5", "n_candidates": 4})
-    wait_until_prepared(api, host.json()["id"])
-    run = api.post(
-        "/api/runs", json={"study_id": host.json()["id"], "algo": "ppo", "timesteps": 256, **TINY}
-    )
-    assert run.status_code == 202, run.text
-    done = wait_for(
-        lambda: api.get(f"/api/runs/{run.json()['id']}").json(),
-        lambda got: got["status"] in FINAL,
-        what="the baseline run to end",
-        timeout_s=180,
-    )
-    assert done["status"] == "succeeded", done
+    served_baseline(api)
     body = {"name": "Clip pairs", "env_id": "Hopper-v5", "n_candidates": 4, "seed": 7}
     created = api.post("/api/studies", json=body | {"disagreement_pairs": 2, "clips": True})
     assert created.status_code == 201, created.text

@@ -13,9 +13,7 @@ from playwright.sync_api import Browser, Page, expect
 
 from tests.support.a11y import assert_accessible
 from tests.support.browser import ADMIN_TOKEN, DESKTOP, PHONE, new_page, wait_until_still
-from tests.support.labelling import label_bracket, wait_until_prepared
-from tests.support.runs import FINAL, TINY
-from tests.support.wait import wait_for
+from tests.support.labelling import label_bracket, served_baseline, wait_until_prepared
 
 pytestmark = pytest.mark.browser
 PAIRS = 3
@@ -24,19 +22,7 @@ PAIRS = 3
 @pytest.fixture(scope="module")
 def study(api: httpx.Client) -> dict[str, Any]:
     """A Hopper study asking 3 pairs, after a tiny no-advice ppo run has finished."""
-    host = api.post("/api/studies", json={"name": "host", "env_id": "Hopper-v5", "n_candidates": 4})
-    wait_until_prepared(api, host.json()["id"])
-    run = api.post(
-        "/api/runs", json={"study_id": host.json()["id"], "algo": "ppo", "timesteps": 256, **TINY}
-    )
-    assert run.status_code == 202, run.text
-    done = wait_for(
-        lambda: api.get(f"/api/runs/{run.json()['id']}").json(),
-        lambda got: got["status"] in FINAL,
-        what="the baseline run to end",
-        timeout_s=180,
-    )
-    assert done["status"] == "succeeded", done
+    served_baseline(api)
     body = {"name": "Pairs study", "env_id": "Hopper-v5", "n_candidates": 8, "seed": 5}
     created = api.post("/api/studies", json=body | {"disagreement_pairs": PAIRS})
     assert created.status_code == 201, created.text
