@@ -121,7 +121,9 @@ def prepare(base: str, n_candidates: int, count: int) -> tuple[int, list[str]]:
         .json()["id"]
     )
     while (
-        status := httpx.get(f"{base}/api/studies/{study_id}", headers=ADMIN).json()["status"]
+        status := httpx.get(f"{base}/api/studies/{study_id}", headers=ADMIN, timeout=60).json()[
+            "status"
+        ]
     ) == "preparing":
         time.sleep(0.1)
     if status != "ready":
@@ -143,9 +145,9 @@ def start_training(base: str, study_id: int) -> int:
     crowd starts: its executor writes run state rows to the same database all along."""
     body = {"study_id": study_id, "algo": "ppo", "timesteps": 10_000_000, "n_envs": 1,
             "num_steps": 128, "num_minibatches": 4, "update_epochs": 2}  # fmt: skip
-    run_id = int(httpx.post(f"{base}/api/runs", json=body, headers=ADMIN).json()["id"])
+    run_id = int(httpx.post(f"{base}/api/runs", json=body, headers=ADMIN, timeout=60).json()["id"])
     deadline = time.monotonic() + 300
-    while httpx.get(f"{base}/api/runs/{run_id}/metrics", headers=ADMIN).json() == []:
+    while httpx.get(f"{base}/api/runs/{run_id}/metrics", headers=ADMIN, timeout=60).json() == []:
         if time.monotonic() > deadline:  # the run never trained: say so, measure nothing
             raise SystemExit(f"training run {run_id} stored no metrics row in 300 s")
         time.sleep(0.2)  # training: the first metrics row is stored
@@ -154,8 +156,8 @@ def start_training(base: str, study_id: int) -> int:
 
 def stop_training(base: str, run_id: int) -> int:
     """Cancel the run; the metrics rows it wrote."""
-    httpx.post(f"{base}/api/runs/{run_id}/cancel", headers=ADMIN)
-    return len(httpx.get(f"{base}/api/runs/{run_id}/metrics", headers=ADMIN).json())
+    httpx.post(f"{base}/api/runs/{run_id}/cancel", headers=ADMIN, timeout=60)
+    return len(httpx.get(f"{base}/api/runs/{run_id}/metrics", headers=ADMIN, timeout=60).json())
 
 
 @dataclass

@@ -153,10 +153,14 @@ def prepare(base: str, config: LoadConfig, count: int) -> tuple[int, list[tuple[
         "sampling": "uniform",
         "instructions": "",
     }
-    study = httpx.post(f"{base}/api/studies", json=body, headers=ADMIN).raise_for_status()
+    study = httpx.post(
+        f"{base}/api/studies", json=body, headers=ADMIN, timeout=60
+    ).raise_for_status()
     study_id = study.json()["id"]
     while (
-        status := httpx.get(f"{base}/api/studies/{study_id}", headers=ADMIN).json()["status"]
+        status := httpx.get(f"{base}/api/studies/{study_id}", headers=ADMIN, timeout=60).json()[
+            "status"
+        ]
     ) == "preparing":
         time.sleep(0.1)
     if status != "ready":

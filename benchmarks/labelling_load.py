@@ -101,7 +101,7 @@ def _wait_healthy(base: str, proc: subprocess.Popen, timeout_s: float = 120.0) -
         if proc.poll() is not None:
             raise SystemExit("the server exited")
         with contextlib.suppress(httpx.TransportError):
-            if httpx.get(f"{base}/healthz").status_code == 200:
+            if httpx.get(f"{base}/healthz", timeout=2).status_code == 200:
                 return
         time.sleep(0.1)
     raise SystemExit("server did not become healthy")
@@ -117,11 +117,13 @@ def create_study(base: str, env_id: str, n: int) -> int:
         "sampling": "uniform",
         "instructions": "",
     }
-    study = httpx.post(f"{base}/api/studies", json=body, headers=ADMIN).raise_for_status()
+    study = httpx.post(
+        f"{base}/api/studies", json=body, headers=ADMIN, timeout=60
+    ).raise_for_status()
     while (
-        status := httpx.get(f"{base}/api/studies/{study.json()['id']}", headers=ADMIN).json()[
-            "status"
-        ]
+        status := httpx.get(
+            f"{base}/api/studies/{study.json()['id']}", headers=ADMIN, timeout=60
+        ).json()["status"]
     ) == "preparing":
         time.sleep(0.1)
     if status != "ready":
@@ -135,6 +137,7 @@ def invite(base: str, study_id: int, count: int) -> list[tuple[int, str]]:
             f"{base}/api/studies/{study_id}/participants/batch",
             headers=ADMIN,
             json={"count": count},
+            timeout=60,
         )
         .raise_for_status()
         .json()
@@ -201,7 +204,7 @@ async def run_participants(
 
 def stored_labels(base: str, study_id: int, participant_ids: set[int]) -> tuple[int, int]:
     """(labels stored for these participants, labels whose match appears more than once)."""
-    text = httpx.get(f"{base}/api/studies/{study_id}/labels.csv", headers=ADMIN).text
+    text = httpx.get(f"{base}/api/studies/{study_id}/labels.csv", headers=ADMIN, timeout=60).text
     rows = [
         r for r in csv.DictReader(io.StringIO(text)) if int(r["participant_id"]) in participant_ids
     ]
@@ -257,7 +260,8 @@ def main() -> None:
         stress = run(base, tokens[k + 1 :])
         stored, duplicates = stored_labels(base, study_id, {pid for pid, _ in people[1:]})
         complete = sum(
-            httpx.get(f"{base}/api/participants/{pid}/tree", headers=ADMIN).status_code == 200
+            httpx.get(f"{base}/api/participants/{pid}/tree", headers=ADMIN, timeout=60).status_code
+            == 200
             for pid, _ in people[1:]
         )
     sent = load.sent + stress.sent

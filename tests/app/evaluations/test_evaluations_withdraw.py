@@ -251,7 +251,10 @@ def test_the_withdraw_page_in_a_browser(
     where = "on a phone" if viewport == PHONE else "on a desktop"
     headers = {"Authorization": f"Bearer {SERVER_TOKEN}"}
     made = httpx.post(
-        f"{base}/api/evaluations/{evaluation_id}/evaluators", json={"count": 1}, headers=headers
+        f"{base}/api/evaluations/{evaluation_id}/evaluators",
+        json={"count": 1},
+        headers=headers,
+        timeout=60,
     )
     assert made.status_code == 201, made.text
     errors: list[str] = []

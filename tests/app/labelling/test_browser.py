@@ -159,6 +159,7 @@ def _stored_labels(base: str, study_url: str) -> dict[int, int]:
     response = httpx.get(
         f"{base}/api/studies/{study_id}/labels.csv",
         headers={"Authorization": f"Bearer {ADMIN_TOKEN}"},
+        timeout=60,
     )
     rows = list(csv.DictReader(io.StringIO(response.text)))
     assert all(row["response_ms"] != "" for row in rows)

@@ -20,7 +20,9 @@ PRELOAD_TIMEOUT_S = 30.0
 def _following_pair(base: str, token: str, current: int) -> tuple[int, int]:
     """The players of the first undecided match after ``current`` whose players are known."""
     rounds = httpx.get(
-        f"{base}/api/participants/me/bracket", headers={"Authorization": f"Bearer {token}"}
+        f"{base}/api/participants/me/bracket",
+        headers={"Authorization": f"Bearer {token}"},
+        timeout=60,
     ).json()["rounds"]
     return next(
         (c["a"], c["b"])
@@ -59,7 +61,9 @@ def test_next_pictures_are_fetched_before_the_choice(server, browser: Browser) -
     assert {shown(p, "a"), shown(p, "b")} == set(pair)
     # The sides are the server's (randomised per participant and match): `left` on the left.
     upcoming = httpx.get(
-        f"{base}/api/participants/me/next-match", headers={"Authorization": f"Bearer {token}"}
+        f"{base}/api/participants/me/next-match",
+        headers={"Authorization": f"Bearer {token}"},
+        timeout=60,
     ).json()
     assert shown(p, "a") == upcoming["left"]
     # One round trip per decision: the label's answer carried the match now shown.
@@ -81,7 +85,9 @@ def _drawn_winners(page) -> list[str]:
 
 def _server_winners(base: str, token: str) -> list[str]:
     rounds = httpx.get(
-        f"{base}/api/participants/me/bracket", headers={"Authorization": f"Bearer {token}"}
+        f"{base}/api/participants/me/bracket",
+        headers={"Authorization": f"Bearer {token}"},
+        timeout=60,
     ).json()["rounds"]
     return [
         f"{c['round']}:{c['winner']}"

@@ -69,7 +69,9 @@ def test_a_proxy_that_is_not_an_address_is_refused(tmp_path: Path, bad: str) -> 
 
 def _failed_logins(base: str, forwarded: list[str]) -> list[int]:
     return [
-        httpx.get(f"{base}/api/studies", headers=WRONG | {"X-Forwarded-For": a}).status_code
+        httpx.get(
+            f"{base}/api/studies", headers=WRONG | {"X-Forwarded-For": a}, timeout=60
+        ).status_code
         for a in forwarded
     ]
 

@@ -78,7 +78,7 @@ class Served:
         wait_for(
             self._both_started, what="both server processes to start", timeout_s=START_TIMEOUT_S
         )
-        assert httpx.get(f"{self.base}/healthz").status_code == 200
+        assert httpx.get(f"{self.base}/healthz", timeout=60).status_code == 200
 
     def _both_started(self) -> bool:
         assert self.proc.poll() is None, self.text()[-3000:]

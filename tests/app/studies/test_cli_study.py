@@ -135,7 +135,9 @@ def test_serve_migrates_a_fresh_database_and_prints_the_login_url(tmp_path) -> N
     log = tmp_path / "server.log"
     with acv_serve(clean_env(ACV_DATA_DIR=str(tmp_path / "fresh")), log, "--no-access-log") as base:
         token = (tmp_path / "fresh" / "admin_token").read_text().strip()
-        studies = httpx.get(f"{base}/api/studies", headers={"Authorization": f"Bearer {token}"})
+        studies = httpx.get(
+            f"{base}/api/studies", headers={"Authorization": f"Bearer {token}"}, timeout=60
+        )
         assert studies.json() == []  # the schema exists: migrations ran
     assert f"researcher login: {base}/login#token={token}" in log.read_text()
 
