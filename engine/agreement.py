@@ -11,7 +11,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.stats import binomtest
+import scipy
 
 Pair = tuple[int, int]
 #: Each labeller's choices: labeller -> (unordered pair -> winner).
@@ -37,7 +37,7 @@ def side_bias(*, left: int, labels: int) -> SideBias:
         labels,
         left,
         left / labels,
-        float(binomtest(left, labels, 0.5, alternative="two-sided").pvalue),
+        float(scipy.stats.binomtest(left, labels, 0.5, alternative="two-sided").pvalue),
     )
 
 

@@ -34,8 +34,8 @@ from dataclasses import asdict, dataclass
 from typing import Any
 
 import numpy as np
+import scipy
 import zss
-from scipy.stats import binomtest, kendalltau
 
 from engine.bracket import Match
 from engine.errors import InputError
@@ -179,7 +179,7 @@ def _contested(kept: int, n: int) -> Contested:
 
 def wilson(k: int, n: int) -> tuple[float, float]:
     """Wilson 95% interval of ``k`` successes in ``n >= 1`` trials."""
-    ci = binomtest(k, n).proportion_ci(confidence_level=0.95, method="wilson")
+    ci = scipy.stats.binomtest(k, n).proportion_ci(confidence_level=0.95, method="wilson")
     return float(ci.low), float(ci.high)
 
 
@@ -232,7 +232,7 @@ def agent_pick(agent: TreeDocument, rnd: int, a: int, b: int) -> int | None:
 def heights_tau(human: PreferenceTree, agent: PreferenceTree) -> float | None:
     """Kendall tau-b of heights over all candidates; ``None`` when undefined."""
     ids = sorted(human.nodes)
-    tau = kendalltau(
+    tau = scipy.stats.kendalltau(
         [human.nodes[i].height for i in ids], [agent.nodes[i].height for i in ids], variant="b"
     ).statistic
     return None if np.isnan(tau) else float(tau)

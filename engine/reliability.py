@@ -24,7 +24,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from scipy.stats import beta, binomtest
+from scipy.special import betaincc
 
 from engine.errors import InputError
 
@@ -68,9 +68,11 @@ def competence(checks: Checks) -> float:
     With no check answered it is the prior's, 0.25: nothing is known either way.
     """
     a, b = 1.0 + checks.right, 1.0 + checks.asked - checks.right
-    # E[(2X - 1) 1{X > 1/2}] for X ~ Beta(a, b): X Beta(a, b) = a/(a+b) Beta(a+1, b).
-    above = float(beta.sf(0.5, a, b))
-    x_above = a / (a + b) * float(beta.sf(0.5, a + 1, b))
+    # E[(2X - 1) 1{X > 1/2}] for X ~ Beta(a, b): X Beta(a, b) = a/(a+b) Beta(a+1, b). Beta's
+    # survival function is the regularised incomplete beta's complement, from scipy.special:
+    # scipy.stats costs seconds to import, and every labelling process reaches this line.
+    above = float(betaincc(a, b, 0.5))
+    x_above = a / (a + b) * float(betaincc(a + 1, b, 0.5))
     return max(0.0, 2.0 * x_above - above)
 
 
@@ -78,5 +80,7 @@ def gold_interval(checks: Checks, level: float = 0.95) -> tuple[float, float] | 
     """The Clopper-Pearson interval of gold accuracy; None before any gold item."""
     if checks.gold_asked == 0:
         return None
+    from scipy.stats import binomtest  # seconds to import: only where an interval is asked for
+
     ci = binomtest(checks.gold_right, checks.gold_asked).proportion_ci(level, method="exact")
     return float(ci.low), float(ci.high)

@@ -26,7 +26,7 @@ from dataclasses import asdict, dataclass
 from typing import Any, Literal
 
 import numpy as np
-from scipy.stats import bootstrap
+import scipy
 
 from engine.errors import InputError
 from engine.treefile import TreeDocument
@@ -139,7 +139,7 @@ def seed_interval(
 ) -> tuple[float, float]:
     """95% percentile interval of Δ, resampling seeds within each arm. The candidates stay
     fixed: the verdict is about the person's own bracket, as the permutation test is."""
-    found = bootstrap(
+    found = scipy.stats.bootstrap(
         (r_advised, r_baseline),
         mean_difference,
         n_resamples=n_boot,

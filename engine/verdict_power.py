@@ -13,7 +13,7 @@ from collections.abc import Callable
 from functools import lru_cache
 
 import numpy as np
-from scipy.stats import permutation_test
+import scipy
 
 #: Permutations for a Monte Carlo test when the exact one has more arrangements than this.
 N_PERMUTATIONS = 9999
@@ -48,7 +48,7 @@ def permutation_p(
     Returns:
         p-values of shape ``(...)``.
     """
-    result = permutation_test(
+    result = scipy.stats.permutation_test(
         (advised, baseline),
         mean_difference,
         permutation_type="independent",

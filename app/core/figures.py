@@ -14,12 +14,15 @@ import logging
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-from matplotlib.figure import Figure  # the object API: no pyplot state, no display backend
 from PIL import Image
 
 from engine.treefile import TreeDocument
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 log = logging.getLogger(__name__)
 BAD, GOOD, EDGE, MUTED = "#c93c3c", "#1f8a4c", "#9aa5b4", "#5f6b7a"
@@ -78,7 +81,7 @@ def tree_figure(
 ) -> bytes:
     """One Preference Tree as an SVG or PNG file."""
     width, levels = _extent(doc)
-    fig = Figure(figsize=(max(4.0, 1.1 * width), 0.6 + 1.5 * levels), dpi=100)
+    fig = _figure(figsize=(max(4.0, 1.1 * width), 0.6 + 1.5 * levels))
     ax = fig.add_axes((0.01, 0.01, 0.98, 0.9 if title else 0.98))
     draw_tree(ax, doc, thumbs=thumbs, highlight=highlight)
     if title:
@@ -105,7 +108,7 @@ def trees_side_by_side(
         legend: label -> colour, explaining ``frame_colors``.
     """
     width, levels = map(max, zip(_extent(left), _extent(right), strict=True))
-    fig = Figure(figsize=(max(8.0, 2.2 * width), 1.0 + 1.5 * levels), dpi=100)
+    fig = _figure(figsize=(max(8.0, 2.2 * width), 1.0 + 1.5 * levels))
     for i, (doc, highlight, sub) in enumerate(zip((left, right), highlights, titles, strict=True)):
         ax = fig.add_axes((0.01 + 0.5 * i, 0.02, 0.48, 0.86 if title else 0.92))
         draw_tree(ax, doc, thumbs=thumbs, highlight=highlight, frame_colors=frame_colors)
@@ -218,7 +221,7 @@ def line_chart(
     ylim: tuple[float, float] | None = None,
 ) -> bytes:
     """A small line chart of one or more series, with markers."""
-    fig = Figure(figsize=(6.4, 3.2), dpi=100)
+    fig = _figure(figsize=(6.4, 3.2))
     ax = fig.subplots()
     for s in series:
         ax.plot(s.x, s.y, marker="o", markersize=3, linewidth=1.5, label=s.label)
@@ -232,6 +235,14 @@ def line_chart(
         ax.legend(loc="best", fontsize=8)
     fig.tight_layout()
     return _save(fig, fmt)
+
+
+def _figure(figsize: tuple[float, float]) -> Figure:
+    """A figure of the object API (no pyplot state, no display backend). matplotlib is imported
+    here, not at the top: it costs a second, and the web process starts without it."""
+    from matplotlib.figure import Figure
+
+    return Figure(figsize=figsize, dpi=100)
 
 
 def _save(fig: Figure, fmt: str) -> bytes:

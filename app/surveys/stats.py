@@ -12,7 +12,7 @@ from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from typing import Any
 
-from scipy.stats import binomtest
+import scipy
 
 #: Confidence level of every interval.
 CONFIDENCE_LEVEL = 0.95
@@ -51,7 +51,7 @@ def proportion(k: int, n: int, *, chance: float) -> Proportion | None:
 
 
 def _exact(k: int, n: int, *, chance: float) -> Proportion:
-    test = binomtest(k, n, p=chance, alternative="two-sided")
+    test = scipy.stats.binomtest(k, n, p=chance, alternative="two-sided")
     ci = test.proportion_ci(confidence_level=CONFIDENCE_LEVEL, method="exact")
     return Proportion(
         k=k,
@@ -97,7 +97,7 @@ def versus_neutral(values: Sequence[float], *, neutral: float) -> VersusNeutral 
         above=above,
         below=below,
         at=len(values) - sided,
-        p_value=float(binomtest(above, sided, 0.5).pvalue) if sided else None,
+        p_value=float(scipy.stats.binomtest(above, sided, 0.5).pvalue) if sided else None,
         median=float(statistics.median(values)),
     )
 

@@ -47,7 +47,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import brentq
+import scipy
 from scipy.special import expit
 
 from engine.errors import InputError
@@ -113,7 +113,7 @@ def arm_effect(win_rate: float, run_sd: float) -> float:
     def gap(delta: float) -> float:
         return float(weights @ expit(delta + spread)) - win_rate
 
-    return float(brentq(gap, -50.0, 50.0, xtol=1e-12))
+    return float(scipy.optimize.brentq(gap, -50.0, 50.0, xtol=1e-12))
 
 
 def _simulate(

@@ -23,8 +23,8 @@ from dataclasses import dataclass, field
 from typing import Protocol
 
 import numpy as np
+import scipy
 from scipy.special import expit
-from scipy.stats import binomtest
 
 from engine.evaluation.design import PairPlan, pair_sequence
 from engine.evaluation.stats import (
@@ -261,7 +261,7 @@ def naive_fires(batch: DesignBatch, alpha: float = 0.05) -> np.ndarray:
     n, won = decided.sum(axis=1), advised_won.sum(axis=1)
     return np.array(
         [
-            n_i > 0 and binomtest(int(w), int(n_i)).pvalue < alpha
+            n_i > 0 and scipy.stats.binomtest(int(w), int(n_i)).pvalue < alpha
             for w, n_i in zip(won, n, strict=True)
         ]
     )

@@ -15,7 +15,7 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.stats import permutation_test, spearmanr
+import scipy
 
 from engine.validation.design import BASELINE
 from engine.verdict_power import auc
@@ -92,7 +92,7 @@ def known_direction(delta_u: np.ndarray, alpha: float = 0.05) -> str:
     if len(delta_u) < 2 or not np.any(delta_u):
         return "unknown"
     for direction, alternative in (("follows", "greater"), ("rejects", "less")):
-        p = permutation_test(
+        p = scipy.stats.permutation_test(
             (delta_u,),
             np.mean,
             permutation_type="samples",
@@ -143,7 +143,7 @@ def _dose_rho(table: Table) -> float:
     doses = [(DOSES[a], d) for a in DOSES for d in run_delta(table, a) if np.isfinite(d)]
     if len({dose for dose, _ in doses}) < 2:
         return float("nan")
-    return float(spearmanr(*zip(*doses, strict=True)).statistic)
+    return float(scipy.stats.spearmanr(*zip(*doses, strict=True)).statistic)
 
 
 def dose_response(table: Table, rng: np.random.Generator, n_boot: int = N_BOOT) -> Criterion:
@@ -173,7 +173,7 @@ def _rho(x: np.ndarray, y: np.ndarray) -> float:
     ok = np.isfinite(x) & np.isfinite(y)
     if ok.sum() < 3 or np.ptp(x[ok]) == 0 or np.ptp(y[ok]) == 0:
         return float("nan")
-    return float(spearmanr(x[ok], y[ok]).statistic)
+    return float(scipy.stats.spearmanr(x[ok], y[ok]).statistic)
 
 
 def _mean_delta(arm: str) -> Callable[[Table], float]:
