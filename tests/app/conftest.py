@@ -1,4 +1,9 @@
-"""App-test fixtures: every API test runs on SQLite AND on a real PostgreSQL server.
+"""App-test fixtures: API tests run on SQLite AND on a real PostgreSQL server.
+
+A module whose subject is not storage (training, rendering, pages, evaluations, the sweeps of
+every route's validation and authorization) is marked ``postgres_only`` and runs on
+PostgreSQL alone, the stricter backend; modules about what storage does (labels, limits under
+concurrency, leases, migrations, exports, SQLite's own integer limits) run on both.
 
 Isolation: the services commit their own writes and study preparation runs on a background
 thread with its own connections, so a per-test rolled-back transaction cannot hold them.
@@ -147,9 +152,9 @@ def invite(client: TestClient, study: dict[str, Any]) -> Callable[..., Player]:
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     """A test that drives the browser is a ``browser`` test, whether its module says so or not.
 
-    A ``postgres_only`` test (training or serving is its subject, not storage: each of its runs
-    costs seconds of a training process) leaves out its ``[sqlite]`` run; PostgreSQL is the
-    stricter backend, and the storage these tests touch runs on both in the API modules.
+    A ``postgres_only`` test (storage is not its subject, and each of its runs costs seconds:
+    training, rendering, a server) leaves out its ``[sqlite]`` run; PostgreSQL is the stricter
+    backend, and the storage these tests touch runs on both in the modules about storage.
     """
     for item in items:
         if "browser" in getattr(item, "fixturenames", ()):

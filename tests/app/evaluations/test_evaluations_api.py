@@ -21,6 +21,9 @@ from tests.support.runs import run_app
 from tests.support.studies import new_study
 from tests.support.web import ADMIN
 
+# postgres_only: an evaluation's stimuli and answer are the subject, not storage.
+pytestmark = pytest.mark.postgres_only
+
 
 @pytest.fixture(scope="module")
 def client(settings) -> Iterator[TestClient]:

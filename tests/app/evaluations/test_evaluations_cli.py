@@ -23,6 +23,9 @@ from tests.support.studies import new_study
 from tests.support.surveys import finished
 from tests.support.web import ADMIN
 
+# postgres_only: an evaluation's stimuli and answer are the subject, not storage.
+pytestmark = pytest.mark.postgres_only
+
 
 @pytest.fixture(scope="module")
 def client(settings) -> Iterator[TestClient]:

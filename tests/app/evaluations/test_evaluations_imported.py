@@ -25,7 +25,9 @@ from tests.support.runs import run_app
 from tests.support.studies import new_study
 from tests.support.web import ADMIN
 
-pytestmark = pytest.mark.process  # each imported policy's rollouts start a child process
+# process: each imported policy's rollouts start a child process. postgres_only: an
+# evaluation's stimuli and answer are the subject, not storage.
+pytestmark = [pytest.mark.process, pytest.mark.postgres_only]
 
 #: What every evaluation here asks for: stills only (fast), 2 pairs per evaluator.
 DESIGN = {"pairs_per_evaluator": 2, "stimulus": "still"}

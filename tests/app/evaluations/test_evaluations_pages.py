@@ -23,6 +23,9 @@ from tests.support.runs import run_app
 from tests.support.studies import new_study
 from tests.support.web import ADMIN, ADMIN_TOKEN, CSRF_RE, audit, browser, csrf_token, logged_in
 
+# postgres_only: pages are the subject, not storage.
+pytestmark = pytest.mark.postgres_only
+
 PAIRS = 3
 #: Every URL in a page: where its pictures, links and forms point, and its data attributes.
 URL_ATTRS = re.compile(r'(?:src|href|action|data-[a-z-]+)="([^"]*)"')

@@ -1,4 +1,4 @@
-"""The shared dataset's ``preferences`` config (issue 44 §5), on SQLite and PostgreSQL: a real
+"""The shared dataset's ``preferences`` config (issue 44 §5), on PostgreSQL: a real
 study, labelled through the REST API by participants who prefer the state with the higher
 environment reward (one of them once cannot tell), is downloaded as ``dataset.zip`` and loaded
 with ``datasets``; and the documented example, ``examples/bradley_terry.py``, run as a user
@@ -14,6 +14,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+import pytest
 import torch
 from fastapi.testclient import TestClient
 
@@ -21,6 +22,9 @@ from engine.envs import env_dims
 from tests.support.hf import consent, export, load, unzipped
 from tests.support.studies import Player
 from tests.support.web import ADMIN
+
+# postgres_only: fitting a reward model to an export is the subject, not storage.
+pytestmark = pytest.mark.postgres_only
 
 REPO = Path(__file__).resolve().parents[3]
 EXAMPLE = REPO / "examples" / "bradley_terry.py"

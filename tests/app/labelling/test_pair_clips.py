@@ -26,7 +26,8 @@ from tests.support.studies import Player, new_study
 from tests.support.wait import wait_for
 from tests.support.web import ADMIN, browser, csrf_token
 
-pytestmark = pytest.mark.training
+pytestmark = [pytest.mark.training, pytest.mark.postgres_only]
+# postgres_only: rendering clips is the subject, not storage.
 
 #: Rendering 4 clips of 2 s: seconds, more on a loaded 2-core machine.
 RENDER_S = 240

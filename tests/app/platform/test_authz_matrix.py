@@ -38,6 +38,9 @@ from tests.support.runs import TINY, create_run, wait_run
 from tests.support.studies import Player
 from tests.support.web import ADMIN, ADMIN_TOKEN, browser, csrf_token
 
+# postgres_only: a sweep of every route: validation and authorization are its subject, not storage.
+pytestmark = pytest.mark.postgres_only
+
 ANON, A, B, RESEARCHER = "anonymous", "participant A", "participant B", "researcher"
 EVERYONE = frozenset({ANON, A, B, RESEARCHER})
 #: (method or "*", path pattern, who may use it); first match wins.

@@ -1,7 +1,7 @@
 """The HTML pages without a browser: access, login, CSRF, forms, invite links, downloads and
 the security rules every page follows (no inline scripts, a CSP, no admin token).
 
-Runs on SQLite and PostgreSQL (the ``client`` fixture); each test drives its own cookie jar.
+Runs on PostgreSQL (the ``client`` fixture); each test drives its own cookie jar.
 """
 
 from __future__ import annotations
@@ -19,6 +19,9 @@ from fastapi.testclient import TestClient
 from engine.treefile import tree_from_json
 from tests.support.studies import Player, wait_ready
 from tests.support.web import ADMIN, ADMIN_TOKEN, audit, browser, csrf_token, logged_in
+
+# postgres_only: pages are the subject, not storage.
+pytestmark = pytest.mark.postgres_only
 
 
 @pytest.mark.parametrize(

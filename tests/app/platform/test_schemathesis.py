@@ -10,7 +10,8 @@ must be refused with a documented 4xx, never accepted nor a 5xx). Coverage reque
 the credentials of the operation's own security scheme. Its valid cases are left out: they
 would create studies and runs whose rendering and training load the machine for minutes.
 
-In-process (ASGI) on the ``client`` fixture's app, so on SQLite and PostgreSQL.
+In-process (ASGI) on the ``client`` fixture's app, on PostgreSQL (the
+stricter backend; ``test_bad_input`` runs SQLite's own limits).
 """
 
 from __future__ import annotations
@@ -33,6 +34,9 @@ from tests.support.evaluations import evaluator_headers
 from tests.support.surveys import finished, paper_body
 from tests.support.surveys import invite as invite_respondents
 from tests.support.web import ADMIN
+
+# postgres_only: a sweep of every route: validation and authorization are its subject, not storage.
+pytestmark = pytest.mark.postgres_only
 
 EXAMPLES = int(os.environ.get("ACV_SCHEMATHESIS_EXAMPLES", "8"))
 #: Checks that need no knowledge of which ids exist (random ids are 404s, which is right).

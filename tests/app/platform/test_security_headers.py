@@ -2,7 +2,7 @@
 JSON calls, security headers on every kind of response (the self-hosted API docs included),
 researcher sessions that expire on the server, and rate-limited logins and bearer tokens.
 
-Runs on SQLite and PostgreSQL (the ``client`` fixture); each test uses its own cookie jar.
+Runs on PostgreSQL (the ``client`` fixture); each test uses its own cookie jar.
 """
 
 from __future__ import annotations
@@ -23,6 +23,9 @@ from app.http.ratelimit import FAILED_LOGINS_PER_MINUTE
 from app.middleware import MAX_BODY_BYTES
 from tests.support.studies import Player
 from tests.support.web import ADMIN, ADMIN_TOKEN, browser, csrf_token, logged_in
+
+# postgres_only: pages are the subject, not storage.
+pytestmark = pytest.mark.postgres_only
 
 AJAX = dict([AJAX_HEADER])
 

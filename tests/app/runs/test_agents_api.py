@@ -35,6 +35,9 @@ from tests.support.runs import run_app
 from tests.support.studies import new_study
 from tests.support.web import ADMIN
 
+# postgres_only: training is the subject, not storage.
+pytestmark = pytest.mark.postgres_only
+
 
 @pytest.fixture(scope="module")
 def client(settings) -> Iterator[TestClient]:

@@ -18,6 +18,9 @@ from tests.support.runs import finished_participant, run_app
 from tests.support.studies import new_study
 from tests.support.web import ADMIN, audit, logged_in
 
+# postgres_only: pages are the subject, not storage.
+pytestmark = pytest.mark.postgres_only
+
 
 @pytest.fixture(scope="module")
 def client(settings) -> Iterator[TestClient]:

@@ -2,7 +2,7 @@
 
 A cancelled run's last checkpoint is written by the stop, which skips judging to stay quick;
 the server's worker, once idle, finds it and judges it in a backfill process of its own, so
-the compare page never waits for ever. Runs on SQLite and PostgreSQL.
+the compare page never waits for ever. Runs on PostgreSQL.
 """
 
 from __future__ import annotations
@@ -17,7 +17,8 @@ from tests.support.studies import new_study
 from tests.support.wait import wait_for
 from tests.support.web import ADMIN
 
-pytestmark = pytest.mark.training
+pytestmark = [pytest.mark.training, pytest.mark.postgres_only]
+# postgres_only: training is the subject, not storage.
 
 
 @pytest.fixture(scope="module")

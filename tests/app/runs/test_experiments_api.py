@@ -28,6 +28,9 @@ from tests.support.runs import TINY, finished_participant, run_app
 from tests.support.studies import new_study
 from tests.support.web import ADMIN, audit, csrf_token, logged_in
 
+# postgres_only: training is the subject, not storage.
+pytestmark = pytest.mark.postgres_only
+
 BODY = {"algo": "bipars-em", "timesteps": 512, **TINY}
 STEP = 256
 

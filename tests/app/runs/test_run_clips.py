@@ -42,6 +42,9 @@ from tests.support.studies import new_study
 from tests.support.wait import wait_for
 from tests.support.web import ADMIN, logged_in
 
+# postgres_only: rendering clips is the subject, not storage.
+pytestmark = pytest.mark.postgres_only
+
 #: Rolling out and rendering one clip: seconds, minutes on a loaded 2-core machine.
 RENDER_S = 300
 BROWSER_ADMIN = {"Authorization": f"Bearer {ADMIN_TOKEN}"}

@@ -1,7 +1,7 @@
 """``/api/runs``: the run lifecycle with tiny budgets, the agent's tree and conformance at every
 checkpoint (equal to the engine's), exports, cancellation and bad requests.
 
-Runs on SQLite and PostgreSQL; the app's own local worker executes the runs, two at a time,
+Runs on PostgreSQL; the app's own local worker executes the runs, two at a time,
 each in its own process.
 """
 
@@ -46,7 +46,8 @@ from tests.support.runs import (
 from tests.support.studies import new_study
 from tests.support.web import ADMIN
 
-pytestmark = pytest.mark.training
+pytestmark = [pytest.mark.training, pytest.mark.postgres_only]
+# postgres_only: training is the subject, not storage.
 
 STEPS = [256, 512, 768, 1024]
 

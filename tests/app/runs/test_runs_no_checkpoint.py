@@ -1,7 +1,7 @@
 """A run with no checkpoint yet is a state, not bad input: every operation on its checkpoint
 answers 409, as the OpenAPI document says (issue 24); while a saved checkpoint is being
 judged, each answers 202, documented too (issue 45 §6: ``report.html`` did not say so). On
-SQLite and PostgreSQL."""
+PostgreSQL."""
 
 from __future__ import annotations
 
@@ -14,6 +14,9 @@ from app.models import RunCheckpoint
 from tests.support.runs import TINY, create_run, finished_participant, run_app
 from tests.support.studies import new_study
 from tests.support.web import ADMIN
+
+# postgres_only: training is the subject, not storage.
+pytestmark = pytest.mark.postgres_only
 
 #: Every operation that reads a checkpoint of a run (the latest one when none is named).
 ON_A_CHECKPOINT = [

@@ -1,6 +1,6 @@
 """The run pages without a browser: access, the launch form (CSRF, errors next to fields),
 the run page, the comparison pages, cancel and resume forms, and the security rules every
-page follows (no inline scripts or handlers). Runs on SQLite and PostgreSQL.
+page follows (no inline scripts or handlers). Runs on PostgreSQL.
 """
 
 from __future__ import annotations
@@ -25,7 +25,8 @@ from tests.support.runs import (
 from tests.support.studies import new_study
 from tests.support.web import ADMIN, audit, browser, csrf_token, logged_in
 
-pytestmark = pytest.mark.training
+pytestmark = [pytest.mark.training, pytest.mark.postgres_only]
+# postgres_only: training is the subject, not storage.
 
 
 @pytest.fixture(scope="module")

@@ -3,7 +3,7 @@
 With ``ACV_SPLIT_LONE_RUN`` and one slot, a run that starts while no other run is running
 steps half of its envs in a helper process; it writes the same metrics rows as the same run
 in one process (bit-identity itself is ``tests/engine/rl/test_env_processes.py``'s). Another
-running run, on any worker, keeps a new one in one process. Runs on SQLite and PostgreSQL.
+running run, on any worker, keeps a new one in one process. Runs on PostgreSQL.
 """
 
 from __future__ import annotations
@@ -20,7 +20,8 @@ from tests.support.runs import TINY, create_run, get_run, run_app, wait_run
 from tests.support.studies import new_study
 from tests.support.web import ADMIN
 
-pytestmark = pytest.mark.training
+pytestmark = [pytest.mark.training, pytest.mark.postgres_only]
+# postgres_only: training is the subject, not storage.
 
 TWO_ENVS = {**TINY, "n_envs": 2, "timesteps": 512}
 SPLIT = "its envs step in 2 process(es)"

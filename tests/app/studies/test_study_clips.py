@@ -23,6 +23,9 @@ from tests.support.studies import new_study
 from tests.support.wait import wait_for
 from tests.support.web import ADMIN, logged_in
 
+# postgres_only: rendering clips is the subject, not storage.
+pytestmark = pytest.mark.postgres_only
+
 #: Rendering 4 clips of 2 s: seconds, more on a loaded 2-core machine.
 RENDER_S = 240
 
