@@ -21,14 +21,13 @@ from pathlib import Path
 import pytest
 import uvicorn
 from sqlalchemy import func, select
-from typer.testing import CliRunner
 
-from app.cli import cli
 from app.db import make_engine, make_sessions, upgrade
 from app.models import Candidate, Study
 from app.runtime import Runtime
 from app.settings import Settings
 from app.studies.service import StudySpec, create_study
+from tests.support.cli import acv
 from tests.support.net import free_port, listening
 from tests.support.postgres import BACKENDS, empty_database
 from tests.support.server import clean_env
@@ -92,7 +91,7 @@ def serve_here(monkeypatch) -> Callable[..., None]:
             monkeypatch.delenv(name)
         for name, value in env.items():
             monkeypatch.setenv(name, value)
-        result = CliRunner().invoke(cli, ["serve", "--port", str(free_port())])
+        result = acv("serve", "--port", free_port())
         assert_refused(result.exit_code, result.stderr, result.stdout, *needles)
 
     return check

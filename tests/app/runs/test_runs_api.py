@@ -19,9 +19,8 @@ import pytest
 from fastapi.testclient import TestClient
 from sqlalchemy import delete
 from sqlalchemy.orm import Session, sessionmaker
-from typer.testing import CliRunner, Result
+from typer.testing import Result
 
-from app.cli import cli
 from app.core import figures
 from app.db import make_engine, make_sessions
 from app.models import CheckpointArtefact, Experiment, ExperimentRun
@@ -33,6 +32,7 @@ from engine.pipeline import replay_with_teacher
 from engine.rl.checkpoint import list_checkpoints
 from engine.rl.report import checkpoint_report
 from engine.treefile import tree_from_json, tree_to_json
+from tests.support.cli import acv
 from tests.support.runs import (
     ENDLESS,
     TINY,
@@ -399,7 +399,7 @@ def _backfill_cli(settings, monkeypatch: pytest.MonkeyPatch) -> Result:
     """``acv worker --backfill`` in-process on this module's database and data dir."""
     monkeypatch.setenv("ACV_DATA_DIR", str(settings.data_dir))
     monkeypatch.setenv("DATABASE_URL", settings.sqlalchemy_url)
-    return CliRunner().invoke(cli, ["worker", "--backfill"])
+    return acv("worker", "--backfill")
 
 
 @contextmanager
