@@ -24,6 +24,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import scipy
 from scipy.special import betaincc
 
 from engine.errors import InputError
@@ -80,7 +81,7 @@ def gold_interval(checks: Checks, level: float = 0.95) -> tuple[float, float] | 
     """The Clopper-Pearson interval of gold accuracy; None before any gold item."""
     if checks.gold_asked == 0:
         return None
-    from scipy.stats import binomtest  # seconds to import: only where an interval is asked for
-
-    ci = binomtest(checks.gold_right, checks.gold_asked).proportion_ci(level, method="exact")
+    ci = scipy.stats.binomtest(checks.gold_right, checks.gold_asked).proportion_ci(
+        level, method="exact"
+    )
     return float(ci.low), float(ci.high)
