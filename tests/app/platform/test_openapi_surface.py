@@ -11,7 +11,12 @@ import json
 from pathlib import Path
 from typing import Any
 
+from fastapi import FastAPI
+
+from app.main import create_app
+from app.settings import Settings
 from tests.support.openapi import api_openapi
+from tests.support.web import ADMIN_TOKEN
 
 SURFACE = Path(__file__).with_name("openapi_surface.json")
 
@@ -39,6 +44,19 @@ def test_every_path_operation_and_field_is_kept() -> None:
     assert not missing, f"gone from the API: {sorted(missing)}"
     dropped = {k: sorted(set(v) - set(now[k])) for k, v in recorded.items() if set(v) - set(now[k])}
     assert not dropped, f"fields gone from the API: {dropped}"
+
+
+def test_apps_share_one_document_the_one_fastapi_generates_for_each(tmp_path: Path) -> None:
+    """``create_app`` generates the document once per process (``app.main._shared_openapi``):
+    an app with other settings (a trusted proxy, several processes) has the same routes, so
+    the document FastAPI generates for it alone is the shared one."""
+    plain = create_app(Settings(data_dir=tmp_path / "a", admin_token=ADMIN_TOKEN))
+    proxied = Settings(
+        data_dir=tmp_path / "b", admin_token=ADMIN_TOKEN, forwarded_allow_ips="10.0.0.1"
+    )
+    other = create_app(proxied, background=False, processes=2)
+    assert other.openapi() is plain.openapi()
+    assert FastAPI.openapi(other) == plain.openapi()
 
 
 if __name__ == "__main__":

@@ -15,7 +15,6 @@ import re
 import socket
 import subprocess
 import sys
-import time
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -24,6 +23,7 @@ import pytest
 
 from app.settings import Settings
 from tests.support.runs import TINY, create_run, finished_participant, run_app, wait_run
+from tests.support.server import wait_healthy
 from tests.support.studies import new_study
 from tests.support.web import ADMIN, ADMIN_TOKEN
 
@@ -118,16 +118,10 @@ def bare_server(
 
 
 def _wait_healthy(proc: subprocess.Popen, base: str, log: Path) -> None:
-    deadline = time.monotonic() + 120
-    while time.monotonic() < deadline:
-        assert proc.poll() is None, f"the server exited:\n{log.read_text()}"
-        try:
-            if httpx.get(f"{base}/healthz", timeout=2).status_code == 200:
-                return
-        except httpx.TransportError:
-            pass
-        time.sleep(0.3)
-    pytest.fail(f"the server did not start:\n{log.read_text()}")
+    try:
+        wait_healthy(base, proc)
+    except (AssertionError, pytest.fail.Exception):
+        pytest.fail(f"the server did not start:\n{log.read_text()}")
 
 
 def test_the_blocker_blocks(tmp_path: Path) -> None:
