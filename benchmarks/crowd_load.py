@@ -70,7 +70,7 @@ CEILING_S, CEILING_LOOPS = 4.0, 64
 
 sys.path.insert(0, str(REPO))  # test-support helpers: the server launcher, a PostgreSQL cluster
 from tests.support.postgres import PostgresCluster  # noqa: E402
-from tests.support.server import acv_serve, clean_env  # noqa: E402
+from tests.support.server import HTTP_TIMEOUT_S, acv_serve, clean_env  # noqa: E402
 
 
 @contextlib.contextmanager
@@ -116,14 +116,14 @@ def prepare(base: str, n_candidates: int, count: int) -> tuple[int, list[str]]:
         "instructions": "",
     }
     study_id = (
-        httpx.post(f"{base}/api/studies", json=body, headers=ADMIN, timeout=60)
+        httpx.post(f"{base}/api/studies", json=body, headers=ADMIN, timeout=HTTP_TIMEOUT_S)
         .raise_for_status()
         .json()["id"]
     )
     while (
-        status := httpx.get(f"{base}/api/studies/{study_id}", headers=ADMIN, timeout=60).json()[
-            "status"
-        ]
+        status := httpx.get(
+            f"{base}/api/studies/{study_id}", headers=ADMIN, timeout=HTTP_TIMEOUT_S
+        ).json()["status"]
     ) == "preparing":
         time.sleep(0.1)
     if status != "ready":
@@ -134,7 +134,7 @@ def prepare(base: str, n_candidates: int, count: int) -> tuple[int, list[str]]:
             f"{base}/api/studies/{study_id}/participants/batch",
             headers=ADMIN,
             json={"count": min(500, count - len(tokens))},
-            timeout=60,
+            timeout=HTTP_TIMEOUT_S,
         )
         tokens += [p["token"] for p in people.raise_for_status().json()]
     return study_id, tokens
@@ -145,9 +145,13 @@ def start_training(base: str, study_id: int) -> int:
     crowd starts: its executor writes run state rows to the same database all along."""
     body = {"study_id": study_id, "algo": "ppo", "timesteps": 10_000_000, "n_envs": 1,
             "num_steps": 128, "num_minibatches": 4, "update_epochs": 2}  # fmt: skip
-    run_id = int(httpx.post(f"{base}/api/runs", json=body, headers=ADMIN, timeout=60).json()["id"])
+    run = httpx.post(f"{base}/api/runs", json=body, headers=ADMIN, timeout=HTTP_TIMEOUT_S)
+    run_id = int(run.json()["id"])
     deadline = time.monotonic() + 300
-    while httpx.get(f"{base}/api/runs/{run_id}/metrics", headers=ADMIN, timeout=60).json() == []:
+    while (
+        httpx.get(f"{base}/api/runs/{run_id}/metrics", headers=ADMIN, timeout=HTTP_TIMEOUT_S).json()
+        == []
+    ):
         if time.monotonic() > deadline:  # the run never trained: say so, measure nothing
             raise SystemExit(f"training run {run_id} stored no metrics row in 300 s")
         time.sleep(0.2)  # training: the first metrics row is stored
@@ -156,8 +160,10 @@ def start_training(base: str, study_id: int) -> int:
 
 def stop_training(base: str, run_id: int) -> int:
     """Cancel the run; the metrics rows it wrote."""
-    httpx.post(f"{base}/api/runs/{run_id}/cancel", headers=ADMIN, timeout=60)
-    return len(httpx.get(f"{base}/api/runs/{run_id}/metrics", headers=ADMIN, timeout=60).json())
+    httpx.post(f"{base}/api/runs/{run_id}/cancel", headers=ADMIN, timeout=HTTP_TIMEOUT_S)
+    return len(
+        httpx.get(f"{base}/api/runs/{run_id}/metrics", headers=ADMIN, timeout=HTTP_TIMEOUT_S).json()
+    )
 
 
 @dataclass
@@ -379,7 +385,9 @@ async def crowd(
 def stored_labels(base: str, study_id: int) -> list[tuple[int, int]]:
     """``(match id, winner)`` of every stored label of the study."""
     text = (
-        httpx.get(f"{base}/api/studies/{study_id}/labels.csv", headers=ADMIN, timeout=60)
+        httpx.get(
+            f"{base}/api/studies/{study_id}/labels.csv", headers=ADMIN, timeout=HTTP_TIMEOUT_S
+        )
         .raise_for_status()
         .text
     )

@@ -46,7 +46,7 @@ POLL_S = 2.5  # the study page's interval (templates/_study_dashboard.html)
 ORDER = ("unwatched", "watched", "watched", "unwatched")
 
 sys.path.insert(0, str(REPO))  # test-support helpers: the server launcher
-from tests.support.server import acv_serve, clean_env  # noqa: E402
+from tests.support.server import HTTP_TIMEOUT_S, acv_serve, clean_env  # noqa: E402
 
 
 def prepare(api: httpx.Client, env_id: str, n_candidates: int, count: int) -> tuple[int, list[str]]:
@@ -192,7 +192,7 @@ def main() -> None:
         env = clean_env(ACV_DATA_DIR=data_dir, ACV_ADMIN_TOKEN=ADMIN_TOKEN, PYTHONPATH=str(REPO))
         with (
             acv_serve(env, Path(data_dir) / "server.log", "--no-access-log") as base,
-            httpx.Client(base_url=base, headers=ADMIN, timeout=120) as api,
+            httpx.Client(base_url=base, headers=ADMIN, timeout=HTTP_TIMEOUT_S) as api,
         ):
             crowds: dict[str, Crowd] = {"unwatched": Crowd(), "watched": Crowd()}
             for name in ORDER:  # A B B A: a drift over the run weighs on both alike

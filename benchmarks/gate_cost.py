@@ -32,7 +32,7 @@ ADMIN_TOKEN = "gate-cost-benchmark-admin-token-0123456789"  # >= 32 characters
 ADMIN = {"Authorization": f"Bearer {ADMIN_TOKEN}"}
 
 sys.path.insert(0, str(REPO))  # test-support helpers: the server launcher
-from tests.support.server import acv_serve, clean_env  # noqa: E402
+from tests.support.server import HTTP_TIMEOUT_S, acv_serve, clean_env  # noqa: E402
 
 
 def prepare(api: httpx.Client, n_candidates: int) -> int:
@@ -97,7 +97,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as data:
         env = clean_env(ACV_DATA_DIR=data, ACV_ADMIN_TOKEN=ADMIN_TOKEN, ACV_RUN_WORKER="0")
         with acv_serve(env, Path(data) / "serve.log") as base:
-            api = httpx.Client(base_url=base, headers=ADMIN, timeout=60)
+            api = httpx.Client(base_url=base, headers=ADMIN, timeout=HTTP_TIMEOUT_S)
             study, played = prepare(api, args.candidates), 0
             for size in sizes:
                 for token in invite(api, study, size - played):  # the study grows to size

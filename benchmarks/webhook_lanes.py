@@ -42,7 +42,7 @@ ADMIN = {"Authorization": f"Bearer {ADMIN_TOKEN}"}
 CSRF_RE = re.compile(r'name="csrf_token" value="([^"]+)"')
 
 sys.path.insert(0, str(REPO))  # test-support helpers: the server launcher, the receivers
-from tests.support.server import acv_serve, clean_env  # noqa: E402
+from tests.support.server import HTTP_TIMEOUT_S, acv_serve, clean_env  # noqa: E402
 from tests.support.webhooks import Receiver, StalledReceiver  # noqa: E402
 
 
@@ -65,7 +65,7 @@ def register(api: httpx.Client, study: int, url: str) -> None:
 
 def decline(base: str, slug: str) -> None:
     """A visitor of the link (a cookie jar of their own) who declines consent."""
-    with httpx.Client(base_url=base, timeout=60) as visitor:
+    with httpx.Client(base_url=base, timeout=HTTP_TIMEOUT_S) as visitor:
         form = visitor.get(f"/s/{slug}").raise_for_status()
         token = CSRF_RE.search(form.text)
         if token is None:
@@ -111,7 +111,9 @@ def main() -> None:
             **lanes,
         )
         base = stack.enter_context(acv_serve(env, Path(data) / "serve.log"))
-        api = stack.enter_context(httpx.Client(base_url=base, headers=ADMIN, timeout=60))
+        api = stack.enter_context(
+            httpx.Client(base_url=base, headers=ADMIN, timeout=HTTP_TIMEOUT_S)
+        )
         fast = stack.enter_context(Receiver())
         study, slug = prepare(api)
         register(api, study, fast.url())

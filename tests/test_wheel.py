@@ -25,7 +25,7 @@ from alembic.script import ScriptDirectory
 
 from app.core.resources import FOLDERS, MIGRATIONS_DIR
 from engine import __version__
-from tests.support.server import REPO, acv_serve, clean_env
+from tests.support.server import HTTP_TIMEOUT_S, REPO, acv_serve, clean_env
 
 pytestmark = pytest.mark.process
 
@@ -93,11 +93,11 @@ def test_the_installed_wheel_serves_the_demo_away_from_the_checkout(
 
     log = elsewhere / "serve.log"
     with acv_serve(env, log, "--demo", cwd=elsewhere) as base:
-        login = httpx.get(f"{base}/login", timeout=60)
-        css = httpx.get(f"{base}/static/css/acv.css", timeout=60)
+        login = httpx.get(f"{base}/login", timeout=HTTP_TIMEOUT_S)
+        css = httpx.get(f"{base}/static/css/acv.css", timeout=HTTP_TIMEOUT_S)
         invite = re.search(r"participant link: (\S+)", log.read_text())
         assert invite, log.read_text()
-        participant = httpx.get(invite[1], follow_redirects=True, timeout=60)
+        participant = httpx.get(invite[1], follow_redirects=True, timeout=HTTP_TIMEOUT_S)
     assert login.status_code == 200 and "<form" in login.text  # TemplateNotFound before
     assert css.status_code == 200 and css.headers["content-type"].startswith("text/css")
     assert participant.status_code == 200, participant.text[:500]

@@ -42,7 +42,7 @@ from app.settings import Settings
 from tests.support.browser import ADMIN_TOKEN as SERVER_ADMIN_TOKEN
 from tests.support.browser import CHROMIUM, CHROMIUM_ARGS, SCREENS_COPY
 from tests.support.postgres import BACKENDS, PostgresCluster, PostgresMissing
-from tests.support.server import acv_serve, clean_env
+from tests.support.server import HTTP_TIMEOUT_S, acv_serve, clean_env
 from tests.support.studies import Player, new_study
 from tests.support.web import ADMIN, ADMIN_TOKEN
 
@@ -183,7 +183,7 @@ def api(server: tuple[str, Path]) -> Iterator[httpx.Client]:
     """A researcher's REST client on this module's ``acv serve``."""
     base, _ = server
     admin = {"Authorization": f"Bearer {SERVER_ADMIN_TOKEN}"}
-    with httpx.Client(base_url=base, headers=admin, timeout=60) as client:
+    with httpx.Client(base_url=base, headers=admin, timeout=HTTP_TIMEOUT_S) as client:
         yield client
 
 

@@ -13,6 +13,7 @@ from app.core.auth import PARTICIPANT_COOKIE
 from tests.support.a11y import assert_accessible
 from tests.support.browser import ADMIN_TOKEN as SERVER_ADMIN_TOKEN
 from tests.support.browser import new_page
+from tests.support.server import HTTP_TIMEOUT_S
 from tests.support.studies import Player
 from tests.support.web import ADMIN
 
@@ -55,7 +56,7 @@ def turned_away(browser: Browser, errors: list[str], link: str, settings_url: st
     taken.goto(f"{link}?PROLIFIC_PID=pw-1&STUDY_ID=st&SESSION_ID=another")
     expect(taken.locator("h1")).to_have_text("This id has already taken part")
     assert_accessible(taken, "already taken part page")
-    with httpx.Client(headers=_SERVER_ADMIN, timeout=60) as api:
+    with httpx.Client(headers=_SERVER_ADMIN, timeout=HTTP_TIMEOUT_S) as api:
         closed = {"enabled": False, "max_participants": 5}
         assert api.put(settings_url, json=closed).status_code == 200
     _, new = new_page(browser, errors, viewport=_DESKTOP)

@@ -15,6 +15,9 @@ from tests.support.net import free_port
 from tests.support.wait import wait_for
 
 REPO = Path(__file__).resolve().parents[2]
+#: How long a test's HTTP call to a served app waits: on a loaded 2-core machine a fresh
+#: worker importing torch can hold a request for longer than httpx's default 5 s.
+HTTP_TIMEOUT_S = 60.0
 #: ``acv`` as a user starts it, in a fresh interpreter.
 ACV = [sys.executable, "-c", "from app.cli import main; main()"]
 

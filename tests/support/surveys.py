@@ -13,6 +13,7 @@ from app.models import CheckpointArtefact, Run
 from tests.support.browser import ADMIN_TOKEN as SERVER_ADMIN_TOKEN
 from tests.support.evaluations import evaluator_headers
 from tests.support.labelling import label_bracket, wait_until_prepared
+from tests.support.server import HTTP_TIMEOUT_S
 from tests.support.studies import Member, Player
 from tests.support.web import ADMIN
 
@@ -156,7 +157,7 @@ READY = "() => document.getElementById('respond').dataset.ready === 'true'"
 def two_finished_participants(base: str) -> int:
     """A ready 5-candidate study with two finished participants (API); returns the study."""
     admin = {"Authorization": f"Bearer {SERVER_ADMIN_TOKEN}"}  # the browser tests' server
-    with httpx.Client(base_url=base, headers=admin, timeout=60) as api:
+    with httpx.Client(base_url=base, headers=admin, timeout=HTTP_TIMEOUT_S) as api:
         study = api.post(
             "/api/studies",
             json={"name": "Survey trees", "env_id": "Hopper-v5", "n_candidates": 5, "seed": 4},

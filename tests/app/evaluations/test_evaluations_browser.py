@@ -35,7 +35,7 @@ from tests.support.browser import (
 )
 from tests.support.evaluations import EXPERIMENT, save_served_checkpoints
 from tests.support.labelling import wait_until_prepared
-from tests.support.server import acv_serve, clean_env
+from tests.support.server import HTTP_TIMEOUT_S, acv_serve, clean_env
 from tests.support.studies import Player
 from tests.support.wait import wait_for
 
@@ -63,7 +63,7 @@ def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[str, Path
 
 @pytest.fixture(scope="module")
 def api(server: tuple[str, Path]) -> Iterator[httpx.Client]:
-    with httpx.Client(base_url=server[0], headers=ADMIN, timeout=60) as client:
+    with httpx.Client(base_url=server[0], headers=ADMIN, timeout=HTTP_TIMEOUT_S) as client:
         yield client
 
 

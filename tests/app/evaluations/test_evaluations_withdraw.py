@@ -30,7 +30,7 @@ from tests.support.browser import DESKTOP, PHONE, fits_width, new_page, wait_unt
 from tests.support.evaluations import bare_evaluation
 from tests.support.labelling import wait_until_prepared
 from tests.support.runs import TINY, create_run, run_app
-from tests.support.server import acv_serve, clean_env
+from tests.support.server import HTTP_TIMEOUT_S, acv_serve, clean_env
 from tests.support.studies import new_study
 from tests.support.web import ADMIN, CSRF_RE, audit, csrf_token, logged_in
 from tests.support.web import browser as cookie_jar
@@ -226,7 +226,7 @@ def served(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[str, int]
     headers = {"Authorization": f"Bearer {SERVER_TOKEN}"}
     with (
         acv_serve(env, data_dir / "server.log") as base,
-        httpx.Client(base_url=base, headers=headers, timeout=60) as api,
+        httpx.Client(base_url=base, headers=headers, timeout=HTTP_TIMEOUT_S) as api,
     ):
         body = {"name": "Withdraw study", "env_id": "Hopper-v5", "n_candidates": 3, "seed": 2}
         study = api.post("/api/studies", json=body).json()
@@ -254,7 +254,7 @@ def test_the_withdraw_page_in_a_browser(
         f"{base}/api/evaluations/{evaluation_id}/evaluators",
         json={"count": 1},
         headers=headers,
-        timeout=60,
+        timeout=HTTP_TIMEOUT_S,
     )
     assert made.status_code == 201, made.text
     errors: list[str] = []

@@ -32,6 +32,7 @@ from tests.support.browser import (
     shown,
     wait_for_match,
 )
+from tests.support.server import HTTP_TIMEOUT_S
 
 pytestmark = pytest.mark.browser
 
@@ -159,7 +160,7 @@ def _stored_labels(base: str, study_url: str) -> dict[int, int]:
     response = httpx.get(
         f"{base}/api/studies/{study_id}/labels.csv",
         headers={"Authorization": f"Bearer {ADMIN_TOKEN}"},
-        timeout=60,
+        timeout=HTTP_TIMEOUT_S,
     )
     rows = list(csv.DictReader(io.StringIO(response.text)))
     assert all(row["response_ms"] != "" for row in rows)

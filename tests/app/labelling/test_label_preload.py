@@ -12,6 +12,7 @@ from playwright.sync_api import Browser
 
 from tests.support.a11y import assert_accessible
 from tests.support.browser import create_study_and_invite, new_page, shown, wait_for_match
+from tests.support.server import HTTP_TIMEOUT_S
 
 pytestmark = pytest.mark.browser
 PRELOAD_TIMEOUT_S = 30.0
@@ -22,7 +23,7 @@ def _following_pair(base: str, token: str, current: int) -> tuple[int, int]:
     rounds = httpx.get(
         f"{base}/api/participants/me/bracket",
         headers={"Authorization": f"Bearer {token}"},
-        timeout=60,
+        timeout=HTTP_TIMEOUT_S,
     ).json()["rounds"]
     return next(
         (c["a"], c["b"])
@@ -63,7 +64,7 @@ def test_next_pictures_are_fetched_before_the_choice(server, browser: Browser) -
     upcoming = httpx.get(
         f"{base}/api/participants/me/next-match",
         headers={"Authorization": f"Bearer {token}"},
-        timeout=60,
+        timeout=HTTP_TIMEOUT_S,
     ).json()
     assert shown(p, "a") == upcoming["left"]
     # One round trip per decision: the label's answer carried the match now shown.
@@ -87,7 +88,7 @@ def _server_winners(base: str, token: str) -> list[str]:
     rounds = httpx.get(
         f"{base}/api/participants/me/bracket",
         headers={"Authorization": f"Bearer {token}"},
-        timeout=60,
+        timeout=HTTP_TIMEOUT_S,
     ).json()["rounds"]
     return [
         f"{c['round']}:{c['winner']}"

@@ -21,6 +21,7 @@ from playwright.sync_api import Browser, Page, Request
 from tests.support.a11y import assert_accessible
 from tests.support.browser import ADMIN_TOKEN, DESKTOP, PHONE, new_page, slow_motion, wait_for_match
 from tests.support.labelling import wait_until_prepared
+from tests.support.server import HTTP_TIMEOUT_S
 
 pytestmark = pytest.mark.browser
 N_CANDIDATES = 8  # 7 matches: 4, 2 and the final
@@ -46,7 +47,7 @@ def invite(server) -> str:
     base, _ = server
     # a loaded machine may take more than httpx's default 5 s to create and render a study
     api = httpx.Client(
-        base_url=base, headers={"Authorization": f"Bearer {ADMIN_TOKEN}"}, timeout=120
+        base_url=base, headers={"Authorization": f"Bearer {ADMIN_TOKEN}"}, timeout=HTTP_TIMEOUT_S
     )
     study = api.post(
         "/api/studies", json={"name": "settled", "n_candidates": N_CANDIDATES, "seed": 3}

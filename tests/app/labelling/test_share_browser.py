@@ -16,6 +16,7 @@ from tests.support.a11y import assert_accessible
 from tests.support.browser import ADMIN_TOKEN, DESKTOP, PHONE, fits_width, new_page
 from tests.support.hf import check_tables, load, unzipped
 from tests.support.labelling import label_bracket, wait_until_prepared
+from tests.support.server import HTTP_TIMEOUT_S
 
 pytestmark = pytest.mark.browser
 ADMIN = {"Authorization": f"Bearer {ADMIN_TOKEN}"}
@@ -25,7 +26,7 @@ CONSENT = "We store your choices and your Prolific id, nothing else."
 def study_with_link(base: str) -> tuple[int, str, str]:
     """A ready 4-candidate study with an open link that asks consent, and one participant
     invited by link: ``(study id, open link, invite link)``."""
-    with httpx.Client(base_url=base, headers=ADMIN, timeout=60) as api:
+    with httpx.Client(base_url=base, headers=ADMIN, timeout=HTTP_TIMEOUT_S) as api:
         study = api.post(
             "/api/studies", json={"name": "Sharing", "env_id": "Hopper-v5", "n_candidates": 4}
         ).json()
@@ -85,7 +86,7 @@ def test_sharing_is_offered_saved_and_exported(
     assert fits_width(consent)
     assert_accessible(consent, "consent page on a phone")
 
-    with httpx.Client(base_url=base, timeout=60) as api:
+    with httpx.Client(base_url=base, timeout=HTTP_TIMEOUT_S) as api:
         label_bracket(api, token, lambda m: m["left"])
         listed = api.get(f"/api/studies/{study_id}/participants", headers=ADMIN).json()
     assert [p["share_consent"] for p in listed] == [True, True]

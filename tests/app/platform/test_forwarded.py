@@ -19,7 +19,7 @@ from app.http.ratelimit import FAILED_LOGINS_PER_MINUTE, LoginLimiter
 from app.main import create_app
 from app.settings import Settings
 from tests.support.crowd import configure
-from tests.support.server import acv_serve, clean_env
+from tests.support.server import HTTP_TIMEOUT_S, acv_serve, clean_env
 from tests.support.web import ADMIN_TOKEN
 
 WRONG = {"Authorization": "Bearer " + "x" * 40}
@@ -70,7 +70,7 @@ def test_a_proxy_that_is_not_an_address_is_refused(tmp_path: Path, bad: str) -> 
 def _failed_logins(base: str, forwarded: list[str]) -> list[int]:
     return [
         httpx.get(
-            f"{base}/api/studies", headers=WRONG | {"X-Forwarded-For": a}, timeout=60
+            f"{base}/api/studies", headers=WRONG | {"X-Forwarded-For": a}, timeout=HTTP_TIMEOUT_S
         ).status_code
         for a in forwarded
     ]

@@ -20,6 +20,7 @@ import pytest
 
 from tests.support.benchmarks import load_benchmark
 from tests.support.postgres import BACKENDS
+from tests.support.server import HTTP_TIMEOUT_S
 from tests.support.wait import wait_for
 
 pytestmark = pytest.mark.process  # acv serve (and acv worker) under load, killed midway
@@ -35,9 +36,6 @@ ENDLESS_RUN = {
     "update_epochs": 2,
     "checkpoint_every": 256,
 }
-#: Seconds a request to the loaded server may take: the first run request of a fresh server
-#: imports torch, which takes longer than httpx's 5 s default on a busy 2-core machine.
-HTTP_TIMEOUT_S = 60.0
 
 
 @pytest.mark.parametrize("backend", BACKENDS)

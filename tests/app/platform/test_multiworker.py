@@ -25,6 +25,7 @@ import pytest
 
 from app.http.ratelimit import FAILED_LOGINS_PER_MINUTE
 from tests.support.net import free_port
+from tests.support.server import HTTP_TIMEOUT_S
 from tests.support.wait import wait_for
 from tests.support.web import ADMIN, ADMIN_TOKEN
 
@@ -78,7 +79,7 @@ class Served:
         wait_for(
             self._both_started, what="both server processes to start", timeout_s=START_TIMEOUT_S
         )
-        assert httpx.get(f"{self.base}/healthz", timeout=60).status_code == 200
+        assert httpx.get(f"{self.base}/healthz", timeout=HTTP_TIMEOUT_S).status_code == 200
 
     def _both_started(self) -> bool:
         assert self.proc.poll() is None, self.text()[-3000:]

@@ -23,7 +23,7 @@ import pytest
 
 from app.settings import Settings
 from tests.support.runs import TINY, create_run, finished_participant, run_app, wait_run
-from tests.support.server import wait_healthy
+from tests.support.server import HTTP_TIMEOUT_S, wait_healthy
 from tests.support.studies import new_study
 from tests.support.web import ADMIN, ADMIN_TOKEN
 
@@ -135,7 +135,7 @@ def test_the_blocker_blocks(tmp_path: Path) -> None:
 
 def test_compare_page_and_curve_without_torch_or_mujoco(bare_server: str, judged_run: dict) -> None:
     run_id = judged_run["id"]
-    with httpx.Client(base_url=bare_server, timeout=60) as web:
+    with httpx.Client(base_url=bare_server, timeout=HTTP_TIMEOUT_S) as web:
         form = web.get("/login").text
         token = re.search(r'name="csrf_token" value="([^"]+)"', form).group(1)
         web.post("/login", data={"csrf_token": token, "token": ADMIN_TOKEN, "next": "/"})
@@ -163,7 +163,7 @@ def test_the_run_is_served_from_rows_with_its_folder_gone(
     away = folder.with_name(f"{run_id}-away")
     folder.rename(away)
     try:
-        with httpx.Client(base_url=bare_server, timeout=60, headers=ADMIN) as api:
+        with httpx.Client(base_url=bare_server, timeout=HTTP_TIMEOUT_S, headers=ADMIN) as api:
             metrics = api.get(f"/api/runs/{run_id}/metrics").json()
             checkpoints = api.get(f"/api/runs/{run_id}/checkpoints").json()
             report = api.get(f"/api/runs/{run_id}/report.html")

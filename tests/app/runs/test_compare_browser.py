@@ -37,7 +37,7 @@ from tests.support.browser import (  # noqa: F401 (SETTLE_TIMEOUT_MS sets expect
     wait_until_still,
 )
 from tests.support.labelling import label_bracket, wait_until_prepared
-from tests.support.server import acv_serve, clean_env
+from tests.support.server import HTTP_TIMEOUT_S, acv_serve, clean_env
 from tests.support.wait import wait_for
 
 pytestmark = [pytest.mark.browser, pytest.mark.training]
@@ -95,7 +95,7 @@ def _standing_participant(api: httpx.Client, study_id: int) -> int:
 def finished_run(server: str) -> dict:
     """A succeeded ``bipars-em`` run on a standing-advice participant's tree, and (id under
     ``baseline``) a succeeded ``ppo`` run on the same advice."""
-    with httpx.Client(base_url=server, headers=ADMIN, timeout=60) as api:
+    with httpx.Client(base_url=server, headers=ADMIN, timeout=HTTP_TIMEOUT_S) as api:
         study = api.post(
             "/api/studies",
             json={
@@ -225,7 +225,7 @@ def test_comparison_page_shows_both_trees_and_the_rejected_advice(
     rejected = httpx.get(
         f"{server}/api/runs/{run_id}/conformance?checkpoint=1024&judge=shaped-value",
         headers=ADMIN,
-        timeout=60,
+        timeout=HTTP_TIMEOUT_S,
     ).json()["rejected"]
     # This view overturns some advice (3 of 7 with this seed): the list must show it.
     assert len(rejected) >= 1, "no overturned match to list: change the seed or the view"

@@ -23,7 +23,7 @@ from tests.support.a11y import assert_accessible
 from tests.support.artefacts import report_body
 from tests.support.browser import ADMIN_TOKEN, DESKTOP, PHONE, new_page
 from tests.support.labelling import wait_until_prepared
-from tests.support.server import acv_serve, clean_env
+from tests.support.server import HTTP_TIMEOUT_S, acv_serve, clean_env
 
 pytestmark = pytest.mark.browser
 ADMIN = {"Authorization": f"Bearer {ADMIN_TOKEN}"}
@@ -55,7 +55,7 @@ def _judge_every_run(data_dir: Path, experiment: dict, advice: np.ndarray) -> No
 
 def test_the_verdict_arrives_on_the_experiment_page(server, browser: Browser) -> None:
     base, data_dir = server
-    with httpx.Client(base_url=base, headers=ADMIN, timeout=60) as api:
+    with httpx.Client(base_url=base, headers=ADMIN, timeout=HTTP_TIMEOUT_S) as api:
         study = api.post(
             "/api/studies", json={"name": "exp", "env_id": "Hopper-v5", "n_candidates": 8}
         ).json()

@@ -15,6 +15,7 @@ from playwright.sync_api import Browser, expect
 
 from tests.support.a11y import assert_accessible
 from tests.support.browser import ADMIN_TOKEN, new_page
+from tests.support.server import HTTP_TIMEOUT_S
 from tests.support.surveys import two_finished_participants
 from tests.support.wait import wait_for
 
@@ -28,7 +29,7 @@ def test_a_run_on_pooled_advice_from_the_form_to_the_comparison(
 ) -> None:
     base = server[0]
     study_id = two_finished_participants(base)
-    with httpx.Client(base_url=base, headers=ADMIN, timeout=60) as api:
+    with httpx.Client(base_url=base, headers=ADMIN, timeout=HTTP_TIMEOUT_S) as api:
         people = sorted(p["id"] for p in api.get(f"/api/studies/{study_id}/participants").json())
     errors: list[str] = []
     context, page = new_page(browser, errors, viewport={"width": 1280, "height": 900})
@@ -48,7 +49,7 @@ def test_a_run_on_pooled_advice_from_the_form_to_the_comparison(
     page.click("text=Start training")
     page.wait_for_url(re.compile(rf"{base}/runs/\d+$"))
     run_id = int(page.url.rstrip("/").rsplit("/", 1)[1])
-    with httpx.Client(base_url=base, headers=ADMIN, timeout=60) as api:
+    with httpx.Client(base_url=base, headers=ADMIN, timeout=HTTP_TIMEOUT_S) as api:
         run = wait_for(
             lambda: api.get(f"/api/runs/{run_id}").json(),
             lambda r: r["status"] not in ("queued", "running"),

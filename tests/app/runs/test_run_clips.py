@@ -37,7 +37,7 @@ from tests.support.evaluations import (
 )
 from tests.support.labelling import wait_until_prepared
 from tests.support.runs import run_app
-from tests.support.server import acv_serve, clean_env
+from tests.support.server import HTTP_TIMEOUT_S, acv_serve, clean_env
 from tests.support.studies import new_study
 from tests.support.wait import wait_for
 from tests.support.web import ADMIN, logged_in
@@ -154,7 +154,7 @@ def served(server: tuple[str, Path]) -> dict[str, Any]:
     """An experiment on the server (2 seeds) whose advised and baseline runs saved a
     checkpoint."""
     base, data_dir = server
-    with httpx.Client(base_url=base, headers=BROWSER_ADMIN, timeout=60) as api:
+    with httpx.Client(base_url=base, headers=BROWSER_ADMIN, timeout=HTTP_TIMEOUT_S) as api:
         body = {"name": "Clip study", "env_id": "Hopper-v5", "n_candidates": 5, "seed": 6}
         study = api.post("/api/studies", json=body)
         wait_until_prepared(api, study.json()["id"])
@@ -242,7 +242,7 @@ def test_the_compare_page_shows_the_clip_and_the_evaluation(
 ) -> None:
     base, _ = server
     run_id = _role(served, "advised")
-    with httpx.Client(base_url=base, headers=BROWSER_ADMIN, timeout=60) as api:
+    with httpx.Client(base_url=base, headers=BROWSER_ADMIN, timeout=HTTP_TIMEOUT_S) as api:
         made = api.post(
             f"/api/experiments/{served['id']}/evaluations",
             json={"pairs_per_evaluator": 6, "stimulus": "still"},

@@ -10,7 +10,7 @@ import pytest
 
 from engine.treefile import load_tree
 from tests.support.cli import acv
-from tests.support.server import acv_serve, clean_env
+from tests.support.server import HTTP_TIMEOUT_S, acv_serve, clean_env
 
 
 @pytest.fixture
@@ -136,7 +136,9 @@ def test_serve_migrates_a_fresh_database_and_prints_the_login_url(tmp_path) -> N
     with acv_serve(clean_env(ACV_DATA_DIR=str(tmp_path / "fresh")), log, "--no-access-log") as base:
         token = (tmp_path / "fresh" / "admin_token").read_text().strip()
         studies = httpx.get(
-            f"{base}/api/studies", headers={"Authorization": f"Bearer {token}"}, timeout=60
+            f"{base}/api/studies",
+            headers={"Authorization": f"Bearer {token}"},
+            timeout=HTTP_TIMEOUT_S,
         )
         assert studies.json() == []  # the schema exists: migrations ran
     assert f"researcher login: {base}/login#token={token}" in log.read_text()

@@ -20,6 +20,7 @@ from tests.support.a11y import assert_accessible
 from tests.support.browser import ADMIN_TOKEN, new_page, shown, wait_for_match
 from tests.support.crowd import turned_away
 from tests.support.labelling import label_bracket, wait_until_prepared
+from tests.support.server import HTTP_TIMEOUT_S
 
 pytestmark = pytest.mark.browser
 ADMIN = {"Authorization": f"Bearer {ADMIN_TOKEN}"}
@@ -68,7 +69,7 @@ def test_open_link_consent_bracket_check_and_completion(
 ) -> None:
     base, _ = server
     errors: list[str] = []
-    with httpx.Client(base_url=base, headers=ADMIN, timeout=60) as api:
+    with httpx.Client(base_url=base, headers=ADMIN, timeout=HTTP_TIMEOUT_S) as api:
         study_id = ready_study(api)
     _, page = new_page(browser, errors, viewport=DESKTOP)
     link = open_the_link(page, base, study_id, platform)
@@ -105,7 +106,7 @@ def test_open_link_consent_bracket_check_and_completion(
     expect(d.locator("h1")).to_have_text("You declined")
     assert_accessible(d, "declined page")
 
-    with httpx.Client(base_url=base, headers=ADMIN, timeout=60) as api:  # now one place
+    with httpx.Client(base_url=base, headers=ADMIN, timeout=HTTP_TIMEOUT_S) as api:  # now one place
         assert (
             api.put(
                 f"/api/studies/{study_id}/crowd", json={"enabled": True, "max_participants": 1}
@@ -119,7 +120,7 @@ def test_open_link_consent_bracket_check_and_completion(
 
     turned_away(browser, errors, link, f"{base}/api/studies/{study_id}/crowd")
 
-    with httpx.Client(base_url=base, headers=ADMIN, timeout=60) as api:
+    with httpx.Client(base_url=base, headers=ADMIN, timeout=HTTP_TIMEOUT_S) as api:
         rows = api.get(f"/api/studies/{study_id}/export/labels.jsonl").text.splitlines()
         quality = api.get(f"/api/studies/{study_id}/quality").json()
         crowd = api.get(f"/api/studies/{study_id}/crowd").json()
@@ -135,7 +136,7 @@ def test_open_link_consent_bracket_check_and_completion(
 
 def _play_api(base: str, link: str, pid: str, pick) -> None:
     """Join by the open link as ``pid`` and decide every match with ``pick``."""
-    with httpx.Client(base_url=base, timeout=60, follow_redirects=False) as visitor:
+    with httpx.Client(base_url=base, timeout=HTTP_TIMEOUT_S, follow_redirects=False) as visitor:
         token = visitor.get(f"{link}?PROLIFIC_PID={pid}").cookies["acv_participant"]
         label_bracket(visitor, token, pick, response_ms=300 * len(pid))
 
@@ -145,7 +146,7 @@ def test_study_page_shows_agreement_and_quality_flags(
 ) -> None:
     base, _ = server
     errors: list[str] = []
-    with httpx.Client(base_url=base, headers=ADMIN, timeout=60) as api:
+    with httpx.Client(base_url=base, headers=ADMIN, timeout=HTTP_TIMEOUT_S) as api:
         study_id = api.post(
             "/api/studies",
             json={"name": "Crowd agreement", "env_id": "Hopper-v5", "n_candidates": 8, "seed": 2},

@@ -19,6 +19,7 @@ from playwright.sync_api import Browser, Page, Route, expect
 from tests.support.a11y import assert_accessible
 from tests.support.browser import ADMIN_TOKEN, new_page
 from tests.support.crowd import turned_away
+from tests.support.server import HTTP_TIMEOUT_S
 from tests.support.surveys import READY, paper_body, two_finished_participants
 
 pytestmark = pytest.mark.browser
@@ -50,7 +51,7 @@ class Gate:
 def two_stimulus_survey(base: str) -> int:
     """A paper survey (API) with two stimuli and no attention check: two screens."""
     study_id = two_finished_participants(base)
-    with httpx.Client(base_url=base, headers=ADMIN, timeout=60) as api:
+    with httpx.Client(base_url=base, headers=ADMIN, timeout=HTTP_TIMEOUT_S) as api:
         people = api.get(f"/api/studies/{study_id}/participants").json()
         one, two = ({"kind": "participant", "participant_id": p["id"]} for p in people[:2])
         stimuli = [
@@ -140,7 +141,9 @@ def test_open_link_consent_screens_and_completion(
     expect(d.locator("h1")).to_have_text("This survey is full")
     assert_accessible(d, "survey full page")
 
-    with httpx.Client(base_url=base, headers=ADMIN, timeout=60) as api:  # one place more
+    with httpx.Client(
+        base_url=base, headers=ADMIN, timeout=HTTP_TIMEOUT_S
+    ) as api:  # one place more
         url = f"/api/surveys/{survey_id}/crowd"
         settings = api.get(url).json()
         kept = {k: settings[k] for k in ("enabled", "consent_text", "external_params")}
@@ -153,7 +156,7 @@ def test_open_link_consent_screens_and_completion(
 
     turned_away(browser, errors, link, f"{base}/api/surveys/{survey_id}/crowd")
 
-    with httpx.Client(base_url=base, headers=ADMIN, timeout=60) as api:
+    with httpx.Client(base_url=base, headers=ADMIN, timeout=HTTP_TIMEOUT_S) as api:
         crowd: dict[str, Any] = api.get(f"/api/surveys/{survey_id}/crowd").json()
         rows = api.get(f"/api/surveys/{survey_id}/answers.jsonl").text.splitlines()
     assert (crowd["joined"], crowd["declines"], crowd["completed"]) == (1, 1, 1)

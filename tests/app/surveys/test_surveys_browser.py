@@ -22,6 +22,7 @@ from app.models import CheckpointArtefact, Run
 from app.settings import SQLITE_FILE
 from tests.support.a11y import assert_accessible
 from tests.support.browser import ADMIN_TOKEN, fits_width, new_page
+from tests.support.server import HTTP_TIMEOUT_S
 from tests.support.surveys import READY, two_finished_participants
 
 pytestmark = pytest.mark.browser
@@ -177,7 +178,7 @@ def test_blank_questions_an_upload_and_a_run_through_the_form(
 ) -> None:
     base, log = server
     study_id = two_finished_participants(base)
-    with httpx.Client(base_url=base, headers=ADMIN, timeout=120) as api:
+    with httpx.Client(base_url=base, headers=ADMIN, timeout=HTTP_TIMEOUT_S) as api:
         people = [
             p
             for p in api.get("/api/surveys/sources").json()["participants"]
@@ -223,7 +224,7 @@ def test_blank_questions_an_upload_and_a_run_through_the_form(
     expect(page.locator(".stimulus-preview svg.pref-tree image")).to_have_count(10)
     expect(page.locator(".stimulus-preview svg.pref-tree .rejected").first).to_be_visible()
     context.close()
-    with httpx.Client(base_url=base, headers=ADMIN, timeout=120) as api:
+    with httpx.Client(base_url=base, headers=ADMIN, timeout=HTTP_TIMEOUT_S) as api:
         survey = api.get(f"/api/surveys/{survey_id}").json()
     assert [(q["kind"], q["expected"], q["confidence"]) for q in survey["questions"]] == [
         ("choice", "disagree", True),

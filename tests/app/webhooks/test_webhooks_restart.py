@@ -13,7 +13,7 @@ import httpx
 import pytest
 
 from tests.support.labelling import label_bracket, wait_until_prepared
-from tests.support.server import acv_serve, clean_env
+from tests.support.server import HTTP_TIMEOUT_S, acv_serve, clean_env
 from tests.support.wait import wait_for
 from tests.support.web import ADMIN, ADMIN_TOKEN
 from tests.support.webhooks import Receiver, attempts, events
@@ -51,7 +51,7 @@ def test_a_restart_in_the_middle_of_retries_loses_no_event(
     env, receiver = _env(data_dir, url), Receiver()  # the receiver is down: nothing listens
     with (
         acv_serve(env, data_dir / "first.log") as base,
-        httpx.Client(base_url=base, headers=ADMIN, timeout=60) as api,
+        httpx.Client(base_url=base, headers=ADMIN, timeout=HTTP_TIMEOUT_S) as api,
     ):
         study_id = _finish_one(api)
         hook = api.post("/api/webhooks", json={"study_id": study_id, "url": receiver.url()})
@@ -70,7 +70,7 @@ def test_a_restart_in_the_middle_of_retries_loses_no_event(
     with (
         receiver,
         acv_serve(env, data_dir / "second.log") as base,
-        httpx.Client(base_url=base, headers=ADMIN, timeout=60) as api,
+        httpx.Client(base_url=base, headers=ADMIN, timeout=HTTP_TIMEOUT_S) as api,
     ):
         wait_for(
             lambda: {e["event_id"]: e["status"] for e in events(api, hook_id)},
