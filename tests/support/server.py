@@ -29,11 +29,9 @@ def clean_env(**settings: str) -> dict[str, str]:
     return env | settings
 
 
-def healthy(base: str, client: httpx.Client | None = None) -> bool:
-    """Whether ``base/healthz`` answers 200 (on ``client``, else a new one)."""
+def healthy(base: str, client: httpx.Client) -> bool:
+    """Whether ``base/healthz`` answers 200."""
     try:
-        if client is None:
-            return httpx.get(f"{base}/healthz", timeout=2).status_code == 200
         return client.get(f"{base}/healthz").status_code == 200
     except httpx.TransportError:
         return False
@@ -47,7 +45,7 @@ def wait_healthy(base: str, proc: subprocess.Popen, timeout_s: float = 120.0) ->
         return healthy(base, client)
 
     # One client for every probe: a new one loads the CA bundle for its TLS context each time
-    # (tens of ms of CPU, 3% of the suite's over the polls of a server's start).
+    # (tens of ms of CPU; 4.6% of the busy samples of a profile of a third of the suite).
     with httpx.Client(timeout=2) as client:
         wait_for(probe, what=f"acv serve at {base} to be healthy", timeout_s=timeout_s, every_s=0.2)
 
