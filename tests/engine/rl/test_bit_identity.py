@@ -1,13 +1,14 @@
 """Bit-identity: the two regression tests that class every change to training and judging.
 
-Values committed in ``data/bit_identity/`` before a change are its reference:
+Values committed in ``data/bit_identity/`` before a change are its reference, one pair of files
+per kind of CPU kernel torch picks (``<name>-<capability>.json``, :data:`CPU_CAPABILITY`):
 
-- ``training.json``: per algorithm, the metrics rows of a 3-update Humanoid-v5 run with the
-  product's hyper-parameters (4 envs x 512 steps, 10 epochs of 32 minibatches of 64, 2x64 tanh
-  networks, observation and reward normalisation, float32, one torch thread), and a SHA-256 of
-  each part of its final checkpoint's content;
-- ``judging.json``: the ``behaviour`` and ``return`` measures of the committed checkpoint
-  ``judged.pt`` (that bipars-em run's networks and normaliser) over the committed bracket
+- ``training-<capability>.json``: per algorithm, the metrics rows of a 3-update Humanoid-v5
+  run with the product's hyper-parameters (4 envs x 512 steps, 10 epochs of 32 minibatches of
+  64, 2x64 tanh networks, observation and reward normalisation, float32, one torch thread), and
+  a SHA-256 of each part of its final checkpoint's content;
+- ``judging-<capability>.json``: the ``behaviour`` and ``return`` measures of the committed
+  checkpoint ``judged.pt`` (that bipars-em run's networks and normaliser) over the committed bracket
   ``advice.json``, computed as :func:`engine.validation.measure.measure` computes them
   (:func:`engine.verdict_runs.judge_scores` at the default rollouts).
 
@@ -17,9 +18,14 @@ folder; its docstring says how, and that the commit must say so). Equality is ex
 round-trips float64 exactly. That a stopped-and-resumed run equals an uninterrupted one is
 ``test_rl_runner.py::test_resume_after_a_stop_matches_an_uninterrupted_run``.
 
-The values hold on one platform: torch and OpenBLAS pick kernels by CPU, and other versions of
-torch, numpy, MuJoCo or Gymnasium may change the last bits. The committed files record the
-platform they were made on (:func:`environment`), and a failure prints it beside this one's.
+The values hold on one platform: torch and its BLAS pick kernels by CPU (an AVX512 machine
+trains other last bits than an AVX2 one), and other versions of torch, numpy, MuJoCo or
+Gymnasium may change them too. So the reference is kept per CPU capability, each made by the
+training code of round 2's declaration (docs/validation.md §6, ef285ec) on such a machine
+(``regenerate.py`` says how); the files record the platform they were made on
+(:func:`environment`), and a failure prints it beside this one's. A machine whose capability has
+no file fails, saying so: its reference has to be made from the frozen code, never from the code
+under test.
 """
 
 from __future__ import annotations
@@ -49,8 +55,10 @@ from engine.treefile import TreeDocument, load_tree
 from engine.verdict_runs import judge_scores
 
 DATA = Path(__file__).parent / "data" / "bit_identity"
-TRAINING = DATA / "training.json"
-JUDGING = DATA / "judging.json"
+#: The kernels torch dispatches to on this machine ("AVX2", "AVX512", ...).
+CPU_CAPABILITY = torch.backends.cpu.get_cpu_capability()
+TRAINING = DATA / f"training-{CPU_CAPABILITY}.json"
+JUDGING = DATA / f"judging-{CPU_CAPABILITY}.json"
 ADVICE = DATA / "advice.json"
 JUDGED = DATA / "judged.pt"
 UPDATES = 3
@@ -79,7 +87,7 @@ def environment() -> dict[str, str]:
         "python": platform.python_version(),
         "machine": platform.machine(),
         "torch": torch.__version__,
-        "torch_cpu_capability": torch.backends.cpu.get_cpu_capability(),
+        "torch_cpu_capability": CPU_CAPABILITY,
         "numpy": np.__version__,
         "mujoco": mujoco.__version__,
         "gymnasium": gymnasium.__version__,
@@ -143,7 +151,12 @@ def judge_measures(checkpoint: Path, run: Path, judge: str) -> list[float]:
 
 
 def committed(path: Path) -> dict[str, Any]:
-    """A committed file of expected values."""
+    """A committed file of expected values (this CPU capability's)."""
+    if not path.is_file():
+        pytest.fail(
+            f"no bit-identity reference for {CPU_CAPABILITY} kernels ({path.name}): make it with "
+            "data/bit_identity/regenerate.py from the frozen training code, as its docstring says"
+        )
     expected: dict[str, Any] = json.loads(path.read_text())
     return expected
 
@@ -168,6 +181,15 @@ def test_judging_is_bit_identical(judge: str, tmp_path: Path) -> None:
     assert file_digest(JUDGED) == expected["checkpoint_sha256"], "judged.pt is not the one measured"
     got = judge_measures(JUDGED, tmp_path / "run", judge)
     assert got == expected["measures"][judge], platforms(expected)
+
+
+@pytest.mark.parametrize("name", ["training", "judging"])
+def test_each_reference_is_filed_under_the_kernels_it_was_made_with(name: str) -> None:
+    files = sorted(DATA.glob(f"{name}-*.json"))
+    assert {path.stem.removeprefix(f"{name}-") for path in files} >= {"AVX2", "AVX512"}
+    for path in files:
+        made_on = committed(path)["environment"]["torch_cpu_capability"]
+        assert path.stem == f"{name}-{made_on}"
 
 
 def test_flat_step_is_adams_step_bit_for_bit() -> None:

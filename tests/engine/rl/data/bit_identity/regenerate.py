@@ -1,18 +1,25 @@
-"""Rewrite the values that ``tests/engine/rl/test_bit_identity.py`` compares against.
+"""Rewrite the values that ``tests/engine/rl/test_bit_identity.py`` compares against: this
+machine's CPU capability's ``training-<capability>.json`` and ``judging-<capability>.json``.
 
 Run it only for a change classed **number-altering** (one after which those tests fail, by
 design or because nothing cheaper keeps the numbers), and say so in the commit message, with
 what the change alters. A bit-identical change never regenerates: a test that fails after it
-found a bug. From the repository root, on the platform the values were made on (the files
-record it)::
+found a bug. From the repository root::
 
     .venv/bin/python -m tests.engine.rl.data.bit_identity.regenerate
 
-It retrains the 3-update runs (under a minute on one core), rewrites ``training.json``, then
-re-measures the committed checkpoint and rewrites ``judging.json``. The inputs, the bracket
+It retrains the 3-update runs (under a minute on one core), rewrites the training file, then
+re-measures the committed checkpoint and rewrites the judging file. The inputs, the bracket
 ``advice.json`` and the checkpoint ``judged.pt``, are kept; ``--inputs`` makes them anew first
 (only when they no longer load): the bracket from :func:`engine.pipeline.run_tournament`, the
 checkpoint from the new bipars-em run, cut to what judging loads.
+
+**A machine with another CPU capability** (its tests fail: no file for it) gets its files from
+the frozen training code, never from the code under test, which is what the files check: run
+this module in a copy of that commit (``git archive ef285ec | tar -x -C /tmp/frozen``, then
+``PYTHONPATH=/tmp/frozen`` from ``/tmp/frozen``) and copy the two files it writes here, renamed
+``training-<capability>.json`` and ``judging-<capability>.json`` (that commit writes them
+without the suffix). The AVX512 files were made so, on 2026-11-28.
 """
 
 from __future__ import annotations
