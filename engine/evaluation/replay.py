@@ -137,12 +137,22 @@ def _generators(seed: int, replay: int, key: str, judge: str) -> list[np.random.
 
 
 def replay_once(
-    u: np.ndarray, judge: Judge, key: str, seed: int, replay: int, n_boot: int = N_BOOT
+    u: np.ndarray,
+    judge: Judge,
+    key: str,
+    seed: int,
+    replay: int,
+    n_boot: int = N_BOOT,
+    taste: np.ndarray | None = None,
 ) -> tuple[str, str]:
     """One simulated evaluation: ``(outcome code, own-test code)`` (:data:`CODES`,
-    :data:`TRUTH_CODES`); the own test is the judge's taste's, or U's."""
+    :data:`TRUTH_CODES`); the own test is the judge's taste's, or U's. A judge that reads a
+    taste reads ``taste`` (the runs' U under another teacher) where given, else scores drawn
+    independently of the arms."""
     answers_rng, boot_rng = _generators(seed, replay, key, judge.name)
-    scores = answers_rng.normal(0.0, RUN_SD_U, len(u)) if judge.reads_taste else u
+    scores = u
+    if judge.reads_taste:
+        scores = taste if taste is not None else answers_rng.normal(0.0, RUN_SD_U, len(u))
     seed_r = design_seed(seed, replay)
     plans = [evaluator_pairs(len(u), PAIRS_PER_EVALUATOR, e, seed_r) for e in range(N_EVALUATORS)]
     given = simulate_answers(scores, plans, judge.evaluator, answers_rng)
@@ -151,10 +161,16 @@ def replay_once(
 
 
 def replay_cell(
-    u: np.ndarray, judge: Judge, key: str, seed: int, replays: Sequence[int], n_boot: int = N_BOOT
+    u: np.ndarray,
+    judge: Judge,
+    key: str,
+    seed: int,
+    replays: Sequence[int],
+    n_boot: int = N_BOOT,
+    taste: np.ndarray | None = None,
 ) -> dict[str, Any]:
     """Replays of one arm (``u``: its 5 runs' U, then ``n1``'s) by one judge, summarised."""
-    codes = [replay_once(u, judge, key, seed, r, n_boot) for r in replays]
+    codes = [replay_once(u, judge, key, seed, r, n_boot, taste) for r in replays]
     outcomes = "".join(c for c, _ in codes)
     cell: dict[str, Any] = {
         "evaluator": judge.name,
@@ -183,13 +199,26 @@ def run(
     for teacher, folder in folders.items():
         u = load_u(folder)
         for arm in arms(u):
-            key = f"{teacher}/{arm}"
             scores = np.concatenate([u[arm], u[BASELINE]])
-            truth, p = ground_truth(scores)
-            cells = [replay_cell(scores, j, key, seed, range(replays), n_boot) for j in judges]
-            row = {"arm": key, "U": scores[ADVISED].tolist(), "U_n1": scores[~ADVISED].tolist()}
-            out.append({**row, "U_p": p, "ground_truth": truth, "cells": cells})
+            out.append(replay_arm(f"{teacher}/{arm}", scores, judges, seed, replays, n_boot))
     return out
+
+
+def replay_arm(
+    key: str,
+    scores: np.ndarray,
+    judges: Sequence[Judge],
+    seed: int,
+    replays: int,
+    n_boot: int,
+    taste: np.ndarray | None = None,
+) -> dict[str, Any]:
+    """One arm against its baseline (``scores``: 5 runs' U, then the baseline's 5), by every
+    judge: the ground truth and every judge's cell."""
+    truth, p = ground_truth(scores)
+    cells = [replay_cell(scores, j, key, seed, range(replays), n_boot, taste) for j in judges]
+    row = {"arm": key, "U": scores[ADVISED].tolist(), "U_n1": scores[~ADVISED].tolist()}
+    return {**row, "U_p": p, "ground_truth": truth, "cells": cells}
 
 
 def criteria(arms_out: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
@@ -201,7 +230,7 @@ def criteria(arms_out: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
             if name in FALSE_POSITIVE_JUDGES and arm["ground_truth"] == "unknown":
                 value = rates["more"] + rates["less"]
                 rows.append(_row("false more/less", arm, name, value, FALSE_RATE_MAX))
-            if name == "unrelated-taste":
+            if "more_without_own_more" in cell:  # a judge that reads a taste
                 count = cell["more_without_own_more"]
                 rows.append(_row("more without its own test's more", arm, name, count, 0))
     return rows
