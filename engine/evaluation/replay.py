@@ -256,6 +256,30 @@ NOTES = [
 ]
 
 
+def write_result(
+    out: Path,
+    arms_out: Sequence[Mapping[str, Any]],
+    judges: Sequence[Judge],
+    started: float,
+    head: Mapping[str, Any],
+    tail: Mapping[str, Any],
+) -> None:
+    """A replay's JSON: ``head`` (the command, replays, seed), the design and evaluators,
+    ``tail``, every arm, the criteria, and the time since ``started`` (``perf_counter``)."""
+    rows = criteria(arms_out)
+    result = {
+        **head, "n_boot": N_BOOT, "alpha": ALPHA,
+        "design": {"runs_per_arm": RUNS_PER_ARM, "evaluators": N_EVALUATORS,
+                   "pairs_per_evaluator": PAIRS_PER_EVALUATOR, "u_scale": U_SCALE},
+        "evaluators": {j.name: j.description for j in judges},
+        **tail, "arms": arms_out, "criteria": rows,
+        "all_passed": all(r["passed"] for r in rows),
+        "runtime_s": round(time.perf_counter() - started, 1),
+    }  # fmt: skip
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(result, indent=1) + "\n")
+
+
 def main(argv: Sequence[str] | None = None) -> None:
     """``python -m engine.evaluation.replay --out docs/validation/evaluation/replay.json``."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -265,19 +289,9 @@ def main(argv: Sequence[str] | None = None) -> None:
     args = parser.parse_args(argv)
     start = time.perf_counter()
     arms_out = run(MEASURES, args.replays, args.seed)
-    rows = criteria(arms_out)
-    result = {
-        "command": "python -m engine.evaluation.replay --out " + str(args.out),
-        "replays": args.replays, "seed": args.seed, "n_boot": N_BOOT, "alpha": ALPHA,
-        "design": {"runs_per_arm": RUNS_PER_ARM, "evaluators": N_EVALUATORS,
-                   "pairs_per_evaluator": PAIRS_PER_EVALUATOR, "u_scale": U_SCALE},
-        "evaluators": {j.name: j.description for j in JUDGES},
-        "notes": NOTES, "arms": arms_out, "criteria": rows,
-        "all_passed": all(r["passed"] for r in rows),
-        "runtime_s": round(time.perf_counter() - start, 1),
-    }  # fmt: skip
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(result, indent=1) + "\n")
+    command = "python -m engine.evaluation.replay --out " + str(args.out)
+    head = {"command": command, "replays": args.replays, "seed": args.seed}
+    write_result(args.out, arms_out, JUDGES, start, head, {"notes": NOTES})
 
 
 if __name__ == "__main__":

@@ -37,8 +37,8 @@ from engine.evaluation.replay import (
     SEED,
     TEACHER,
     Judge,
-    criteria,
     replay_arm,
+    write_result,
 )
 
 #: The teacher whose U is the ground truth, and the unrelated one the taste evaluator reads.
@@ -123,18 +123,10 @@ def main(argv: Sequence[str] | None = None) -> None:
     args = parser.parse_args(raw)
     start = time.perf_counter()
     arms_out, pending = run_round2(args.measures, args.env, args.replays, args.seed)
-    rows = criteria(arms_out)
-    judges = PLAIN_JUDGES + (STANDING_TASTE,)
-    result = {
-        "command": " ".join(["python -m engine.evaluation.replay_round2", *raw]),
-        "replays": args.replays, "seed": args.seed, "n_boot": N_BOOT,
-        "evaluators": {j.name: j.description for j in judges},
-        "baseline": f"{BASELINE}'s first {RUNS_PER_ARM} seeds", "pending": pending,
-        "arms": arms_out, "criteria": rows, "all_passed": all(r["passed"] for r in rows),
-        "runtime_s": round(time.perf_counter() - start, 1),
-    }  # fmt: skip
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(result, indent=1) + "\n")
+    command = " ".join(["python -m engine.evaluation.replay_round2", *raw])
+    head = {"command": command, "replays": args.replays, "seed": args.seed}
+    tail = {"baseline": f"{BASELINE}'s first {RUNS_PER_ARM} seeds", "pending": pending}
+    write_result(args.out, arms_out, PLAIN_JUDGES + (STANDING_TASTE,), start, head, tail)
 
 
 if __name__ == "__main__":
