@@ -14,12 +14,16 @@ re-measures the committed checkpoint and rewrites the judging file. The inputs, 
 (only when they no longer load): the bracket from :func:`engine.pipeline.run_tournament`, the
 checkpoint from the new bipars-em run, cut to what judging loads.
 
+A number-altering change can remake only this machine's capability's files; it deletes the
+others in the same commit (they hold the old numbers), and says so.
+
 **A machine with another CPU capability** (its tests fail: no file for it) gets its files from
-the frozen training code, never from the code under test, which is what the files check: run
-this module in a copy of that commit (``git archive ef285ec | tar -x -C /tmp/frozen``, then
-``PYTHONPATH=/tmp/frozen`` from ``/tmp/frozen``) and copy the two files it writes here, renamed
-``training-<capability>.json`` and ``judging-<capability>.json`` (that commit writes them
-without the suffix). The AVX512 files were made so, on 2026-11-28.
+the commit the other files were made by, never from the code under test, which is what the
+files check: run this module in a copy of that commit (``git archive <commit> | tar -x -C
+/tmp/frozen``, then ``PYTHONPATH=/tmp/frozen`` from ``/tmp/frozen``) and copy the two files it
+writes here, named ``training-<capability>.json`` and ``judging-<capability>.json`` (commits
+before the split write them without the suffix). Today that commit is ef285ec, round 2's
+frozen training code; the AVX512 files were made so, on 2026-11-28.
 """
 
 from __future__ import annotations
