@@ -47,7 +47,8 @@ def flags_of(
         "position_bias": position_biased(left, sided),
         "fast": fast,
         "inconsistent": consistent is False,
-        "below_gate": below_gate(gold, gate),
+        # No gate, no flag: and no interval computed (the finish event's flags have no gate)
+        "below_gate": gate is not None and below_gate(gold, gate),
     }
     return [flag for flag, applies in on.items() if applies]
 
