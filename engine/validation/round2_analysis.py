@@ -41,7 +41,12 @@ def trees(out: Path, b: int) -> tuple[TreeDocument, TreeDocument]:
     )
 
 
-def _measures(out: Path, label: str, seeds: int) -> list[dict[str, Any]]:
+def arm_measures(out: Path, label: str, seeds: int) -> list[dict[str, Any]]:
+    """The measures of run ``label``'s first ``seeds`` seeds (100, 101, ...), in seed order.
+
+    Raises:
+        InputError: naming the runs not measured yet.
+    """
     tasks = [(label, EVAL_SEED0 + k) for k in range(seeds)]
     missing = [f"{lab}-{s}" for lab, s in tasks if not measured(out, (lab, s))]
     if missing:
@@ -66,14 +71,14 @@ def arm_rows(
 
 def build_round(out: Path, plan: Round2Plan, score: str) -> Round:
     """The deciding arms of every advice bracket, with the shared ``n1``."""
-    n1 = _measures(out, "n1", _seeds(plan, "n1"))
+    n1 = arm_measures(out, "n1", _seeds(plan, "n1"))
     found: Round = []
     for b in range(plan.brackets):
         advice, shuffled = (tree_values(t) for t in trees(out, b))
         bracket: Bracket = {"n1": arm_rows(n1, f"b{b}", advice, shuffled, score, plan.teacher)}
         for arm in plan.design:
             if arm.deciding and b in arm.brackets:
-                runs = _measures(out, f"{arm.name}.b{b}", arm.seeds)
+                runs = arm_measures(out, f"{arm.name}.b{b}", arm.seeds)
                 bracket[arm.name] = arm_rows(runs, f"b{b}", advice, shuffled, score, plan.teacher)
         found.append(bracket)
     return found
@@ -88,7 +93,7 @@ def bracket_verdicts(
 ) -> dict[str, dict[str, AlignmentVerdict]]:
     """The product's verdict of every arm (reported ones too) against ``n1``'s seeds 100-104,
     per bracket; an outcome word for the primary only."""
-    n1 = _measures(out, "n1", 5)
+    n1 = arm_measures(out, "n1", 5)
     stage: Stage = "primary" if score == PRIMARY else "diagnostic"
     found: dict[str, dict[str, AlignmentVerdict]] = {}
     for b in range(plan.brackets):
@@ -109,15 +114,15 @@ def bracket_verdicts(
 
 
 def _scores(out: Path, label: str, seeds: int, bracket: str, score: str) -> np.ndarray:
-    return np.array([m["scores"][bracket][score] for m in _measures(out, label, seeds)])
+    return np.array([m["scores"][bracket][score] for m in arm_measures(out, label, seeds)])
 
 
 def standing_check(out: Path, plan: Round2Plan, rng: np.random.Generator) -> dict[str, Any]:
     """§6.5: ``bipars-em`` on a shuffled ``standing`` tree, judged on the ``standing`` tree
     against ``n1`` (100-104), and U under ``standing`` for both."""
     standing = tree_values(load_tree(out / "brackets" / "standing.json"))
-    arm = _measures(out, "bipars-em-standing-shuffled.b0", 5)
-    n1 = _measures(out, "n1", 5)
+    arm = arm_measures(out, "bipars-em-standing-shuffled.b0", 5)
+    n1 = arm_measures(out, "n1", 5)
     rows = [np.array([m["scores"]["standing"][PRIMARY] for m in runs]) for runs in (arm, n1)]
     verdict = alignment_verdict(standing, rows[0], rows[1], rng)
     truth = [[m["truth"]["standing"] for m in runs] for runs in (arm, n1)]
