@@ -18,8 +18,8 @@ from sqlalchemy import Connection, func, select
 from sqlalchemy.orm import Session
 
 from app.models import Member, OpenLink
-from app.recruiting.kinds import Link, MemberKind, owner_is
-from app.recruiting.members import MemberRow, of_collection
+from app.recruiting.kinds import Link, MemberKind
+from app.recruiting.members import MemberRow, link_of, of_collection
 from app.webhooks.outbox import Data, Owner, emit, webhook_ids
 
 DB = Session | Connection
@@ -46,7 +46,7 @@ def declined(db: DB, kind: MemberKind[Link, MemberRow], *, owner_id: int) -> Non
     if (own := owner(kind, owner_id)) is None:
         return
     conn = _connection(db)
-    count = select(OpenLink.declines).where(owner_is(kind, owner_id))
+    count = select(OpenLink.declines).where(link_of(kind.members.noun, owner_id))
     emit(
         conn,
         owner=own,
@@ -76,7 +76,7 @@ def finished(
     if own is None or not webhook_ids(conn, own):
         return
     # The link's row before the webhooks' rows (emit's turn), in the order a decline takes them
-    maximum = _locked_maximum(conn, kind, own)
+    maximum = _locked_maximum(conn, own)
     shown = member_id if shown_id is None else shown_id
     emit(
         conn,
@@ -121,11 +121,11 @@ def _member_data(
     }
 
 
-def _locked_maximum(conn: Connection, kind: MemberKind[Link, MemberRow], own: Owner) -> int | None:
+def _locked_maximum(conn: Connection, own: Owner) -> int | None:
     """The open link's maximum, its row locked until the transaction ends (PostgreSQL; SQLite
     has one writer anyway); ``None`` without a link."""
     return conn.scalar(
-        select(OpenLink.max_participants).where(owner_is(kind, own.id)).with_for_update()
+        select(OpenLink.max_participants).where(link_of(own.noun, own.id)).with_for_update()
     )
 
 

@@ -4,17 +4,15 @@ needs to know it: :class:`MemberKind`, the one small protocol each kind implemen
 feature package (:class:`app.labelling.study_link.StudyKind`, :class:`app.surveys.crowd.SurveyKind`,
 :class:`app.evaluations.crowd.EvaluationKind`). Below the service and the events
 (:mod:`app.recruiting.service`, :mod:`app.recruiting.events`), which both take one; what is
-the same for every kind (the "full" page's text, the link's path and URL, the condition on its
-row) is written once here, as functions of a kind."""
+the same for every kind (the "full" page's text, the link's path and URL) is written once here,
+as functions of a kind; the condition on its row is :func:`app.recruiting.members.link_of`."""
 
 from __future__ import annotations
 
 from typing import Protocol
 
-from sqlalchemy import ColumnElement, and_
 from sqlalchemy.orm import Session
 
-from app.models import OpenLink
 from app.recruiting.links import Link, LinkFullError
 from app.recruiting.members import CollectionKind, MemberRow
 
@@ -70,8 +68,3 @@ def open_path(kind: MemberKind[Link, MemberRow], slug: str) -> str:
 def open_url(kind: MemberKind[Link, MemberRow], base_url: object, slug: str) -> str:
     """The open link ``slug`` under ``base_url`` (a request's, e.g. ``http://host/``)."""
     return str(base_url).rstrip("/") + open_path(kind, slug)
-
-
-def owner_is(kind: MemberKind[Link, MemberRow], owner_id: int) -> ColumnElement[bool]:
-    """The condition that selects the link row of collection ``owner_id``."""
-    return and_(OpenLink.collection_kind == kind.members.noun, OpenLink.collection_id == owner_id)

@@ -44,6 +44,7 @@ from app.models import (
     Evaluation,
     Evaluator,
     Member,
+    OpenLink,
     Participant,
     Study,
     Survey,
@@ -223,8 +224,14 @@ def member_by_token(
 
 def of_collection(noun: str, collection_id: int) -> ColumnElement[bool]:
     """The condition on the members of collection ``collection_id`` of kind ``noun``
-    (``study``): with the token lookup's, the one place the kind filter is written."""
+    (``study``): with :func:`link_of` and the token lookup's, the one place the kind filter
+    is written."""
     return and_(Member.collection_kind == noun, Member.collection_id == collection_id)
+
+
+def link_of(noun: str, collection_id: int) -> ColumnElement[bool]:
+    """The condition on the open link row of collection ``collection_id`` of kind ``noun``."""
+    return and_(OpenLink.collection_kind == noun, OpenLink.collection_id == collection_id)
 
 
 def member_by_external_id(

@@ -21,15 +21,15 @@ from app.db import writing
 from app.models import OpenLink
 from app.models.base import utcnow
 from app.recruiting import events, links, seats
-from app.recruiting.kinds import Link, MemberKind, full_message, owner_is
+from app.recruiting.kinds import Link, MemberKind, full_message
 from app.recruiting.links import LinkOptions
-from app.recruiting.members import MemberRow
+from app.recruiting.members import MemberRow, link_of
 from engine.errors import InputError
 
 
 def settings(session: Session, kind: MemberKind[Link, MemberRow], owner_id: int) -> Link | None:
     """The collection's open link and options, or ``None`` when never set."""
-    return session.scalar(select(kind.link).where(owner_is(kind, owner_id)))
+    return session.scalar(select(kind.link).where(link_of(kind.members.noun, owner_id)))
 
 
 def configured(session: Session, kind: MemberKind[Link, MemberRow], owner_id: int) -> Link:
@@ -139,7 +139,7 @@ def join(
         with writing(session):
             full = kind.full_error(": ".join(full_message(kind)))
             seats.free_expired_seats(session, link, now)
-            links.take_seat(session, owner_is(kind, owner_id), full=full)
+            links.take_seat(session, link_of(kind.members.noun, owner_id), full=full)
             kind.stage(session, person)
     except IntegrityError:  # the same external id joined at the same moment: resume it
         existing = returning(session, kind, link=link, ids=ids, token=None)
@@ -165,7 +165,7 @@ def decline(session: Session, kind: MemberKind[Link, MemberRow], *, link: Link) 
     nothing else about the visitor is stored."""
     owner_id = link.collection_id
     with writing(session):
-        links.count_decline(session, owner_is(kind, owner_id))
+        links.count_decline(session, link_of(kind.members.noun, owner_id))
         events.declined(session, kind, owner_id=owner_id)
 
 
