@@ -159,6 +159,7 @@ def test_the_compare_page_offers_every_judge_and_its_tables(
     assert all("diagnostic" in label for j, _, label in judges if j in DIAGNOSTIC_JUDGES)
     assert 'id="judges-body"' in html and 'id="candidates"' in html
     assert "no judge passed ACV's validation" in html  # the experiment page's caveat, one home
+    assert "assumes no-advice seeds spread by 0.2 in r" in html  # and what round 2 measured
     sortable = re.findall(r'<th scope="col" data-sort="(\w+)">', html)
     assert sortable == [
         "id",
