@@ -59,6 +59,13 @@ def test_the_variance_test_rejects_only_a_wider_spread(sd: float, wider: bool) -
     assert (p < 0.05) is wider
 
 
+def test_under_the_null_the_variance_test_fires_at_its_level() -> None:
+    """10 seeds drawn at the assumed spread: "wider" in 5% ± 1.5% of 2,000 draws."""
+    draws = np.random.default_rng(0).normal(0.0, 0.2, size=(2000, 10))
+    fired = np.mean([variance_test(r)[1] < 0.05 for r in draws])
+    assert 0.035 <= fired <= 0.065
+
+
 def test_a_split_baseline_supports_h1(tmp_path: Path) -> None:
     r = [-0.4, -0.3, 0.7, 0.75, -0.35, 0.7, -0.3, 0.2, 0.55, 0.75]  # as Hopper-v5's
     spreads = baseline_spread(_round(tmp_path, r))
