@@ -23,6 +23,7 @@ from app.cli.options import (
     AdviceTeacherOpt,
     AllParticipantsOpt,
     PoolWeightingOpt,
+    id_option,
 )
 from app.cli.root import cli, fail
 from app.cli.serve import cli_runtime
@@ -46,7 +47,7 @@ ACTIVATIONS = ("tanh", "relu")
 
 @agents_cli.command("experiment")
 def experiment(
-    study: Annotated[int, Opt(help="The study whose bracket the advice is over.")],
+    study: Annotated[int, id_option("The study whose bracket the advice is over.")],
     teacher: AdviceTeacherOpt = None,
     participant: AdviceParticipantOpt = None,
     pool: AdvicePoolOpt = None,
@@ -76,7 +77,7 @@ def experiment(
 @agents_cli.command("import")
 def import_(
     policy: Annotated[Path, typer.Argument(help="An ONNX file, or an SB3 MlpPolicy .zip.")],
-    experiment: Annotated[int, Opt(help="The external experiment.")],
+    experiment: Annotated[int, id_option("The external experiment.")],
     arm: Annotated[str, Opt(help="advised, baseline or pilot.")],
     seed: Annotated[int | None, Opt(help="Declared seed (else the file's).")] = None,
     steps: Annotated[int | None, Opt(help="Declared env steps (else the file's).")] = None,

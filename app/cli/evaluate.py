@@ -9,7 +9,7 @@ from typing import Annotated
 
 import typer
 
-from app.cli.options import JsonOpt
+from app.cli.options import JsonOpt, id_option
 from app.cli.root import cli, fail
 from app.cli.serve import cli_runtime
 from app.evaluations import evaluators, results
@@ -34,7 +34,7 @@ def _ids(text: str | None) -> tuple[int, ...]:
 
 @evaluate_cli.command("create")
 def create(
-    experiment: Annotated[int | None, Opt(help="Evaluate this experiment's runs.")] = None,
+    experiment: Annotated[int | None, id_option("Evaluate this experiment's runs.")] = None,
     advised: Annotated[str | None, Opt(help="Or: advised run ids, e.g. 3,4,5.")] = None,
     baseline: Annotated[str | None, Opt(help="With --advised: baseline run ids.")] = None,
     kind: Annotated[str, Opt(help="Who answers: 'advisor' or 'others'.")] = "others",
@@ -92,7 +92,7 @@ def create(
 
 @evaluate_cli.command("invite")
 def invite(
-    evaluation: Annotated[int, Opt(help="Evaluation id.")],
+    evaluation: Annotated[int, id_option("Evaluation id.")],
     count: Annotated[int, Opt(help="How many evaluators to invite.")] = 1,
 ) -> None:
     """Invite evaluators; prints one invite link per line."""
@@ -105,7 +105,7 @@ def invite(
 
 @evaluate_cli.command("result")
 def result(
-    evaluation: Annotated[int, Opt(help="Evaluation id.")], as_json: JsonOpt = False
+    evaluation: Annotated[int, id_option("Evaluation id.")], as_json: JsonOpt = False
 ) -> None:
     """The answer so far: the outcome in words, the statistic, its interval and p."""
     with cli_runtime() as runtime, runtime.sessions() as session:

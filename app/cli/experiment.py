@@ -17,9 +17,11 @@ from app.cli.options import (
     JsonOpt,
     NEnvsOpt,
     PoolWeightingOpt,
+    id_option,
 )
 from app.cli.root import cli, fail
 from app.cli.serve import cli_runtime
+from app.core.limits import MAX_DB_ID
 from app.models import RunStatus
 from app.runs import experiments
 from app.runs.experiments import DEFAULT_PILOT_SEEDS, DEFAULT_SEEDS, ExperimentSpec
@@ -34,7 +36,7 @@ cli.add_typer(experiment_cli, name="experiment", no_args_is_help=True)
 
 @experiment_cli.command("create")
 def create(
-    study: Annotated[int, Opt(help="The study whose bracket the advice is over.")],
+    study: Annotated[int, id_option("The study whose bracket the advice is over.")],
     timesteps: Annotated[int, Opt(help="Env steps per run.")],
     teacher: AdviceTeacherOpt = None,
     participant: AdviceParticipantOpt = None,
@@ -73,7 +75,7 @@ def create(
 
 
 @experiment_cli.command("list")
-def list_(study: Annotated[int | None, Opt(help="Only this study's.")] = None) -> None:
+def list_(study: Annotated[int | None, id_option("Only this study's.")] = None) -> None:
     """One line per experiment: id, study, algo (``external``: imported policies), seeds, runs
     succeeded."""
     with cli_runtime() as runtime, runtime.sessions() as session:
@@ -89,7 +91,7 @@ def list_(study: Annotated[int | None, Opt(help="Only this study's.")] = None) -
 
 @experiment_cli.command("verdict")
 def verdict(
-    experiment: Annotated[int, typer.Argument(help="The experiment's id.")],
+    experiment: Annotated[int, typer.Argument(min=1, max=MAX_DB_ID, help="The experiment's id.")],
     judge: Annotated[str, Opt(help="How the runs score states.")] = DEFAULT_JUDGE,
     step: Annotated[int | None, Opt(help="Checkpoint (default: latest judged).")] = None,
     as_json: JsonOpt = False,

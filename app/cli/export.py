@@ -10,6 +10,7 @@ from typing import Annotated, Literal
 
 import typer
 
+from app.cli.options import id_option
 from app.cli.root import cli
 from app.cli.serve import cli_runtime
 from app.core.auth import dataset_salt
@@ -19,7 +20,7 @@ from app.labelling.dataset_card import DEFAULT_LICENSE
 
 @cli.command("export")
 def export(
-    study: Annotated[int, typer.Option(help="Study id.")],
+    study: Annotated[int, id_option("Study id.")],
     out: Annotated[Path, typer.Option(help="A new (or empty) folder to write the dataset to.")],
     fmt: Annotated[
         Literal["hf"], typer.Option("--format", help="hf: a Hugging Face dataset folder.")

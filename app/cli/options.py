@@ -3,10 +3,11 @@ its help from the ``Annotated`` alias; each command gives its own default)."""
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 
+from app.core.limits import MAX_DB_ID
 from engine.candidates import SAMPLING_MODES
 from engine.teachers import TEACHERS
 
@@ -22,9 +23,17 @@ NEnvsOpt = Annotated[int, typer.Option(help="Parallel envs per run.")]
 NumStepsOpt = Annotated[int, typer.Option(help="Steps per env per rollout.")]
 JsonOpt = Annotated[bool, typer.Option("--json", help="Print JSON instead of text.")]
 
+
+def id_option(help: str) -> Any:
+    """A database id's option, 1..:data:`MAX_DB_ID` (the id columns' width): a larger one is
+    the usage error (exit 2) on every backend, not SQLite's overflow or PostgreSQL's range."""
+    return typer.Option(min=1, max=MAX_DB_ID, help=help)
+
+
 #: Where an experiment's advice comes from: one of these (app.runs.spec checks which).
 AdviceTeacherOpt = Annotated[str | None, typer.Option(help="A simulated teacher's advice.")]
-AdviceParticipantOpt = Annotated[int | None, typer.Option(help="A finished participant's advice.")]
+
+AdviceParticipantOpt = Annotated[int | None, id_option("A finished participant's advice.")]
 AdvicePoolOpt = Annotated[
     list[int] | None,
     typer.Option(help="Pooled advice: a finished participant; give it twice or more."),

@@ -9,6 +9,7 @@ from typing import Annotated, Literal
 
 import typer
 
+from app.cli.options import id_option
 from app.cli.root import cli
 from app.cli.serve import cli_runtime
 from app.cli.study import participant_cli, study_cli
@@ -19,7 +20,7 @@ from app.studies import crowd, gold
 gold_cli = typer.Typer(help="Gold items: pairs with a right answer.", no_args_is_help=True)
 cli.add_typer(gold_cli, name="gold")
 
-StudyOpt = Annotated[int, typer.Option(help="Study id.")]
+StudyOpt = Annotated[int, id_option("Study id.")]
 CandidateOpt = Annotated[int, typer.Option(min=0, help="A candidate id of the study.")]
 
 
@@ -51,7 +52,7 @@ def list_(study: StudyOpt) -> None:
 
 
 @gold_cli.command("remove")
-def remove(study: StudyOpt, item: Annotated[int, typer.Option(help="Gold item id.")]) -> None:
+def remove(study: StudyOpt, item: Annotated[int, id_option("Gold item id.")]) -> None:
     """Remove a gold item nobody answered."""
     with cli_runtime() as runtime, runtime.sessions() as session:
         gold.delete_item(session, study_id=study, item_id=item)
@@ -118,7 +119,7 @@ def _set_exclusion(participant: int, excluded: bool, reason: str | None) -> None
 
 @participant_cli.command("exclude")
 def exclude(
-    participant: Annotated[int, typer.Option(help="Participant id.")],
+    participant: Annotated[int, id_option("Participant id.")],
     reason: Annotated[str | None, typer.Option(help="Why (recorded).")] = None,
 ) -> None:
     """Leave a participant out of pooling and exports (their labels are kept)."""
@@ -127,7 +128,7 @@ def exclude(
 
 @participant_cli.command("include")
 def include(
-    participant: Annotated[int, typer.Option(help="Participant id.")],
+    participant: Annotated[int, id_option("Participant id.")],
     reason: Annotated[str | None, typer.Option(help="Why (recorded).")] = None,
 ) -> None:
     """Take a participant back into pooling and exports."""

@@ -9,7 +9,7 @@ from typing import Annotated
 
 import typer
 
-from app.cli.options import CandidatesOpt, CoinOpt, EnvOpt, NEnvsOpt, NumStepsOpt
+from app.cli.options import CandidatesOpt, CoinOpt, EnvOpt, NEnvsOpt, NumStepsOpt, id_option
 from app.cli.root import cli
 from app.reproduce.plan import ReproduceConfig
 from engine.envs import DEFAULT_ENV_ID, check_env_id
@@ -40,9 +40,9 @@ def reproduce(
     p: CoinOpt = 0.9,
     bracket_seed: Annotated[int, Opt(help="Seed of the candidates and the bracket.")] = 0,
     study: Annotated[
-        int | None, Opt(help="Use a real participant's tree from this study as the Case 2 advice.")
+        int | None, id_option("Use a real participant's tree from this study as the Case 2 advice.")
     ] = None,
-    participant: Annotated[int | None, Opt(help="That participant's id.")] = None,
+    participant: Annotated[int | None, id_option("That participant's id.")] = None,
     jobs: Annotated[int, Opt(min=1, help="Training runs at a time (one core each).")] = 1,
 ) -> None:
     """Train ppo, Case 1, Case 2 and the naive-shaping control on one bracket; write the

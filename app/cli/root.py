@@ -12,15 +12,9 @@ from typer.core import TyperGroup
 from engine import __version__
 from engine.errors import InputError
 
-# What bad input raises below a command (a file that is not there, not JSON, not a tree).
-BAD_INPUT = (
-    InputError,
-    json.JSONDecodeError,
-    FileNotFoundError,
-    IsADirectoryError,
-    PermissionError,
-    UnicodeDecodeError,
-)
+# What bad input raises below a command (a file that is not there, not JSON, not a tree;
+# a path through a file or too long: every OSError says which path and why).
+BAD_INPUT = (InputError, json.JSONDecodeError, OSError, UnicodeDecodeError)
 
 
 def fail(message: str) -> NoReturn:
@@ -38,6 +32,8 @@ class _Commands(TyperGroup):
             return super().invoke(ctx)
         except BAD_INPUT as exc:
             fail(str(exc))
+        except OverflowError:  # a number past SQLite's 64-bit integers, where no option bounds it
+            fail("a number given is too large for the database")
 
 
 cli = typer.Typer(

@@ -8,7 +8,15 @@ from typing import Annotated
 
 import typer
 
-from app.cli.options import CandidatesOpt, CoinOpt, EnvOpt, NoiseOpt, SamplingOpt, TeacherOpt
+from app.cli.options import (
+    CandidatesOpt,
+    CoinOpt,
+    EnvOpt,
+    NoiseOpt,
+    SamplingOpt,
+    TeacherOpt,
+    id_option,
+)
 from app.cli.root import cli, fail
 from app.cli.serve import cli_runtime
 from app.labelling import participants, trees
@@ -112,7 +120,7 @@ def list_() -> None:
 
 @participant_cli.command("add")
 def add(
-    study: Annotated[int, typer.Option(help="Study id.")],
+    study: Annotated[int, id_option("Study id.")],
     count: Annotated[int, typer.Option(help="How many participants to invite.")] = 1,
     name: Annotated[str | None, typer.Option(help="Optional note on the invites.")] = None,
 ) -> None:
@@ -126,7 +134,7 @@ def add(
 
 @participant_cli.command("tree")
 def tree(
-    participant: Annotated[int, typer.Option(help="Participant id.")],
+    participant: Annotated[int, id_option("Participant id.")],
     out: Annotated[Path, typer.Option(help="Where to write the tree (acv.tree/1).")],
 ) -> None:
     """Write a finished participant's Human Preference Tree (the input of `acv train`)."""
@@ -138,7 +146,7 @@ def tree(
 
 @cli.command()
 def simulate(
-    study: Annotated[int, typer.Option(help="Study id.")],
+    study: Annotated[int, id_option("Study id.")],
     teacher: TeacherOpt = "standing",
     participants_: Annotated[
         int, typer.Option("--participants", help="How many simulated participants.")

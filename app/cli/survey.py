@@ -10,6 +10,7 @@ from typing import Annotated, Literal
 import typer
 from pydantic import ValidationError
 
+from app.cli.options import id_option
 from app.cli.root import cli, fail
 from app.cli.serve import cli_runtime
 from app.surveys import respond
@@ -59,7 +60,7 @@ def create(
 
 @survey_cli.command("add-respondents")
 def add_respondents(
-    survey: Annotated[int, typer.Option(help="Survey id.")],
+    survey: Annotated[int, id_option("Survey id.")],
     count: Annotated[int, typer.Option(help="How many invite links (1..500).")] = 1,
     base_url: Annotated[str, typer.Option(help="Base of the printed links.")] = "",
 ) -> None:
@@ -73,7 +74,7 @@ def add_respondents(
 
 @survey_cli.command("results")
 def results(
-    survey: Annotated[int, typer.Option(help="Survey id.")],
+    survey: Annotated[int, id_option("Survey id.")],
     as_json: Annotated[
         bool, typer.Option("--json", help="The results JSON of GET /api/surveys/{id}/results.")
     ] = False,
@@ -112,7 +113,7 @@ def _line(block: dict) -> str:
 
 @survey_cli.command("export")
 def export(
-    survey: Annotated[int, typer.Option(help="Survey id.")],
+    survey: Annotated[int, id_option("Survey id.")],
     out: Annotated[Path, typer.Option(help="File to write.")],
     fmt: Annotated[Literal["csv", "jsonl"], typer.Option("--format")] = "csv",
 ) -> None:

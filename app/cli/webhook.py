@@ -8,6 +8,7 @@ from typing import Annotated
 
 import typer
 
+from app.cli.options import id_option
 from app.cli.root import cli, fail
 from app.cli.serve import cli_runtime
 from app.webhooks import service
@@ -18,9 +19,9 @@ webhook_cli = typer.Typer(
 )
 cli.add_typer(webhook_cli, name="webhook")
 
-StudyOpt = Annotated[int | None, typer.Option(min=1, help="Study id.")]
-SurveyOpt = Annotated[int | None, typer.Option(min=1, help="Survey id.")]
-WebhookOpt = Annotated[int, typer.Option(min=1, help="Webhook id.")]
+StudyOpt = Annotated[int | None, id_option("Study id.")]
+SurveyOpt = Annotated[int | None, id_option("Survey id.")]
+WebhookOpt = Annotated[int, id_option("Webhook id.")]
 
 
 def _owner(study: int | None, survey: int | None) -> Owner:

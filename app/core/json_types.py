@@ -13,7 +13,7 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 from datetime import datetime
-from typing import Annotated, Any, TypeVar
+from typing import Annotated, Any, TypeVar, get_args
 
 from pydantic import (
     AfterValidator,
@@ -21,9 +21,12 @@ from pydantic import (
     BaseModel,
     GetCoreSchemaHandler,
     Strict,
+    ValidationError,
 )
+from pydantic.fields import FieldInfo
 from pydantic_core import CoreSchema, PydanticCustomError, core_schema
 
+from app.core.limits import INT64_MAX
 from app.models import as_utc
 
 M = TypeVar("M", bound=BaseModel)
@@ -83,7 +86,40 @@ class IntParam:
         )
 
 
+#: A whole number as a form sends it: optional ``-``, decimal digits, nothing else.
+_FORM_INT = re.compile(r"-?[0-9]{1,19}")
+
+
+def form_int(text: str) -> int | None:
+    """An HTML form field's whole number, or None when it is none: decimal digits (a ``-``
+    allowed, spaces around ignored) inside 64 bits. Python's ``int()`` would also read
+    ``1_0`` as 10 and `` +1`` as 1, and a 30-digit id overflows the database."""
+    text = text.strip()
+    if not _FORM_INT.fullmatch(text) or abs(value := int(text)) > INT64_MAX:
+        return None
+    return value
+
+
 def from_form(model: type[M], data: dict[str, Any]) -> M:
     """An HTML form's fields (``data``, all text) validated as ``model``'s JSON body: there
-    ``"3"`` is the integer 3 (a form has no other way to send one); bounds still hold."""
-    return model.model_validate(data, strict=False)
+    ``"3"`` is the integer 3 (a form has no other way to send one), read by :func:`form_int`
+    (lax validation alone would take ``1_0`` and ``16.0``); bounds still hold."""
+    errors: list[Any] = []
+    values = dict(data)
+    for name, text in data.items():
+        field = model.model_fields.get(name)
+        if field is None or not isinstance(text, str) or not text or not _admits_int(field):
+            continue
+        values[name] = form_int(text)
+        if values[name] is None:
+            message = "Input should be a whole number in decimal digits, such as 12"
+            error = PydanticCustomError("int_digits", message)
+            errors.append({"type": error, "loc": (name,), "input": text})
+    if errors:
+        raise ValidationError.from_exception_data(model.__name__, errors)
+    return model.model_validate(values, strict=False)
+
+
+def _admits_int(field: FieldInfo) -> bool:
+    """Whether the field's type is ``int`` or a union holding it (``int | None``)."""
+    return field.annotation is int or int in get_args(field.annotation)

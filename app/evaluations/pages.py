@@ -19,6 +19,7 @@ from fastapi.responses import HTMLResponse, RedirectResponse
 from sqlalchemy.orm import Session
 
 from app.core.errors import ConflictError
+from app.core.json_types import form_int
 from app.evaluations import crowd, evaluators, practice, reminder
 from app.evaluations import service as evaluations
 from app.evaluations.evaluator_api import pair_out
@@ -53,7 +54,6 @@ ENDED_TEXT = {
 }
 CHOICES: dict[str, evaluators.Choice] = {"left": "left", "right": "right", "tie": "tie"}
 KEY = re.compile(r"[A-Za-z0-9_-]{1,32}")
-WHOLE = re.compile(r"[0-9]{1,15}")
 MAX_RESPONSE_MS = 86_400_000
 
 
@@ -179,11 +179,12 @@ def pair_answer(
 
 def _response_ms(fields: dict[str, str]) -> int | None:
     """The time to answer: measured by the page's script, else from when the page was made."""
-    measured = fields.get("response_ms", "")
-    if WHOLE.fullmatch(measured):
-        found = int(measured)
-    elif WHOLE.fullmatch(shown_at := fields.get("shown_at", "")):
-        found = int(time.time() * 1000) - int(shown_at)
+    measured = form_int(fields.get("response_ms", ""))
+    shown_at = form_int(fields.get("shown_at", ""))
+    if measured is not None and measured >= 0:
+        found = measured
+    elif shown_at is not None and shown_at >= 0:
+        found = int(time.time() * 1000) - shown_at
     else:
         return None
     return found if 0 <= found <= MAX_RESPONSE_MS else None

@@ -4,7 +4,6 @@ evaluator's own pages are :mod:`app.evaluations.pages`."""
 
 from __future__ import annotations
 
-import re
 from typing import Annotated, Any
 
 from fastapi import APIRouter, Request, Response
@@ -13,7 +12,7 @@ from pydantic import ValidationError
 from sqlalchemy.orm import Session
 
 from app.core.errors import ServiceError
-from app.core.json_types import IntParam, from_form
+from app.core.json_types import IntParam, form_int, from_form
 from app.core.limits import MAX_BATCH, MAX_NAME_CHARS
 from app.evaluations import evaluators, gold, results
 from app.evaluations import service as evaluations
@@ -28,7 +27,6 @@ from engine.errors import InputError
 
 router = APIRouter(route_class=PageRoute, include_in_schema=False)
 
-WHOLE = re.compile(r"[0-9]{1,15}")
 #: The creation form's fields with their defaults, and what each is called on the page.
 _PAIRS = str(evaluations.DEFAULT_PAIRS)
 FORM = {
@@ -124,11 +122,9 @@ def evaluation_page(
 @router.post("/evaluations/{evaluation_id}/evaluators", dependencies=[ResearcherPage, CsrfChecked])
 def invite(evaluation_id: DbId, session: SessionDep, fields: FormFields) -> Response:
     """Invite evaluators, then the evaluation's page with their links."""
-    count = fields.get("count", "1").strip() or "1"
-    if not WHOLE.fullmatch(count):
+    count = form_int(fields.get("count", "").strip() or "1")
+    if count is None:
         raise InputError(f"the number of evaluators must be a whole number in 1..{MAX_BATCH}")
     name = fields.get("name", "").strip()[:MAX_NAME_CHARS] or None
-    people = evaluators.add_evaluators(
-        session, evaluation_id=evaluation_id, count=int(count), name=name
-    )
+    people = evaluators.add_evaluators(session, evaluation_id=evaluation_id, count=count, name=name)
     return redirect(f"/evaluations/{evaluation_id}?invited={len(people)}#evaluators")

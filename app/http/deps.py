@@ -23,6 +23,7 @@ from sqlalchemy.orm import Session
 from app.core import auth
 from app.core.errors import AuthError, ForbiddenError, TooManyAttemptsError
 from app.core.json_types import IntParam
+from app.core.limits import MAX_DB_ID
 from app.db import POOL_CAPACITY
 from app.models import Participant
 from app.recruiting import members
@@ -54,8 +55,6 @@ ResearcherCookie = Annotated[str | None, Cookie(alias=auth.RESEARCHER_COOKIE)]
 #: Requests holding a database session at once: below the pool's capacity
 #: (:data:`app.db.POOL_CAPACITY`), leaving connections for background jobs.
 MAX_SESSIONS = POOL_CAPACITY - 8
-#: Largest database id: ids are positive 32-bit integers (larger ones cannot exist).
-MAX_DB_ID = 2**31 - 1
 #: Database ids in paths and queries (:class:`~app.core.json_types.IntParam`: decimal digits).
 DbId = Annotated[int, IntParam(ge=1, le=MAX_DB_ID)]
 #: Candidate ids in paths: ``0 .. N-1`` with ``N <= 128``.

@@ -26,6 +26,7 @@ from app.models import (
     as_utc,
     utcnow,
 )
+from app.recruiting import seats
 from engine.errors import InputError
 
 
@@ -94,6 +95,7 @@ def answer(
 
     Raises:
         ConflictError: no check is due, or it was answered the other way.
+        MemberEndedError: they withdrew, or their time is over.
         InputError: ``winner`` is not one of the pair, or ``stimulus`` is neither ``still``
             nor ``clip`` (or ``clip`` where the pair has no clips).
     """
@@ -104,12 +106,16 @@ def answer(
     if winner not in (match.a, match.b):
         raise InputError(f"winner must be {match.a} or {match.b}")
     check_stimulus(session, participant.study_id, (match.a, match.b), stimulus)
-    if check.winner is not None:
-        if check.winner != winner:
-            raise ConflictError("the consistency check is already answered")
-        return
     now = utcnow()
-    with writing(session):
+    with writing(session):  # the answer is read again under the write lock: two answers race
+        seats.lock_in_time(session, participant.id, now)
+        check = session.get_one(
+            ConsistencyCheck, participant.id, with_for_update=True, populate_existing=True
+        )
+        if check.winner is not None:
+            if check.winner != winner:
+                raise ConflictError("the consistency check is already answered")
+            return
         check.winner, check.answered_at, check.stimulus = winner, now, stimulus
         check.response_ms = max(0, round((now - as_utc(check.shown_at)).total_seconds() * 1000))
 

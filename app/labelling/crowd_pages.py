@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from fastapi import Request, Response
 
+from app.core.json_types import form_int
 from app.http.csrf import CsrfChecked, FormFields
 from app.http.deps import SessionDep
 from app.http.guards import PageParticipant
@@ -44,10 +45,9 @@ def check_page(request: Request, session: SessionDep, person: PageParticipant) -
 def check_answer(session: SessionDep, person: PageParticipant, fields: FormFields) -> Response:
     """Store the check's answer (a plain form: two buttons) and what it showed
     (``stimulus``, stills for a form without it), then the thank-you page."""
-    try:
-        winner = int(fields.get("winner", ""))
-    except ValueError:
-        winner = -1
+    winner = form_int(fields.get("winner", ""))
     stimulus = fields.get("stimulus", "still")
-    check.answer(session, participant=person, winner=winner, stimulus=stimulus)
+    check.answer(
+        session, participant=person, winner=-1 if winner is None else winner, stimulus=stimulus
+    )
     return redirect(THANKS)

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from fastapi import APIRouter, Request, Response
 
+from app.core.json_types import form_int
 from app.http.csrf import CsrfChecked, FormFields
 from app.http.deps import SessionDep
 from app.http.guards import PageParticipant
@@ -34,12 +35,13 @@ def pair_page(request: Request, session: SessionDep, person: PageParticipant) ->
 def pair_answer(session: SessionDep, person: PageParticipant, fields: FormFields) -> Response:
     """Store the answer to the pair the form showed (and what it showed: ``stimulus``, stills
     for a form without it), then the next one."""
-    try:
-        position, winner = int(fields.get("position", "")), int(fields.get("winner", ""))
-    except ValueError:
-        position, winner = -1, -1
+    position, winner = (form_int(fields.get(name, "")) for name in ("position", "winner"))
     stimulus = fields.get("stimulus", "still")
     disagreement.answer(
-        session, participant=person, position=position, winner=winner, stimulus=stimulus
+        session,
+        participant=person,
+        position=-1 if position is None else position,  # -1: no such pair, a clear 4xx
+        winner=-1 if winner is None else winner,
+        stimulus=stimulus,
     )
     return redirect(PAIRS)

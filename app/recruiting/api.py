@@ -14,8 +14,9 @@ from pydantic import BaseModel
 from sqlalchemy.orm import Session
 
 from app.core.json_types import IntParam
+from app.core.limits import MAX_DB_ID
 from app.core.rows import from_row
-from app.http.deps import MAX_DB_ID, ResearcherDep, SessionDep
+from app.http.deps import ResearcherDep, SessionDep
 from app.recruiting import service as recruiting
 from app.recruiting.kinds import Link, MemberKind, open_url
 from app.recruiting.links import LinkOptions

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 from typing import TypeVar
 
 from sqlalchemy import ColumnElement, select, update
+from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
 from app.core import atomic
@@ -115,22 +116,44 @@ def check_options(options: LinkOptions) -> None:
 
 
 def save(
-    session: Session, row: Link | None, make: Callable[[], Link], options: LinkOptions
+    session: Session,
+    current: Callable[[], Link | None],
+    make: Callable[[], Link],
+    options: LinkOptions,
 ) -> Link:
-    """Store ``options`` (those of a subclass too) on the link ``row``, or on a new one from
-    ``make`` with a fresh slug (kept afterwards).
+    """Store ``options`` (those of a subclass too) on the collection's link (``current``
+    finds it), or on a new one from ``make`` with a fresh slug (kept afterwards).
+
+    The link is read inside the write transaction, locked, so a join cannot slip under a
+    lowered maximum; two first saves at once meet at the unique index, and the one that
+    loses stores its options on the other's link.
 
     Raises:
         InputError: a maximum below the people who already joined.
     """
-    if row is None:
-        row = make()
-        row.slug, row.joined, row.declines = secrets.token_urlsafe(9), 0, 0
-    elif options.max_participants < row.joined:
-        raise InputError(f"max_participants must be at least the {row.joined} who already joined")
-    for field, value in vars(options).items():
-        setattr(row, field, list(value) if field == "external_params" else value)
+    try:
+        return _save(session, current, make, options)
+    except IntegrityError:  # the link was made meanwhile: it is there now, so update it
+        return _save(session, current, make, options)
+
+
+def _save(
+    session: Session,
+    current: Callable[[], Link | None],
+    make: Callable[[], Link],
+    options: LinkOptions,
+) -> Link:
     with writing(session):
+        row = current()
+        if row is None:
+            row = make()
+            row.slug, row.joined, row.declines = secrets.token_urlsafe(9), 0, 0
+        elif options.max_participants < row.joined:
+            raise InputError(
+                f"max_participants must be at least the {row.joined} who already joined"
+            )
+        for field, value in vars(options).items():
+            setattr(row, field, list(value) if field == "external_params" else value)
         session.add(row)
     return row
 

@@ -20,6 +20,7 @@ from pydantic import BaseModel, ValidationError
 from sqlalchemy.orm import Session
 
 from app.core.errors import TooManyAttemptsError
+from app.core.json_types import form_int
 from app.http.cookies import set_member_cookie
 from app.http.csrf import CsrfChecked, FormFields
 from app.http.deps import SessionDep
@@ -130,10 +131,10 @@ def validated(schema: type[M], data: dict[str, Any]) -> M:
 
 
 def whole(fields: dict[str, str], name: str) -> int:
-    try:
-        return int(fields.get(name, "").strip())
-    except ValueError:
-        raise InputError(f"{name} must be a whole number") from None
+    found = form_int(fields.get(name, ""))
+    if found is None:
+        raise InputError(f"{name} must be a whole number")
+    return found
 
 
 @dataclass(frozen=True)

@@ -27,9 +27,15 @@ from app.recruiting.members import MemberRow, link_of
 from engine.errors import InputError
 
 
-def settings(session: Session, kind: MemberKind[Link, MemberRow], owner_id: int) -> Link | None:
-    """The collection's open link and options, or ``None`` when never set."""
-    return session.scalar(select(kind.link).where(link_of(kind.members.noun, owner_id)))
+def settings(
+    session: Session, kind: MemberKind[Link, MemberRow], owner_id: int, *, for_update: bool = False
+) -> Link | None:
+    """The collection's open link and options, or ``None`` when never set; ``for_update``:
+    read afresh and locked, inside the caller's write transaction."""
+    query = select(kind.link).where(link_of(kind.members.noun, owner_id))
+    if for_update:
+        query = query.with_for_update().execution_options(populate_existing=True)
+    return session.scalar(query)
 
 
 def configured(session: Session, kind: MemberKind[Link, MemberRow], owner_id: int) -> Link:
@@ -60,7 +66,7 @@ def configure(
     kind.check_collection(session, owner_id)
     return links.save(
         session,
-        settings(session, kind, owner_id),
+        lambda: settings(session, kind, owner_id, for_update=True),
         lambda: kind.link(collection_id=owner_id),
         options,
     )

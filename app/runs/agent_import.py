@@ -105,17 +105,11 @@ def import_agent(
     declared = checked_declared(upload.declared, model.metadata, role)
     config = _config(upload, model, norm is not None, declared, role, info)
     _check_place(session, experiment, info, role, config)  # early, before files are written
-    created = [
-        p
-        for p, data in _files(runs_root, upload, config)
-        if imported.store_blob(p, data)  # content-addressed: kept when already there
-    ]
-    try:
-        return _store(session, experiment, info, role, config)
-    except BaseException:
-        for path in created:  # refused meanwhile: leave nothing behind
-            path.unlink(missing_ok=True)
-        raise
+    for path, data in _files(runs_root, upload, config):
+        imported.store_blob(path, data)  # content-addressed: kept when already there
+    # Never removed, even when _store refuses the run: another request may be storing a run
+    # that names the same file. A refused upload's file stays, reused by the same bytes.
+    return _store(session, experiment, info, role, config)
 
 
 def _arm(arm: str) -> ExperimentRole:

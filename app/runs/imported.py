@@ -109,11 +109,11 @@ def _hex(digest: str) -> str:
     return digest
 
 
-def store_blob(path: Path, data: bytes) -> bool:
+def store_blob(path: Path, data: bytes) -> None:
     """Write ``data`` to ``path`` (content-addressed: left alone when it exists) through a
-    temporary file and a rename; True when this call created it."""
+    temporary file and a rename, so a reader never sees half a file."""
     if path.is_file():
-        return False
+        return
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     try:
@@ -124,7 +124,6 @@ def store_blob(path: Path, data: bytes) -> bool:
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
-    return True
 
 
 def read_blob(path: Path, digest: str) -> bytes:

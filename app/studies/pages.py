@@ -13,7 +13,7 @@ from fastapi.responses import HTMLResponse
 from pydantic import ValidationError
 from sqlalchemy.orm import Session
 
-from app.core.json_types import IntParam, from_form
+from app.core.json_types import IntParam, form_int, from_form
 from app.core.limits import MAX_BATCH
 from app.http.csrf import CsrfChecked, FormFields
 from app.http.deps import DbId, RuntimeDep, SessionDep, SettingsDep
@@ -216,12 +216,9 @@ def _participants(request: Request, session: Session, study_id: int) -> list[dic
 @router.post("/studies/{study_id}/participants", dependencies=[CsrfChecked])
 def invite(study_id: DbId, session: SessionDep, fields: FormFields) -> Response:
     """Invite one or many participants, then show the study page with their links."""
-    try:
-        count = int(fields.get("count", "1").strip() or "1")
-    except ValueError:
-        raise InputError(
-            f"the number of participants must be a whole number in 1..{MAX_BATCH}"
-        ) from None
+    count = form_int(fields.get("count", "").strip() or "1")
+    if count is None:
+        raise InputError(f"the number of participants must be a whole number in 1..{MAX_BATCH}")
     name = fields.get("name", "").strip()[:200] or None
     people = participants.add_participants(session, study_id=study_id, count=count, name=name)
     return redirect(f"/studies/{study_id}?invited={len(people)}#participants")

@@ -16,8 +16,8 @@ import pytest
 from fastapi.testclient import TestClient
 from sqlalchemy import func, select
 
-from app.models import Run
-from app.runs import agents_api
+from app.models import Experiment, Run
+from app.runs import agent_import, agents_api
 from tests.support.agents import (
     DECLARED,
     create_external,
@@ -312,3 +312,23 @@ def test_the_advice_tree_downloads_with_its_hash(
     assert tree.status_code == 200
     assert tree.json() == client.get(f"/api/runs/{advised}/advice-tree", headers=ADMIN).json()
     assert tree.headers["x-tree-sha256"] == hashlib.sha256(tree.content).hexdigest()
+
+
+def test_a_refused_import_keeps_the_file_that_another_run_names(
+    client: TestClient, study: dict[str, Any], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The same policy sent twice at once (a double click): the request that wrote the file
+    loses the seed to the other, whose run names that file; the file stays (it was deleted)."""
+    experiment = create_external(client, study["id"], seeds=2)
+    model, real = policy(91), agent_import._store
+
+    def other_request_first(session: Any, held: Any, *args: Any) -> Any:
+        with client.app.state.runtime.sessions() as other:  # it stores the same seed first
+            real(other, other.get_one(Experiment, held.id), *args)
+        return real(session, held, *args)
+
+    monkeypatch.setattr(agent_import, "_store", other_request_first)
+    refused = upload(client, experiment["id"], model, arm="baseline", seed=70, **DECLARED)
+    assert refused.status_code == 409, refused.text
+    digest = hashlib.sha256(model).hexdigest()
+    assert f"{digest}.onnx" in stored_files(_runs_root(client))

@@ -122,12 +122,33 @@ def test_create_with_practice_pairs_and_ties(run, client, admin) -> None:
         ),
         (["simulate", "--study", "1", "--teacher", "oracle"], "unknown teacher"),
         (["simulate", "--study", "1", "--noise", "2"], "noise"),
+        # a path through a file: any OSError names the path
+        (
+            ["study", "create", "--name", "x", "--instructions-file", "/etc/hostname/x"],
+            "Not a directory: '/etc/hostname/x'",
+        ),
     ],
 )
 def test_bad_input_is_one_line_and_exit_2(run, args: list[str], message: str) -> None:
     result = run(*args)
     assert result.exit_code == 2
     assert message in result.stderr and len(result.stderr.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["participant", "add", "--study"],
+        ["participant", "tree", "--out", "x.json", "--participant"],
+        ["export", "--study"],
+        ["survey", "results", "--survey"],
+    ],
+)
+def test_an_id_past_the_id_columns_is_a_usage_error(run, args: list[str]) -> None:
+    """Ids are 32-bit: a larger one was SQLite's OverflowError (a traceback) or PostgreSQL's
+    out-of-range error; now the option's own bound, the same on both."""
+    result = run(*args, "9" * 20)
+    assert result.exit_code == 2 and "2147483647" in result.stderr, result.stderr
 
 
 @pytest.mark.process
