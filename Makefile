@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: setup system-deps test-deps run test test-fast lint bench clean
+.PHONY: setup system-deps test-deps run test test-fast lint clean
 
 # Debian packages needed at run time: EGL and OSMesa for off-screen MuJoCo rendering.
 APT_PACKAGES := libegl1 libegl-mesa0 libgl1-mesa-dri libosmesa6
