@@ -216,7 +216,8 @@ def test_runs_on_the_same_advice_are_compared(
     ("fields", "where", "words"),
     [
         ({"timesteps": "0"}, 'id="timesteps-error"', "greater than or equal to 1"),
-        ({"n_envs": "x"}, 'id="n_envs-error"', "valid integer"),
+        ({"n_envs": "x"}, 'id="n_envs-error"', "whole number"),
+        ({"n_envs": "1_0"}, 'id="n_envs-error"', "whole number"),  # int() read 10
         ({"advice": "none"}, 'role="alert"', "trains with advice"),
         ({"advice_mode": "bogus"}, 'id="advice_mode-error"', "reward"),
     ],
