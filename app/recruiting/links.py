@@ -132,29 +132,25 @@ def save(
         InputError: a maximum below the people who already joined.
     """
     try:
-        return _save(session, current, make, options)
+        with writing(session):
+            return _store(session, current(), make, options)
     except IntegrityError:  # the link was made meanwhile: it is there now, so update it
-        return _save(session, current, make, options)
+        with writing(session):
+            return _store(session, current(), make, options)
 
 
-def _save(
-    session: Session,
-    current: Callable[[], Link | None],
-    make: Callable[[], Link],
-    options: LinkOptions,
+def _store(
+    session: Session, row: Link | None, make: Callable[[], Link], options: LinkOptions
 ) -> Link:
-    with writing(session):
-        row = current()
-        if row is None:
-            row = make()
-            row.slug, row.joined, row.declines = secrets.token_urlsafe(9), 0, 0
-        elif options.max_participants < row.joined:
-            raise InputError(
-                f"max_participants must be at least the {row.joined} who already joined"
-            )
-        for field, value in vars(options).items():
-            setattr(row, field, list(value) if field == "external_params" else value)
-        session.add(row)
+    """Put ``options`` on ``row`` (or on a new link), inside the caller's transaction."""
+    if row is None:
+        row = make()
+        row.slug, row.joined, row.declines = secrets.token_urlsafe(9), 0, 0
+    elif options.max_participants < row.joined:
+        raise InputError(f"max_participants must be at least the {row.joined} who already joined")
+    for field, value in vars(options).items():
+        setattr(row, field, list(value) if field == "external_params" else value)
+    session.add(row)
     return row
 
 
