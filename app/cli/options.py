@@ -32,7 +32,6 @@ def id_option(help: str) -> Any:
 
 #: Where an experiment's advice comes from: one of these (app.runs.spec checks which).
 AdviceTeacherOpt = Annotated[str | None, typer.Option(help="A simulated teacher's advice.")]
-
 AdviceParticipantOpt = Annotated[int | None, id_option("A finished participant's advice.")]
 AdvicePoolOpt = Annotated[
     list[int] | None,

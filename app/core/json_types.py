@@ -93,7 +93,7 @@ _FORM_INT = re.compile(r"-?[0-9]{1,19}")
 def form_int(text: str) -> int | None:
     """An HTML form field's whole number, or None when it is none: decimal digits (a ``-``
     allowed, spaces around ignored) inside 64 bits. Python's ``int()`` would also read
-    ``1_0`` as 10 and `` +1`` as 1, and a 30-digit id overflows the database."""
+    ``1_0`` as 10 and ``+1`` as 1, and a 30-digit id overflows the database."""
     text = text.strip()
     if not _FORM_INT.fullmatch(text) or abs(value := int(text)) > INT64_MAX:
         return None
