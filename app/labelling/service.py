@@ -11,22 +11,35 @@ gets through: a match has at most one label.
 
 Undo: a participant may take back a label while no later match depends on it, i.e. iff the
 next-round match containing its winner has no label yet. Their latest label always
-qualifies (a later match that depends on it would have been labelled after it).
+qualifies (a later match that depends on it would have been labelled after it). Never once
+they have ended (withdrawn, out of time, stopped by the gate: their answers are kept as
+they were) or answered anything after the bracket (a disagreement pair or the consistency
+check was asked of this tree; the completion code may have been shown).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-from sqlalchemy import delete, func, select, update
+from sqlalchemy import delete, exists, func, select, update
 from sqlalchemy.orm import Session
+from sqlalchemy.sql import ColumnElement
 
 from app.core.errors import ConflictError, NotFoundError
 from app.db import writing
 from app.labelling.flow import MAX_RESPONSE_MS, LabelResult, ParticipantKey, submit_label
 from app.labelling.open_matches import NextMatch, next_match
 from app.labelling.shape import shape_of
-from app.models import DisagreementPair, Label, Match, Member, Participant, utcnow
+from app.models import (
+    ConsistencyCheck,
+    DisagreementPair,
+    Label,
+    Match,
+    Member,
+    Participant,
+    utcnow,
+)
+from app.recruiting import seats
 from engine.bracket import Bracket, Results
 
 __all__ = [
@@ -87,11 +100,18 @@ def undo_label(
 
     Raises:
         NotFoundError: ``match_id`` is not one of the participant's matches.
-        ConflictError: nothing to undo, or a later match depends on the label (the
-            next-round match containing its winner is decided).
+        ConflictError: nothing to undo, a later match depends on the label (the
+            next-round match containing its winner is decided), or an answer after the
+            bracket is stored.
+        MemberEndedError: they withdrew, or their time is over.
     """
     with writing(session):
+        seats.lock_in_time(session, participant.id, utcnow())
         _lock(session, participant)
+        if session.scalar(select(_answered_after_the_bracket(participant.id))):
+            raise ConflictError(
+                "your answers after the bracket are stored, so the bracket can no longer change"
+            )
         label = _label_to_undo(session, participant, match_id)
         match = session.get_one(Match, label.match_id)
         _drop_next_match(session, participant, match)
@@ -106,6 +126,17 @@ def undo_label(
             )
         )
     return match
+
+
+def _answered_after_the_bracket(participant_id: int) -> ColumnElement[bool]:
+    """Whether a disagreement pair or the consistency check of the participant is answered."""
+    pair = select(DisagreementPair.participant_id).where(
+        DisagreementPair.participant_id == participant_id, DisagreementPair.winner.is_not(None)
+    )
+    checked = select(ConsistencyCheck.participant_id).where(
+        ConsistencyCheck.participant_id == participant_id, ConsistencyCheck.winner.is_not(None)
+    )
+    return exists(pair) | exists(checked)
 
 
 def _label_to_undo(session: Session, participant: ParticipantKey, match_id: int | None) -> Label:
@@ -142,6 +173,15 @@ def _drop_next_match(session: Session, participant: ParticipantKey, match: Match
 
 def can_undo(session: Session, *, participant: ParticipantKey) -> bool:
     """Whether undoing the latest label (:func:`undo_label`) would succeed now."""
+    may_change = session.scalar(
+        select(Member.id).where(
+            Member.id == participant.id,
+            seats.within_time(utcnow()),
+            ~_answered_after_the_bracket(participant.id),
+        )
+    )
+    if may_change is None:
+        return False
     last = session.scalar(
         select(Match)
         .join(Label, Label.match_id == Match.id)

@@ -245,3 +245,5 @@ def test_the_pages_ask_the_pairs_before_thanking(
     assert page.get("/participate/pairs").headers["location"] == "/participate/thanks"
     assert page.get("/participate/thanks").status_code == 200
     assert [p["winner"] for p in _pairs(player)] == [p["left"] for p in _pairs(player)]
+    undo = client.post("/api/participants/me/undo", headers=player.headers)  # pairs answered:
+    assert undo.status_code == 409 and "after the bracket" in undo.json()["detail"]  # final

@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import pytest
+from sqlalchemy import func, select
+
+from app.models import Label
 
 
 def test_rounds_and_match_numbers_with_byes(invite) -> None:
@@ -145,6 +148,34 @@ def test_undo_latest_reopens_it_even_after_the_final(client, invite) -> None:
     assert player.next_match()["round"] == 1
     nothing = client.post("/api/participants/me/undo", headers=player.headers)
     assert nothing.status_code == 409 and "no label" in nothing.json()["detail"]
+
+
+def test_undo_is_refused_once_the_participant_withdrew(client, invite) -> None:
+    """Withdrawing keeps the answers as they were: undo would delete a stored label."""
+    player = invite()
+    match = player.next_match()
+    assert player.label(match["match_id"], match["a"]["candidate_id"]).status_code == 201
+    me = client.get("/api/participants/me", headers=player.headers).json()
+    assert me["can_undo"] is True
+    withdrawn = client.post(
+        "/api/participants/me/withdraw", json={"withdraw": True}, headers=player.headers
+    )
+    assert withdrawn.status_code == 200, withdrawn.text
+    refused = client.post("/api/participants/me/undo", headers=player.headers)
+    assert refused.status_code == 410, refused.text
+    assert (
+        client.delete(f"/api/matches/{match['match_id']}/label", headers=player.headers).status_code
+        == 410
+    )
+    assert client.get("/api/participants/me", headers=player.headers).json()["can_undo"] is False
+    assert _labels_of(client, player.id) == 1  # the label is still stored
+
+
+def _labels_of(client, participant_id: int) -> int:
+    with client.app.state.runtime.sessions() as session:
+        return session.scalar(
+            select(func.count()).select_from(Label).where(Label.participant_id == participant_id)
+        )
 
 
 def test_undo_is_refused_once_a_later_match_depends_on_it(client, make_study, invite) -> None:

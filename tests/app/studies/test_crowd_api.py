@@ -352,6 +352,11 @@ def test_consistency_check_repeats_a_pair_swapped(client, make_study) -> None:
     # MACE competence after one contradicted check: E[max(0, 2X - 1)], X ~ Beta(1, 2).
     assert mine["reliability"] == pytest.approx(1 / 12) and mine["reliability_checks"] == 1
     assert first is not None
+    # The check was asked of this bracket and the code shown: the bracket is final now.
+    me = client.get("/api/participants/me", headers=player.headers).json()
+    assert me["can_undo"] is False
+    undo = client.post("/api/participants/me/undo", headers=player.headers)
+    assert undo.status_code == 409 and "after the bracket" in undo.json()["detail"]
 
 
 @pytest.mark.parametrize("backend", ["sqlite", "postgresql"])
