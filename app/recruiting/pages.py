@@ -184,16 +184,22 @@ def open_link_router(pages: LinkPages[Link, MemberRow]) -> APIRouter:
     def agree_or_decline(
         slug: str, request: Request, session: SessionDep, fields: FormFields
     ) -> Response:
-        """Agree (a member is made) or decline (only the count of declines grows)."""
+        """Agree (a member is made) or decline (only the count of declines grows); one who
+        is a member already (a second tab, the back button) goes on where they are."""
         link = recruiting.open_link(session, kind, slug)
-        if fields.get("decision") != "agree":
+        ids = recruiting.external_ids(link, fields)
+        person = _returning(kind, request, session, link, ids)
+        decision = fields.get("decision")
+        if decision not in ("agree", "decline"):
+            raise InputError("decision must be agree or decline")
+        if decision == "decline" and person is None:
             recruiting.decline(session, kind, link=link)
             ending = seats.ending(link, seats.Outcome("withdrawn", link.decline_code))
             name = pages.name(session, link)
             return message(request, name, "You declined", DECLINED, ending=ending)
-        ids = recruiting.external_ids(link, fields)
-        share = pages.share_label is not None and fields.get("share") == "on"
-        person = _returning(kind, request, session, link, ids)
+        share = (
+            decision == "agree" and pages.share_label is not None and fields.get("share") == "on"
+        )
         return _enter(pages, request, session, link, ids, person, share=share)
 
     return router

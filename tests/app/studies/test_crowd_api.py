@@ -159,6 +159,23 @@ def test_decline_stores_nothing_but_a_count(client, make_study) -> None:
     assert [p["id"] for p in participants_of(client, study["id"])] != []
 
 
+def test_a_member_who_declines_later_goes_on_and_is_not_counted(client, make_study) -> None:
+    """The consent form posted again after joining (a second tab, the back button): declining
+    there would show a decline code to someone who stays a member, with their answers."""
+    study = make_study()
+    link = configure(client, study["id"], consent_text="We store your choices.")
+    browser, page = visit(client, link)
+    csrf = page.text.split('name="csrf_token" value="')[1].split('"')[0]
+    form = {"csrf_token": csrf}
+    assert browser.post(f"/s/{link['slug']}", data=form | {"decision": "agree"}).status_code == 303
+    again = browser.post(f"/s/{link['slug']}", data=form | {"decision": "decline"})
+    assert again.status_code == 303 and again.headers["location"] == "/participate"
+    odd = browser.post(f"/s/{link['slug']}", data=form)  # no decision: neither, so refused
+    assert odd.status_code == 422 and "agree or decline" in odd.text
+    state = client.get(f"/api/studies/{study['id']}/crowd", headers=ADMIN).json()
+    assert (state["declines"], state["joined"]) == (0, 1)
+
+
 def test_consent_post_needs_the_csrf_token(client, make_study) -> None:
     study = make_study()
     link = configure(client, study["id"], consent_text="Consent?")
