@@ -9,6 +9,8 @@ link's decline code and the way back to the platform, if the researcher set them
 
 from __future__ import annotations
 
+import contextlib
+
 from fastapi import APIRouter, Request, Response
 
 from app.evaluations import crowd
@@ -16,6 +18,7 @@ from app.evaluations.pages import ENDED, PAIR, THANKS, PageEvaluator, context_of
 from app.http.csrf import CsrfChecked, FormFields
 from app.http.deps import SessionDep
 from app.http.rendering import PageRoute, RedirectTo, redirect, render
+from app.recruiting import seats
 from app.recruiting import service as recruiting
 from engine.errors import InputError
 
@@ -40,9 +43,9 @@ def withdraw(session: SessionDep, person: PageEvaluator, fields: FormFields) -> 
 
     Raises:
         InputError: the post is not the form's Withdraw button (422).
-        ConflictError: the evaluator finished, ran out of time or withdrew before (409).
     """
     if fields.get("decision") != "withdraw":
         raise InputError("withdrawing takes the form's Withdraw button (decision=withdraw)")
-    recruiting.withdraw(session, crowd.LINK, member=person)
+    with contextlib.suppress(seats.MemberEndedError):  # a second click: the ended page says so
+        recruiting.withdraw(session, crowd.LINK, member=person)
     return redirect(ENDED)

@@ -7,6 +7,7 @@ where they left off; the labelling page (``static/js/label.js``) then talks to t
 
 from __future__ import annotations
 
+import contextlib
 from typing import Any
 
 from fastapi import APIRouter, Request, Response
@@ -73,11 +74,16 @@ def invite_link(token: str, request: Request, session: SessionDep) -> RedirectRe
     )
 
 
-def _context(session: Session, person: Participant) -> dict[str, Any]:
-    """What every page of the bracket shows; a participant who has ended goes to
-    :data:`ENDED` instead."""
+def leave_if_ended(session: Session, person: Participant) -> None:
+    """Send a participant who has ended (withdrawn, out of time, stopped by the gate) to
+    :data:`ENDED`: the first check of every page of the bracket and its practice."""
     if _outcome(session, person)[0].ended:
         raise RedirectTo(ENDED)
+
+
+def _context(session: Session, person: Participant) -> dict[str, Any]:
+    """What every page of the bracket shows (:func:`leave_if_ended` first)."""
+    leave_if_ended(session, person)
     study = studies.get_study(session, study_id=person.study_id)
     return {
         "study": study,
@@ -139,7 +145,8 @@ def withdraw(session: SessionDep, person: PageParticipant, fields: FormFields) -
     with the open link's code for it; only the form's own button withdraws."""
     if fields.get("decision") != "withdraw":
         raise InputError("withdrawing takes the form's Withdraw button (decision=withdraw)")
-    recruiting.withdraw(session, study_link.LINK, member=person)
+    with contextlib.suppress(seats.MemberEndedError):  # a second click: the ended page says so
+        recruiting.withdraw(session, study_link.LINK, member=person)
     return redirect(ENDED)
 
 

@@ -18,7 +18,7 @@ from app.http.deps import SessionDep, SettingsDep
 from app.http.guards import PageParticipant
 from app.http.rendering import PageRoute, RedirectTo, render
 from app.labelling import practice
-from app.labelling.pages import LABEL, PRACTICE
+from app.labelling.pages import LABEL, PRACTICE, leave_if_ended
 from app.labelling.practice_api import practice_image_url
 from app.studies import service as studies
 from engine.practice import MAX_PRACTICE_PAIRS, SIDES, PracticePair, Side
@@ -37,6 +37,7 @@ def practice_page(
 ) -> Response:
     """Practice pair ``pair``, or the feedback on choosing ``chose`` in it; the bracket once
     the participant has no practice (none asked, or a label given)."""
+    leave_if_ended(session, person)
     found = practice.practice(session, participant=person, images_dir=settings.images_dir)
     if not found.pairs:
         raise RedirectTo(LABEL)

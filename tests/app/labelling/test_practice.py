@@ -340,3 +340,18 @@ def test_missing_practice_states_skip_practice(
     page = browser(client)
     page.get(f"/p/{player.token}")
     assert 'id="start" href="/participate/label"' in page.get("/participate").text
+
+
+def test_a_participant_who_withdrew_gets_the_ended_page_not_practice(
+    client, practice_study, invite
+) -> None:
+    player = invite(practice_study["id"])
+    page = browser(client)
+    assert page.get(f"/p/{player.token}").status_code == 303
+    assert page.get("/participate/practice").status_code == 200  # before: practice
+    gone = client.post(
+        "/api/participants/me/withdraw", json={"withdraw": True}, headers=player.headers
+    )
+    assert gone.status_code == 200, gone.text
+    after = page.get("/participate/practice")
+    assert after.status_code == 303 and after.headers["location"] == "/participate/ended"

@@ -154,6 +154,20 @@ def test_withdrawing_frees_the_seat_keeps_the_labels_and_leaves_them_out(client,
     assert _person(client, player.id)["outcome"] == "withdrawn"
 
 
+def test_withdrawing_twice_from_the_page_shows_the_ended_page_again(client, study_id) -> None:
+    """A double click or a reload of the withdraw form: the ended page with its code, not an
+    error page without it."""
+    link = configure(client, study_id, **LIMITED, **CODES)
+    browser, _ = _join(client, link, "w4")
+    token = csrf_token(browser, "/participate/withdraw")
+    form = {"csrf_token": token, "decision": "withdraw"}
+    for _ in range(2):
+        done = browser.post("/participate/withdraw", data=form)
+        assert done.status_code == 303 and done.headers["location"] == "/participate/ended"
+    ended = browser.get("/participate/ended")
+    assert ended.status_code == 200 and "NOPE-2" in ended.text
+
+
 def test_declining_shows_the_decline_code_and_the_way_back(client, study_id) -> None:
     link = configure(client, study_id, consent_text="We keep your choices.", **CODES)
     browser = TestClient(client.app, follow_redirects=False)
