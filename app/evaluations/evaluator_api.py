@@ -19,11 +19,12 @@ from app.core.errors import NotFoundError
 from app.evaluations import crowd, evaluators, gold, reminder
 from app.evaluations import service as evaluations
 from app.evaluations.schemas import AnswerIn, PairOut
+from app.evaluations.service import StimulusKind
 from app.evaluations.stimuli import stimuli_dir
 from app.http.deps import SessionDep, SettingsDep
 from app.http.member_auth import EvaluatorDep
 from app.labelling.schemas import ShareConsentIn, ShareConsentOut
-from app.models import Evaluation, EvaluationPair, EvaluationStimulus, Evaluator, utcnow
+from app.models import EvaluationPair, EvaluationStimulus, Evaluator, utcnow
 from app.recruiting import seats
 from app.recruiting import service as recruiting
 from app.recruiting.schemas import OutcomeOut, WithdrawIn
@@ -34,7 +35,6 @@ from engine.render.image import with_marker
 router = APIRouter(prefix="/evaluators/me", tags=["evaluators"])
 
 Side = Literal["left", "right"]
-Kind = Literal["still", "clip"]
 PairKey = Annotated[str, PathParam(min_length=1, max_length=32, pattern=r"^[A-Za-z0-9_-]+$")]
 Place = Literal["first", "second", "third", "fourth"]  # reminder.PLACES
 MEDIA_TYPES = {"still": "image/jpeg", "clip": "image/webp"}
@@ -100,7 +100,7 @@ def pair_out(session: Session, person: Evaluator, pair: EvaluationPair) -> PairO
     """A pair as the evaluator sees it: its key, its place, and its pictures' URLs."""
     evaluation = evaluations.get_evaluation(session, evaluation_id=person.evaluation_id)
     gold_pair = pair.gold_answer is not None  # an instructed gold pair: stills, the marker
-    kind: Kind = "still" if gold_pair else shown_kind(evaluation)
+    kind = evaluators.shown_kind(evaluation, pair)
     total = evaluators.progress(session, evaluator_id=person.id).total
     return PairOut(
         key=pair.key,
@@ -113,12 +113,7 @@ def pair_out(session: Session, person: Evaluator, pair: EvaluationPair) -> PairO
     )
 
 
-def shown_kind(evaluation: Evaluation) -> Kind:
-    """Clips once a clip evaluation's clips are rendered; stills until then."""
-    return "clip" if evaluation.stimulus == "clip" and evaluation.clips_ready else "still"
-
-
-def _side(key: str, side: Side, kind: Kind) -> dict[str, str]:
+def _side(key: str, side: Side, kind: StimulusKind) -> dict[str, str]:
     base = f"/api/evaluators/me/pairs/{key}/{side}"
     sides = {"still": f"{base}/still"}
     if kind == "clip":
@@ -135,7 +130,7 @@ def answer_pair(
     seats.check_can_act(person, utcnow())
     evaluation = evaluations.get_evaluation(session, evaluation_id=person.evaluation_id)
     shown = evaluators.Shown(
-        stimulus=body.stimulus or shown_kind(evaluation),
+        stimulus=body.stimulus,
         reminder=reminder.shown(session, evaluation),
     )
     evaluators.answer(
@@ -157,7 +152,7 @@ def answer_pair(
 def pair_picture(
     key: PairKey,
     side: Side,
-    kind: Kind,
+    kind: StimulusKind,
     person: EvaluatorDep,
     session: SessionDep,
     settings: SettingsDep,

@@ -22,7 +22,7 @@ from app.core.errors import ConflictError, NotFoundError
 from app.core.limits import MAX_BATCH, check_text
 from app.db import writing
 from app.evaluations import gold
-from app.evaluations.service import get_evaluation, get_ready_evaluation
+from app.evaluations.service import StimulusKind, get_evaluation, get_ready_evaluation
 from app.labelling.participants import Progress
 from app.models import (
     Evaluation,
@@ -180,10 +180,25 @@ def pair_by_key(session: Session, *, evaluator_id: int, key: str) -> EvaluationP
 
 @dataclass(frozen=True)
 class Shown:
-    """What the evaluator saw when answering: the stimulus kind and the reminder."""
+    """What the evaluator saw when answering: the stimulus kind (None: the pair's own,
+    :func:`shown_kind`) and the reminder."""
 
-    stimulus: str
+    stimulus: str | None
     reminder: bool
+
+
+def shown_kind(evaluation: Evaluation, pair: EvaluationPair) -> StimulusKind:
+    """What ``pair`` is shown as: stills for an instructed gold pair (its marker is drawn on
+    a still), clips once a clip evaluation's clips are rendered, stills until then."""
+    clips = evaluation.stimulus == "clip" and evaluation.clips_ready
+    return "clip" if clips and pair.gold_answer is None else "still"
+
+
+def _stimulus(given: str | None, kind: StimulusKind) -> str:
+    """The stimulus to record: ``given`` (stills are always on the page), else the pair's."""
+    if given == "clip" and kind != "clip":
+        raise InputError("this pair has no clips to show: it was shown as stills")
+    return given or kind
 
 
 def answer(
@@ -200,10 +215,13 @@ def answer(
 
     Raises:
         NotFoundError: no such pair of theirs.
+        InputError: ``clip`` for a pair shown as stills.
         ConflictError: the pair was answered otherwise already.
         MemberEndedError: they withdrew or ran out of time (checked by their lock).
     """
     pair = pair_by_key(session, evaluator_id=evaluator.id, key=key)
+    evaluation = get_evaluation(session, evaluation_id=evaluator.evaluation_id)
+    stimulus = _stimulus(shown.stimulus, shown_kind(evaluation, pair))
     tie = choice == "tie"
     chose_left = None if tie else choice == "left"
     winner = None if tie else (pair.a if chose_left == pair.a_left else pair.b)
@@ -219,15 +237,13 @@ def answer(
                 tie=tie,
                 chose_left=chose_left,
                 response_ms=response_ms,
-                stimulus=shown.stimulus,
+                stimulus=stimulus,
                 reminder=shown.reminder,
                 answered_at=utcnow(),
             )
         )
         if pair.gold_answer is not None:  # a gold answer: the gate reads the gold score
-            gold.gate_after_answer(
-                session, evaluator, get_evaluation(session, evaluation_id=evaluator.evaluation_id)
-            )
+            gold.gate_after_answer(session, evaluator, evaluation)
         _finish_if_done(session, evaluator)
     session.refresh(pair)
     if (pair.winner, pair.tie) != (winner, tie):

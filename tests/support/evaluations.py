@@ -109,10 +109,13 @@ def wait_evaluation(
     return wait_for(probe, ended, what=f"evaluation {evaluation_id} to render", timeout_s=600)
 
 
-def bare_evaluation(client: TestClient, *, run_id: int | None = None) -> int:
+def bare_evaluation(
+    client: TestClient, *, run_id: int | None = None, stimulus: str = "still"
+) -> int:
     """An evaluation whose rows are written here (nothing renders): with ``run_id``, four
     slots of that run, each with one window whose files do not exist, and ready; else still
-    preparing. For tests that need an evaluation to name or join, not to look at."""
+    preparing. ``clip``: a clip evaluation whose clips count as rendered, so answers may say
+    they saw clips. For tests that need an evaluation to name or join, not to look at."""
     with client.app.state.runtime.sessions() as session, session.begin():
         evaluation = Evaluation(
             name="bare",
@@ -121,12 +124,12 @@ def bare_evaluation(client: TestClient, *, run_id: int | None = None) -> int:
             question=QUESTIONS["others"],
             instructions="",
             show_bracket=False,
-            stimulus="still",
+            stimulus=stimulus,
             pairs_per_evaluator=2,
             target_win_rate=0.65,
             seed=0,
             evaluator_counter=0,
-            clips_ready=False,
+            clips_ready=stimulus == "clip",
         )
         session.add(evaluation)
         session.flush()

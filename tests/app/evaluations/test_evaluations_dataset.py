@@ -75,8 +75,8 @@ def _player(client: TestClient, study_id: int) -> Player:
 
 
 def _advisor_evaluation(client: TestClient, run_id: int, advisor_id: int) -> int:
-    """A bare evaluation made an advisor's, with the bracket reminder on."""
-    evaluation_id = bare_evaluation(client, run_id=run_id)
+    """A bare clip evaluation made an advisor's, with the bracket reminder on."""
+    evaluation_id = bare_evaluation(client, run_id=run_id, stimulus="clip")
     with client.app.state.runtime.sessions() as session, session.begin():
         evaluation = session.get(Evaluation, evaluation_id)
         assert evaluation is not None
@@ -96,7 +96,7 @@ def _answer(client: TestClient, who: dict[str, str], choice: str, stimulus: str)
 def answered(client: TestClient, run_id: int) -> dict[str, Any]:
     """A bare evaluation (2 pairs each): the keeper answers both pairs, one as a clip and one
     as a still; the leaver answers one and withdraws."""
-    evaluation_id = bare_evaluation(client, run_id=run_id)
+    evaluation_id = bare_evaluation(client, run_id=run_id, stimulus="clip")
     (keeper_id, keeper), (_, leaver) = _bearers(client, evaluation_id, 2)
     _answer(client, keeper, "left", "clip")
     _answer(client, keeper, "tie", "still")
@@ -299,3 +299,17 @@ def test_the_instructions_page_records_the_evaluators_choice(client, run_id) -> 
     assert "You agreed: your answers may be shared." in page.get("/evaluate").text
     page.post("/evaluate/share", data={"csrf_token": csrf})  # unticked: withdrawn
     assert "Your answers will not be shared." in page.get("/evaluate").text
+
+
+def test_a_clip_is_refused_where_the_pair_was_shown_as_stills(client, run_id) -> None:
+    """The stimulus column says what was seen: a stills evaluation records no clip, and an
+    answer that names none records the pair's own kind."""
+    evaluation_id = bare_evaluation(client, run_id=run_id)  # stills
+    ((_, who),) = _bearers(client, evaluation_id, 1)
+    key = client.get("/api/evaluators/me/pairs/next", headers=who).json()["key"]
+    url = f"/api/evaluators/me/pairs/{key}"
+    refused = client.post(url, json={"choice": "left", "stimulus": "clip"}, headers=who)
+    assert refused.status_code == 422 and "no clips" in refused.json()["detail"]
+    assert client.post(url, json={"choice": "left"}, headers=who).status_code == 200
+    rows = [json.loads(line) for line in _get(client, evaluation_id, "jsonl").text.splitlines()]
+    assert [r["stimulus"] for r in rows] == ["still"]
