@@ -59,6 +59,13 @@ class Member(Base):
             "external_id",
             unique=True,
         ),
+        Index(
+            "uq_members_collection_join_key",
+            "collection_kind",
+            "collection_id",
+            "join_key",
+            unique=True,
+        ),
     )
     __mapper_args__ = {"polymorphic_on": "collection_kind"}
 
@@ -74,6 +81,9 @@ class Member(Base):
     #: e.g. ``PROLIFIC_PID``): the same id coming back resumes this member.
     external_id: Mapped[str | None] = mapped_column(String(200), default=None)
     external_ids: Mapped[dict | None] = mapped_column(JSON, default=None)
+    #: The consent form's one-time key: its second post (a double click, before the first
+    #: answer set the cookie) resumes this member instead of taking a second seat.
+    join_key: Mapped[str | None] = mapped_column(String(32), default=None)
     #: Whether they came through the open link (only they get its completion code).
     via_link: Mapped[bool] = mapped_column(Boolean, default=False)
     #: Agreed to have their labels shared in a public dataset (under a salted hash of id).

@@ -246,6 +246,18 @@ def member_by_external_id(
     )
 
 
+def member_by_join_key(
+    session: Session, kind: CollectionKind[MemberRow], *, collection_id: int, join_key: str
+) -> MemberRow | None:
+    """The member of ``kind`` in collection ``collection_id`` who joined with the consent
+    form's ``join_key`` (unique there), or ``None``."""
+    return session.scalar(
+        select(kind.member).where(
+            of_collection(kind.noun, collection_id), Member.join_key == join_key
+        )
+    )
+
+
 def is_member_token(db: Session | Connection, *, token: str) -> bool:
     """Whether ``token`` is some member's invite token, of any kind (a credential of another
     role, not a guess)."""

@@ -10,6 +10,8 @@ create a person count.
 
 from __future__ import annotations
 
+import re
+import secrets
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Generic, TypeVar
@@ -36,6 +38,9 @@ from engine.errors import InputError
 
 T = TypeVar("T")
 M = TypeVar("M", bound=BaseModel)
+#: The consent form's one-time key (:attr:`app.models.Member.join_key`): 16 random bytes.
+JOIN_KEY_BYTES = 16
+JOIN_KEY = re.compile(r"[A-Za-z0-9_-]{22}")
 DECLINED = "You declined to take part; nothing about you was stored. You can close this page."
 
 
@@ -102,6 +107,7 @@ def consent(
             "action": action,
             "ids": ids,
             "share_label": share_label,
+            "join_key": secrets.token_urlsafe(JOIN_KEY_BYTES),
         },
     )
 
@@ -200,7 +206,9 @@ def open_link_router(pages: LinkPages[Link, MemberRow]) -> APIRouter:
         share = (
             decision == "agree" and pages.share_label is not None and fields.get("share") == "on"
         )
-        return _enter(pages, request, session, link, ids, person, share=share)
+        key = fields.get("join_key", "")
+        join_key = key if JOIN_KEY.fullmatch(key) else None  # none: joins, never resumes
+        return _enter(pages, request, session, link, ids, person, share=share, join_key=join_key)
 
     return router
 
@@ -225,15 +233,20 @@ def _enter(
     ids: dict[str, str],
     person: MemberRow | None,
     share: bool = False,
+    join_key: str | None = None,
 ) -> Response:
     """Resume ``person`` (a returning visitor), or make a member of a new one (rate-limited;
-    ``share``: they agreed to share their answers); "full" past the maximum. Their cookie is
-    set on the way to their next page."""
+    ``share``: they agreed to share their answers; ``join_key``: the consent form's, whose
+    second post resumes them); "full" past the maximum. Their cookie is set on the way to
+    their next page."""
     kind = pages.kind
     if person is None:
         try:
             person = admit(
-                request, lambda: recruiting.join(session, kind, link=link, ids=ids, share=share)
+                request,
+                lambda: recruiting.join(
+                    session, kind, link=link, ids=ids, share=share, join_key=join_key
+                ),
             )
         except kind.full_error:
             return pages.full(request, session, link)

@@ -20,7 +20,7 @@ from app.core.errors import ConflictError, NotFoundError
 from app.db import writing
 from app.models import OpenLink
 from app.models.base import utcnow
-from app.recruiting import events, links, seats
+from app.recruiting import events, links, members, seats
 from app.recruiting.kinds import Link, MemberKind, full_message
 from app.recruiting.links import LinkOptions
 from app.recruiting.members import MemberRow, link_of
@@ -118,10 +118,11 @@ def join(
     link: Link,
     ids: dict[str, str],
     share: bool = False,
+    join_key: str | None = None,
 ) -> MemberRow:
-    """A new member for this visitor, or the one their first external id names (two first
-    visits of one id at once: the members' unique index of collection and external id
-    settles it).
+    """A new member for this visitor, or the one their first external id or the consent
+    form's ``join_key`` names (two first visits of one id, or two posts of one form, at once:
+    the members' unique indexes of collection and external id or join key settle it).
     ``share``: they agreed to have their labels shared in a public dataset (off unless they
     ticked it on the consent page).
 
@@ -140,6 +141,7 @@ def join(
         external_ids=ids or None,
         via_link=True,
         share_consent=share,
+        join_key=join_key,
     )
     try:
         with writing(session):
@@ -147,8 +149,12 @@ def join(
             seats.free_expired_seats(session, link, now)
             links.take_seat(session, link_of(kind.members.noun, owner_id), full=full)
             kind.stage(session, person)
-    except IntegrityError:  # the same external id joined at the same moment: resume it
+    except IntegrityError:  # the same external id or form joined just before: resume it
         existing = returning(session, kind, link=link, ids=ids, token=None)
+        if existing is None and join_key is not None:
+            existing = members.member_by_join_key(
+                session, kind.members, collection_id=owner_id, join_key=join_key
+            )
         if existing is None:
             raise
         return existing

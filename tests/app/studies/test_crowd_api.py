@@ -176,6 +176,26 @@ def test_a_member_who_declines_later_goes_on_and_is_not_counted(client, make_stu
     assert (state["declines"], state["joined"]) == (0, 1)
 
 
+def test_a_double_click_on_agree_makes_one_member(client, make_study) -> None:
+    """The second post of the consent form arrives without the cookie the first one sets:
+    the form's one-time key resumes the member the first one made (it took a second seat)."""
+    study = make_study()
+    link = configure(client, study["id"], consent_text="We store your choices.")
+    browser, page = visit(client, link)
+    twin = visitor(client)  # the same page's second request: its cookies, not the answer's
+    twin.cookies.update(browser.cookies)
+    form = {"csrf_token": page.text.split('name="csrf_token" value="')[1].split('"')[0]}
+    form["join_key"] = page.text.split('name="join_key" value="')[1].split('"')[0]
+    first = browser.post(f"/s/{link['slug']}", data=form | {"decision": "agree"})
+    second = twin.post(f"/s/{link['slug']}", data=form | {"decision": "agree"})
+    assert first.status_code == second.status_code == 303
+    assert browser.cookies[PARTICIPANT_COOKIE] == twin.cookies[PARTICIPANT_COOKIE]
+    state = client.get(f"/api/studies/{study['id']}/crowd", headers=ADMIN).json()
+    assert state["joined"] == 1 and len(participants_of(client, study["id"])) == 1
+    _, again = visit(client, link)  # a new visit is a new form, a new key
+    assert again.text.split('name="join_key" value="')[1].split('"')[0] != form["join_key"]
+
+
 def test_consent_post_needs_the_csrf_token(client, make_study) -> None:
     study = make_study()
     link = configure(client, study["id"], consent_text="Consent?")
