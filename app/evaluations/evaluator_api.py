@@ -171,7 +171,10 @@ def pair_picture(
     )
     if path is None or (pair.gold_answer is not None and kind == "clip"):
         raise NotFoundError(f"no {kind} of this pair yet")
-    data = (stimuli_dir(settings.data_dir) / Path(path)).read_bytes()
+    file = stimuli_dir(settings.data_dir) / Path(path)
+    if not file.is_file():  # a data dir restored without its stimuli, say
+        raise NotFoundError(f"the {kind} of this pair is missing on disk")
+    data = file.read_bytes()
     if pair.gold_answer == slot:
         data = with_marker(data)
     return Response(data, media_type=MEDIA_TYPES[kind], headers={"Cache-Control": CACHE})

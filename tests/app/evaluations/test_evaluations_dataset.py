@@ -308,6 +308,8 @@ def test_a_clip_is_refused_where_the_pair_was_shown_as_stills(client, run_id) ->
     ((_, who),) = _bearers(client, evaluation_id, 1)
     key = client.get("/api/evaluators/me/pairs/next", headers=who).json()["key"]
     url = f"/api/evaluators/me/pairs/{key}"
+    missing = client.get(f"{url}/left/still", headers=who)  # a bare evaluation's files: none
+    assert missing.status_code == 404 and "missing on disk" in missing.json()["detail"]
     refused = client.post(url, json={"choice": "left", "stimulus": "clip"}, headers=who)
     assert refused.status_code == 422 and "no clips" in refused.json()["detail"]
     assert client.post(url, json={"choice": "left"}, headers=who).status_code == 200
