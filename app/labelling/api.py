@@ -123,7 +123,16 @@ def _side(
     }
 
 
-@router.post("/me/undo")
+@router.post(
+    "/me/undo",
+    responses={
+        409: {
+            "description": "No label to undo, or an answer after the bracket (a disagreement "
+            "pair, the consistency check) is stored."
+        },
+        410: {"description": "The participant withdrew or ran out of time: answers are final."},
+    },
+)
 def undo(person: ParticipantDep, session: SessionDep) -> UndoOut:
     """Take back the participant's latest label; 409 when there is none."""
     match = labelling.undo_label(session, participant=person)

@@ -84,7 +84,11 @@ def label_body(result: labelling.LabelResult, study_id: int) -> dict[str, Any]:
     "/{match_id}/label",
     responses={
         404: {"description": "No such match among this participant's."},
-        409: {"description": "Not labelled, or a later match already depends on it."},
+        409: {
+            "description": "Not labelled, a later match already depends on it, or an answer "
+            "after the bracket (a disagreement pair, the consistency check) is stored."
+        },
+        410: {"description": "The participant withdrew or ran out of time: answers are final."},
     },
 )
 def undo_label(match_id: DbId, person: ParticipantDep, session: SessionDep) -> UndoOut:

@@ -77,6 +77,10 @@ BODIES: dict[tuple[str, str], dict[str, Any]] = {
         "instructions": "",
     },
     ("POST", "/studies/{study_id}/participants"): {"count": "1"},
+    # the consent form's buttons: declining stores only a count, for anyone
+    ("POST", "/s/{slug}"): {"decision": "decline"},
+    ("POST", "/q/{slug}"): {"decision": "decline"},
+    ("POST", "/e/{slug}"): {"decision": "decline"},
 }
 
 #: Query strings of routes that need one to name something real.
