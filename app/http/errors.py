@@ -20,6 +20,7 @@ from starlette.types import ExceptionHandler
 
 from app.core.errors import AuthError, PendingError, ServiceError, TooManyAttemptsError
 from app.http import bounded
+from app.http.rendering import error_page
 from engine.errors import InputError
 
 log = logging.getLogger(__name__)
@@ -66,7 +67,10 @@ def _validation_error(_: Request, exc: RequestValidationError) -> JSONResponse:
 
 async def _http_error(request: Request, exc: StarletteHTTPException) -> Response:
     """FastAPI's answer, except that a 405 lists every method of the path in ``Allow``
-    (Starlette names the first matching route's only, and FastAPI has a route per method)."""
+    (Starlette names the first matching route's only, and FastAPI has a route per method),
+    and a browser asking for a page that does not exist gets a page that says so."""
+    if exc.status_code == 404 and _wants_a_page(request):
+        return error_page(request, 404, "There is no such page. Check the link you were given.")
     if exc.status_code == 405:
         methods = sorted(
             {
@@ -78,6 +82,13 @@ async def _http_error(request: Request, exc: StarletteHTTPException) -> Response
         )
         exc = StarletteHTTPException(405, exc.detail, headers={"Allow": ", ".join(methods)})
     return await http_exception_handler(request, exc)
+
+
+def _wants_a_page(request: Request) -> bool:
+    """A browser's request outside the API and the static files (its ``Accept`` names HTML)."""
+    path = request.url.path
+    outside = not path.startswith(("/api/", "/static/"))
+    return outside and "text/html" in request.headers.get("accept", "")
 
 
 def _input_error(_: Request, exc: InputError) -> JSONResponse:

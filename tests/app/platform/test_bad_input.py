@@ -24,7 +24,7 @@ from app.models import Candidate, Run, RunCheckpoint
 from app.runs import artefacts
 from engine.rl.checkpoint import checkpoint_path
 from tests.support.runs import run_app
-from tests.support.web import ADMIN, ADMIN_TOKEN
+from tests.support.web import ADMIN, ADMIN_TOKEN, audit
 
 CANARY = "acv-canary-outside-the-data-dir"
 MALFORMED_IDS = [
@@ -413,3 +413,15 @@ def test_huge_integers_in_every_query_parameter_are_answered(client) -> None:
                         assert response.status_code < 500, (url, param["name"], huge)
                         asked += 1
     assert asked >= 4
+
+
+def test_a_page_that_does_not_exist_is_a_page_for_browsers(client) -> None:
+    """A participant who mistypes a link sees a page, not the API's JSON; clients and the
+    API keep the JSON answer."""
+    html = {"Accept": "text/html,application/xhtml+xml"}
+    page = client.get("/participate/nope", headers=html)
+    assert page.status_code == 404 and page.headers["content-type"].startswith("text/html")
+    assert "There is no such page" in page.text and audit(page.text) == []
+    for path, accept in (("/participate/nope", "*/*"), ("/api/nope", html["Accept"])):
+        answer = client.get(path, headers={"Accept": accept})
+        assert answer.status_code == 404 and answer.json() == {"detail": "Not Found"}, path
