@@ -1,0 +1,24 @@
+"""The page a browser gets for a path that does not exist (a mistyped invite link), in a real
+browser on a desktop and on a phone, audited by axe-core."""
+
+from __future__ import annotations
+
+import pytest
+from playwright.sync_api import Browser, expect
+
+from tests.support.a11y import assert_accessible
+from tests.support.browser import DESKTOP, PHONE
+
+pytestmark = pytest.mark.browser
+
+
+@pytest.mark.parametrize("viewport", [DESKTOP, PHONE], ids=["desktop", "phone"])
+def test_a_missing_page_is_a_page_that_says_so(server, browser: Browser, viewport) -> None:
+    base, _ = server
+    context = browser.new_context(viewport=viewport)
+    page = context.new_page()
+    response = page.goto(f"{base}/participate/nope")
+    assert response is not None and response.status == 404
+    expect(page.locator("main")).to_contain_text("There is no such page")
+    assert_accessible(page, f"404 page ({viewport['width']} px)")
+    context.close()
