@@ -129,7 +129,17 @@ def _page_error(request: Request, exc: Exception) -> HTMLResponse:
 
 
 class PageRoute(APIRoute):
-    """A route whose failures become HTML pages or redirects instead of JSON errors."""
+    """A route whose failures become HTML pages or redirects instead of JSON errors.
+
+    A ``GET`` page also answers ``HEAD`` (link checkers and previewers send it), as
+    Starlette's own routes do and FastAPI's do not; the server sends no body for it. It runs
+    the ``GET``, which never makes a member (:mod:`app.recruiting.pages`).
+    """
+
+    def __init__(self, path: str, endpoint: Callable[..., Any], **kwargs: Any) -> None:
+        if set(kwargs.get("methods") or ()) == {"GET"}:
+            kwargs["methods"] = {"GET", "HEAD"}
+        super().__init__(path, endpoint, **kwargs)
 
     def get_route_handler(self) -> Callable[[Request], Coroutine[Any, Any, Response]]:
         handler = super().get_route_handler()

@@ -1,11 +1,12 @@
-"""The open-link pages, written once for studies (``/s/<slug>``) and surveys (``/q/<slug>``):
-consent, a member per new visitor (rate-limited), resume, "this ... is full", declined; and
-the researcher's open-link form. :func:`open_link_router` builds them for one kind of
-collection (:class:`LinkPages`).
+"""The open-link pages, written once for studies (``/s/<slug>``), surveys (``/q/<slug>``)
+and evaluations (``/e/<slug>``): consent (or a start button), a member per new visitor who
+agrees (rate-limited), resume, "this ... is full", declined; and the researcher's open-link
+form. :func:`open_link_router` builds them for one kind of collection (:class:`LinkPages`).
 
-Joining is rate-limited per client address (:mod:`app.http.ratelimit`, the same moving
-window as failed logins, with its own counts, one for both kinds of link); only visits that
-create a person count.
+Only a ``POST`` makes a member: link previewers and mail scanners fetch links, and must not
+take seats. Joining is rate-limited per client address (:mod:`app.http.ratelimit`, the same
+moving window as failed logins, with its own counts, one for every kind of link); only
+visits that create a person count.
 """
 
 from __future__ import annotations
@@ -96,8 +97,9 @@ def consent(
     ids: dict[str, str],
     share_label: str | None = None,
 ) -> Response:
-    """The consent page: the researcher's text, agree or decline (posted to ``action``),
-    and the optional, unticked choice to share (``share_label``, where the kind asks it)."""
+    """The consent page: the researcher's text, agree or decline (posted to ``action``), or
+    only a start button where the link has no consent text; and the optional, unticked
+    choice to share (``share_label``, where the kind asks it)."""
     return render(
         request,
         "crowd_consent.html",
@@ -166,25 +168,27 @@ class LinkPages(Generic[Link, MemberRow]):
 
 
 def open_link_router(pages: LinkPages[Link, MemberRow]) -> APIRouter:
-    """The open link's two routes: ``GET`` (consent, or straight on) and ``POST`` (the
-    consent form's agree or decline)."""
+    """The open link's two routes: ``GET`` (consent or start, or a returning member straight
+    on) and ``POST`` (the form's agree, start or decline)."""
     router = APIRouter(route_class=PageRoute, include_in_schema=False)
     kind, path = pages.kind, pages.kind.prefix + "{slug}"
 
     @router.get(path)
     def open_link(slug: str, request: Request, session: SessionDep) -> Response:
-        """The consent page, or straight on; "full" past the maximum."""
+        """A returning member goes on where they are; a new visitor gets the consent page
+        (or a start button where the link has no consent text), "full" past the maximum.
+        A ``GET`` never makes a member: a link previewer or a mail scanner that fetches the
+        link must not take a seat."""
         link = recruiting.open_link(session, kind, slug)
         ids = recruiting.external_ids(link, query(request))
         person = _returning(kind, request, session, link, ids)
-        if person is None:
-            check_open(link, what=kind.members.noun)
-            if not recruiting.has_room(session, link):
-                return pages.full(request, session, link)
-            if link.consent_text:
-                name, action = pages.name(session, link), open_path(kind, link.slug)
-                return consent(request, name, link, action, ids, pages.share_label)
-        return _enter(pages, request, session, link, ids, person)
+        if person is not None:
+            return _enter(pages, request, session, link, ids, person)
+        check_open(link, what=kind.members.noun)
+        if not recruiting.has_room(session, link):
+            return pages.full(request, session, link)
+        name, action = pages.name(session, link), open_path(kind, link.slug)
+        return consent(request, name, link, action, ids, pages.share_label)
 
     @router.post(path, dependencies=[CsrfChecked])
     def agree_or_decline(

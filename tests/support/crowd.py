@@ -3,6 +3,8 @@ own, and the participant a visit made."""
 
 from __future__ import annotations
 
+import html
+import re
 from typing import Any
 
 import httpx
@@ -18,6 +20,7 @@ from tests.support.studies import Player
 from tests.support.web import ADMIN
 
 SETTINGS = {"enabled": True, "max_participants": 50}
+HIDDEN_RE = re.compile(r'<input type="hidden" name="([^"]+)" value="([^"]*)">')
 
 
 def configure(client: TestClient, study_id: int, **options: Any) -> dict[str, Any]:
@@ -32,8 +35,34 @@ def visitor(client: TestClient) -> TestClient:
 
 
 def visit(client: TestClient, link: dict[str, Any], query: str = "") -> tuple[TestClient, Any]:
+    """Open the study's link in a new browser and press Start where the page offers it (a
+    link without consent text); the answer is the last response (the join's redirect, or a
+    consent, full or closed page)."""
     browser = visitor(client)
-    return browser, browser.get(f"/s/{link['slug']}{query}")
+    return browser, join(browser, f"/s/{link['slug']}{query}")
+
+
+def join(
+    browser: httpx.Client,
+    url: str,
+    params: dict[str, str] | None = None,
+    headers: dict[str, str] | None = None,
+) -> httpx.Response:
+    """``GET url`` (an open link, any kind) and press Start where the page offers it; the
+    ``headers`` go with both requests."""
+    return start(browser, browser.get(url, params=params, headers=headers), headers)
+
+
+def start(
+    browser: httpx.Client, page: httpx.Response, headers: dict[str, str] | None = None
+) -> httpx.Response:
+    """Press the open-link page's Start button if it has one (its form's hidden fields sent
+    back, as a browser does); otherwise ``page`` itself."""
+    if page.status_code != 200 or 'id="start"' not in page.text:
+        return page
+    fields = {n: html.unescape(v) for n, v in HIDDEN_RE.findall(page.text)}
+    fields["decision"] = "agree"
+    return browser.post(page.url.path, data=fields, headers=headers)
 
 
 def joined_player(client: TestClient, browser: TestClient, response: Any) -> Player:

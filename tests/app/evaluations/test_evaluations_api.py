@@ -16,6 +16,7 @@ import pytest
 from fastapi.testclient import TestClient
 from PIL import Image
 
+from tests.support.crowd import join
 from tests.support.evaluations import evaluable_experiment, wait_evaluation
 from tests.support.runs import run_app
 from tests.support.studies import new_study
@@ -207,7 +208,7 @@ def _csv(client: TestClient, evaluation: dict[str, Any]) -> str:
 def _join(client: TestClient, slug: str, pid: str) -> dict[str, str]:
     """A visitor through the open link: the bearer header of the evaluator they became."""
     visit = TestClient(client.app, follow_redirects=False)
-    response = visit.get(f"/e/{slug}", params={"PROLIFIC_PID": pid})
+    response = join(visit, f"/e/{slug}", params={"PROLIFIC_PID": pid})
     assert response.status_code in (302, 303) and response.headers["location"] == "/evaluate"
     return {"Authorization": f"Bearer {response.cookies['acv_evaluator']}"}
 

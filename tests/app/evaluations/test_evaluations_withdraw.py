@@ -27,6 +27,7 @@ from app.settings import SQLITE_FILE
 from tests.support.a11y import assert_accessible
 from tests.support.browser import ADMIN_TOKEN as SERVER_TOKEN
 from tests.support.browser import DESKTOP, PHONE, fits_width, new_page, wait_until_still
+from tests.support.crowd import join
 from tests.support.evaluations import bare_evaluation
 from tests.support.labelling import wait_until_prepared
 from tests.support.runs import TINY, create_run, run_app
@@ -195,7 +196,7 @@ def test_the_open_link_form_opens_the_link_and_a_visitor_withdraws_with_its_code
     assert re.search(r'id="time_limit_min"[^>]*value="30"', html) and audit(html) == []
 
     visitor = cookie_jar(client)
-    joined = visitor.get(f"/e/{link['slug']}", params={"PROLIFIC_PID": "p-1"})
+    joined = join(visitor, f"/e/{link['slug']}", params={"PROLIFIC_PID": "p-1"})
     assert joined.status_code == 303 and joined.headers["location"] == "/evaluate"
     assert visitor.get("/evaluate").status_code == 200
     assert "1 of 5 joined" in researcher.get(path).text

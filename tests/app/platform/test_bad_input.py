@@ -303,7 +303,7 @@ def test_odd_cookies_are_refused(client, cookie: str) -> None:
         ("OPTIONS", "/api/studies", "GET, POST"),
         ("PUT", "/api/matches/1/label", "DELETE, POST"),
         ("DELETE", "/api/studies/{sid}/participants", "GET, POST"),
-        ("PATCH", "/login", "GET, POST"),
+        ("PATCH", "/login", "GET, HEAD, POST"),  # a page: HEAD with its GET
     ],
 )
 def test_wrong_methods_are_405_with_every_allowed_method(

@@ -18,7 +18,7 @@ from pydantic import ValidationError
 from app.http.ratelimit import FAILED_LOGINS_PER_MINUTE, LoginLimiter
 from app.main import create_app
 from app.settings import Settings
-from tests.support.crowd import configure
+from tests.support.crowd import configure, join
 from tests.support.server import HTTP_TIMEOUT_S, acv_serve, clean_env
 from tests.support.web import ADMIN_TOKEN
 
@@ -39,7 +39,7 @@ def _joins(client: TestClient, slug: str, forwarded: list[str]) -> list[int]:
     codes = []
     for address in forwarded:
         client.cookies.clear()
-        codes.append(client.get(f"/s/{slug}", headers={"X-Forwarded-For": address}).status_code)
+        codes.append(join(client, f"/s/{slug}", headers={"X-Forwarded-For": address}).status_code)
     return codes
 
 

@@ -19,7 +19,7 @@ from sqlalchemy import text
 
 from app.db import downgrade, make_engine, upgrade
 from app.models import token_digest
-from tests.support.crowd import configure, joined_player, visit
+from tests.support.crowd import configure, join, joined_player, visit
 from tests.support.hf import unzipped
 from tests.support.runs import run_app
 from tests.support.studies import Player, new_study
@@ -74,9 +74,8 @@ def _fill(client: TestClient) -> dict[str, int]:
     [respondent] = invite(client, survey)
     while (screen := respondent.screen()) is not None:
         assert respondent.answer(screen["position"], paper_answers(screen)).status_code == 201
-    joined = TestClient(client.app, follow_redirects=False).get(
-        f"/q/{survey_link['slug']}?PROLIFIC_PID=r1"
-    )
+    visitor = TestClient(client.app, follow_redirects=False)
+    joined = join(visitor, f"/q/{survey_link['slug']}?PROLIFIC_PID=r1")
     assert joined.status_code == 303, joined.text
     return {"study": study, "survey": survey, "first_participant": players[0].id}
 

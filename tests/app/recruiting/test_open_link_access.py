@@ -18,6 +18,7 @@ from fastapi.testclient import TestClient
 from app.core.auth import PARTICIPANT_COOKIE
 from app.http.ratelimit import LoginLimiter
 from app.surveys.respond import RESPONDENT_COOKIE
+from tests.support.crowd import join, start
 from tests.support.studies import Player
 from tests.support.surveys import paper_body, participant_trees
 from tests.support.web import ADMIN, browser, csrf_token
@@ -63,7 +64,7 @@ def test_an_external_id_alone_does_not_resume_someone_else(client, owners, kind)
     path = open_link(client, owners[kind])
     query = FIRST.format(n=f"takeover-{kind}")
     first = browser(client)
-    assert first.get(path + query).status_code == 303
+    assert join(first, path + query).status_code == 303
     theirs = first.cookies[COOKIES[kind]]
 
     for other in ("?PROLIFIC_PID=p-takeover-" + kind, query.replace("attempt-1", "attempt-9")):
@@ -103,7 +104,7 @@ def test_external_ids_must_be_printable_utf8(client, owners, kind, raw) -> None:
 def test_distinct_raw_ids_do_not_collide(client, owners, kind) -> None:
     """``%FF`` and ``%FE`` would both be stored as U+FFFD if decoded with replacement."""
     path = open_link(client, owners[kind])
-    assert browser(client).get(f"{path}?PROLIFIC_PID=%C3%A9t%C3%A9-{kind}").status_code == 303
+    assert join(browser(client), f"{path}?PROLIFIC_PID=%C3%A9t%C3%A9-{kind}").status_code == 303
     assert browser(client).get(f"{path}?PROLIFIC_PID=%FFx-{kind}").status_code == 422
 
 
@@ -118,7 +119,8 @@ def test_invited_participants_get_no_completion_code(client, owners, study) -> N
     assert "C0DE" not in thanks.text and "complete-link" not in thanks.text
 
     crowd = browser(client)
-    assert crowd.get(open_link(client, owners["s"], **DONE) + "?PROLIFIC_PID=cc").status_code == 303
+    link = open_link(client, owners["s"], **DONE)
+    assert join(crowd, link + "?PROLIFIC_PID=cc").status_code == 303
     token = crowd.cookies[PARTICIPANT_COOKIE]
     Player(client, 0, token, "").play()
     thanks = crowd.get("/participate/thanks")
@@ -146,3 +148,22 @@ def test_a_closed_link_lets_those_in_finish_and_turns_new_people_away(client, ow
     assert "not taking new people" in page.text and COOKIES[kind] not in newcomer.cookies
     posted = newcomer.post(path, data={"csrf_token": csrf_token(newcomer), "decision": "agree"})
     assert posted.status_code == 410 and COOKIES[kind] not in newcomer.cookies
+
+
+def test_fetching_the_link_takes_no_seat(client, owners, kind) -> None:
+    """Link previewers and mail scanners ``GET`` (or ``HEAD``) a link they are sent: that
+    shows the start page and makes no member; only pressing Start does."""
+    path = open_link(client, owners[kind], consent_text=None, max_participants=500)
+    joined = client.get(owners[kind], headers=ADMIN).json()["joined"]
+    for n in range(3):
+        page = browser(client).get(f"{path}?PROLIFIC_PID=scanner-{kind}-{n}")
+        assert page.status_code == 200 and 'id="start"' in page.text
+        assert 'id="decline"' not in page.text  # no consent text: nothing to decline
+    head = browser(client).head(path)
+    assert head.status_code == 200 and head.content == b""
+    assert client.get(owners[kind], headers=ADMIN).json()["joined"] == joined
+
+    person = browser(client)
+    assert start(person, person.get(f"{path}?PROLIFIC_PID=scanner-{kind}-0")).status_code == 303
+    assert COOKIES[kind] in person.cookies
+    assert client.get(owners[kind], headers=ADMIN).json()["joined"] == joined + 1

@@ -18,7 +18,7 @@ from playwright.sync_api import Browser, Page, expect
 
 from tests.support.a11y import assert_accessible
 from tests.support.browser import ADMIN_TOKEN, new_page, shown, wait_for_match
-from tests.support.crowd import turned_away
+from tests.support.crowd import join, turned_away
 from tests.support.labelling import label_bracket, wait_until_prepared
 from tests.support.server import HTTP_TIMEOUT_S
 
@@ -137,7 +137,7 @@ def test_open_link_consent_bracket_check_and_completion(
 def _play_api(base: str, link: str, pid: str, pick) -> None:
     """Join by the open link as ``pid`` and decide every match with ``pick``."""
     with httpx.Client(base_url=base, timeout=HTTP_TIMEOUT_S, follow_redirects=False) as visitor:
-        token = visitor.get(f"{link}?PROLIFIC_PID={pid}").cookies["acv_participant"]
+        token = join(visitor, f"{link}?PROLIFIC_PID={pid}").cookies["acv_participant"]
         label_bracket(visitor, token, pick, response_ms=300 * len(pid))
 
 

@@ -15,6 +15,7 @@ from fastapi.testclient import TestClient
 
 from app.http.ratelimit import LoginLimiter
 from app.surveys.respond import RESPONDENT_COOKIE
+from tests.support.crowd import join
 from tests.support.surveys import (
     Respondent,
     invite,
@@ -61,7 +62,7 @@ def state(client: TestClient, survey_id: int) -> dict[str, Any]:
 def visit(client: TestClient, link: dict[str, Any], query: str = "") -> tuple[TestClient, Any]:
     """A first visit from a browser of its own (an empty cookie jar)."""
     page = browser(client)
-    return page, page.get(f"/q/{link['slug']}{query}")
+    return page, join(page, f"/q/{link['slug']}{query}")
 
 
 def joined(client: TestClient, page: TestClient, response: Any) -> Respondent:
