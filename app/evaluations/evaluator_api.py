@@ -201,7 +201,10 @@ def reminder_picture(
     return Response(path.read_bytes(), media_type=IMAGE_TYPE, headers={"Cache-Control": CACHE})
 
 
-@router.put("/share-consent")
+@router.put(
+    "/share-consent",
+    responses={410: {"description": "They withdrew: their answers are never shared."}},
+)
 def share_consent(
     body: ShareConsentIn, person: EvaluatorDep, session: SessionDep
 ) -> ShareConsentOut:

@@ -136,9 +136,13 @@ def list_evaluators(session: Session, *, evaluation_id: int) -> list[Evaluator]:
 def set_share_consent(session: Session, person: Evaluator, *, share: bool) -> bool:
     """Record whether the evaluator agrees that their answers may be shared in a public
     dataset under a pseudonym (the study dataset's ``evaluations`` config,
-    :mod:`app.labelling.dataset`); an export follows their choice when it is made."""
+    :mod:`app.labelling.dataset`); an export follows their choice when it is made.
+
+    Raises:
+        MemberEndedError: they withdrew (:func:`app.recruiting.seats.set_share_consent`).
+    """
     with writing(session):
-        person.share_consent = share
+        seats.set_share_consent(session, person, share=share)
     return person.share_consent
 
 
@@ -228,7 +232,7 @@ def answer(
     with writing(session):
         # the evaluator's lock, only while they may still act: their answers are stored one
         # at a time, so the last one sees every other and marks them finished
-        seats.lock_in_time(session, evaluator.id, utcnow())
+        seats.lock_in_time(session, evaluator.id, utcnow(), noun="evaluation")
         session.execute(
             update(EvaluationPair)
             .where(EvaluationPair.key == key, EvaluationPair.answered_at.is_(None))

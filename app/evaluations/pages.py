@@ -131,8 +131,12 @@ def instructions(
 
 @router.post(SHARE, dependencies=[CsrfChecked])
 def share_choice(session: SessionDep, person: PageEvaluator, fields: FormFields) -> Response:
-    """Store the instructions page's sharing choice (ticked or not), then show the page."""
-    evaluators.set_share_consent(session, person, share=fields.get("share") == "on")
+    """Store the instructions page's sharing choice (ticked or not), then show the page; one
+    who withdrew (another tab) goes to :data:`ENDED`."""
+    try:
+        evaluators.set_share_consent(session, person, share=fields.get("share") == "on")
+    except seats.MemberEndedError:
+        return redirect(ENDED)
     return redirect(INSTRUCTIONS + "#share-form")
 
 

@@ -50,7 +50,11 @@ def export_dataset(
     return attachment(dataset.zipped(made, folder=name), "application/zip", f"{name}.zip")
 
 
-@router.put("/participants/me/share-consent", tags=["participants"])
+@router.put(
+    "/participants/me/share-consent",
+    tags=["participants"],
+    responses={410: {"description": "They withdrew: their labels are never shared."}},
+)
 def share_consent(
     body: ShareConsentIn, person: ParticipantDep, session: SessionDep
 ) -> ShareConsentOut:

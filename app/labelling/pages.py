@@ -110,9 +110,13 @@ def instructions(
 
 @router.post(SHARE, dependencies=[CsrfChecked])
 def share_choice(session: SessionDep, person: PageParticipant, fields: FormFields) -> Response:
-    """Store the instructions page's sharing choice (ticked or not), then show the page."""
+    """Store the instructions page's sharing choice (ticked or not), then show the page; one
+    who withdrew (another tab) goes to :data:`ENDED`."""
     share = fields.get("share") == "on"
-    participants.set_share_consent(session, participant_id=person.id, share=share)
+    try:
+        participants.set_share_consent(session, participant_id=person.id, share=share)
+    except seats.MemberEndedError:
+        return redirect(ENDED)
     return redirect(INSTRUCTIONS + "#share-form")
 
 

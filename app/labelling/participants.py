@@ -15,6 +15,7 @@ from app.db import writing
 from app.labelling.gold_placement import stage_gold
 from app.labelling.sides import a_on_left
 from app.models import Label, Match, Participant, Study
+from app.recruiting import seats
 from app.recruiting.members import STUDY
 from app.studies.service import first_round, get_ready_study, get_study
 from engine.bracket import Bracket
@@ -128,10 +129,14 @@ def set_exclusion(
 def set_share_consent(session: Session, *, participant_id: int, share: bool) -> Participant:
     """Record whether the participant agrees that their labels may be shared in a public
     dataset under a pseudonym (:mod:`app.labelling.dataset`); they may change their mind,
-    and an export follows their choice at the time it is made."""
+    and an export follows their choice at the time it is made.
+
+    Raises:
+        MemberEndedError: they withdrew (:func:`app.recruiting.seats.set_share_consent`).
+    """
     person = get_participant(session, participant_id=participant_id)
     with writing(session):
-        person.share_consent = share
+        seats.set_share_consent(session, person, share=share)
     return person
 
 

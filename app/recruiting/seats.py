@@ -25,6 +25,7 @@ from urllib.parse import quote
 
 from sqlalchemy import ColumnElement, Connection, CursorResult, and_, or_, update
 from sqlalchemy.orm import Session
+from sqlalchemy.orm.attributes import set_committed_value
 
 from app.core.errors import ServiceError
 from app.models import Member, OpenLink, Participant, as_utc
@@ -41,10 +42,14 @@ OUTCOMES: tuple[OutcomeName, ...] = (
 
 
 class MemberEndedError(ServiceError):
-    """The member withdrew, or their time is over: they can do nothing more here (410)."""
+    """The member withdrew, or their time is over: they can do nothing more here (410).
+    ``noun``: what has ended for them (a member's ``collection_kind``), in the page's title."""
 
     status_code = 410
-    title = "This study has ended for you"
+
+    def __init__(self, detail: str, *, noun: str = "study") -> None:
+        super().__init__(detail)
+        self.title = f"This {noun} has ended for you"
 
 
 @dataclass(frozen=True)
@@ -107,15 +112,42 @@ def check_can_act(member: Member, now: datetime) -> None:
     """
     noun = member.collection_kind
     if member.withdrawn_at is not None:
-        raise MemberEndedError(f"you withdrew from this {noun}: it takes no more answers from you")
+        raise MemberEndedError(
+            f"you withdrew from this {noun}: it takes no more answers from you", noun=noun
+        )
     if timed_out(member, now):
-        raise MemberEndedError(f"your time for this {noun} is over: it takes no more answers")
+        raise MemberEndedError(
+            f"your time for this {noun} is over: it takes no more answers", noun=noun
+        )
 
 
-def lock_in_time(db: Session | Connection, member_id: int, now: datetime) -> None:
+def set_share_consent(session: Session, member: Member, *, share: bool) -> None:
+    """Record ``member``'s choice to share their answers in a public dataset, inside the
+    caller's write transaction; refused once they withdrew (their answers are left out of
+    everything, so the choice would mean nothing). One conditional ``UPDATE``, so a
+    withdrawal at the same moment wins or loses whole.
+
+    Raises:
+        MemberEndedError: they withdrew.
+    """
+    still_in = and_(Member.id == member.id, Member.withdrawn_at.is_(None))
+    if _rowcount(session.execute(_update(Member).where(still_in).values(share_consent=share))):
+        set_committed_value(member, "share_consent", share)
+        return
+    noun = member.collection_kind
+    raise MemberEndedError(
+        f"you withdrew from this {noun}: your answers are not used, so none can be shared",
+        noun=noun,
+    )
+
+
+def lock_in_time(
+    db: Session | Connection, member_id: int, now: datetime, *, noun: str = "study"
+) -> None:
     """Take ``member_id``'s row lock inside the caller's write transaction, if they may still
     act (:func:`within_time`): the first statement of an answer that is not a label (a gold
-    item, a disagreement pair), as the label's own lock is.
+    item, a disagreement pair), as the label's own lock is. ``noun``: their kind of
+    collection, for the refusal's title.
 
     Raises:
         MemberEndedError: they withdrew, or their time is over (a time limit, or the gate).
@@ -128,7 +160,8 @@ def lock_in_time(db: Session | Connection, member_id: int, now: datetime) -> Non
     )
     if _rowcount(db.execute(lock)) == 0:
         raise MemberEndedError(
-            "this takes no more answers from you: you withdrew, or your time here is over"
+            "this takes no more answers from you: you withdrew, or your time here is over",
+            noun=noun,
         )
 
 

@@ -207,6 +207,11 @@ def test_the_open_link_form_opens_the_link_and_a_visitor_withdraws_with_its_code
     assert 'id="completion-code">LEFT-7<' in ended
     assert 'href="https://example.org/back?cc=LEFT-7"' in ended
     assert "0 of 5 joined" in researcher.get(path).text  # the seat was given back
+    shared = visitor.post("/evaluate/share", data={"csrf_token": token, "share": "on"})
+    assert shared.status_code == 303 and shared.headers["location"] == "/evaluate/ended"
+    bearer = {"Authorization": f"Bearer {visitor.cookies['acv_evaluator']}"}
+    refused = client.put("/api/evaluators/me/share-consent", json={"share": True}, headers=bearer)
+    assert refused.status_code == 410 and "withdrew" in refused.json()["detail"]
 
     closed = FORM | {"enabled": "", "csrf_token": csrf_token(researcher, path)}
     assert researcher.post(f"{path}/crowd", data=closed).status_code == 303

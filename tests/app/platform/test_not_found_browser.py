@@ -20,5 +20,6 @@ def test_a_missing_page_is_a_page_that_says_so(server, browser: Browser, viewpor
     response = page.goto(f"{base}/participate/nope")
     assert response is not None and response.status == 404
     expect(page.locator("main")).to_contain_text("There is no such page")
+    expect(page.locator("main")).to_contain_text("open it again exactly as you were sent it")
     assert_accessible(page, f"404 page ({viewport['width']} px)")
     context.close()

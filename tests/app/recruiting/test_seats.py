@@ -168,6 +168,24 @@ def test_withdrawing_twice_from_the_page_shows_the_ended_page_again(client, stud
     assert ended.status_code == 200 and "NOPE-2" in ended.text
 
 
+def test_one_who_withdrew_cannot_choose_to_share(client, study_id) -> None:
+    """Their answers are left out of everything, so a sharing choice would mean nothing: the
+    instructions page's form sends them to the ended page, the API answers 410, and the
+    stored choice stays as it was."""
+    link = configure(client, study_id, **LIMITED, **CODES)
+    browser, response = _join(client, link, "w5")
+    player = joined_player(client, browser, response)
+    token = csrf_token(browser, "/participate/withdraw")
+    form = {"csrf_token": token, "decision": "withdraw"}
+    assert browser.post("/participate/withdraw", data=form).status_code == 303
+    shared = browser.post("/participate/share", data={"csrf_token": token, "share": "on"})
+    assert shared.status_code == 303 and shared.headers["location"] == "/participate/ended"
+    path = "/api/participants/me/share-consent"
+    refused = client.put(path, json={"share": True}, headers=player.headers)
+    assert refused.status_code == 410 and "withdrew" in refused.json()["detail"]
+    assert _person(client, player.id)["share_consent"] is False
+
+
 def test_declining_shows_the_decline_code_and_the_way_back(client, study_id) -> None:
     link = configure(client, study_id, consent_text="We keep your choices.", **CODES)
     browser = TestClient(client.app, follow_redirects=False)
