@@ -23,7 +23,7 @@ from app.cli.root import cli, fail
 from app.cli.serve import cli_runtime
 from app.core.limits import MAX_DB_ID
 from app.models import RunStatus
-from app.runs import experiments
+from app.runs import experiments, verdicts
 from app.runs.experiments import DEFAULT_PILOT_SEEDS, DEFAULT_SEEDS, ExperimentSpec
 from app.runs.imported import is_external
 from app.runs.spec import RunSpec
@@ -98,13 +98,15 @@ def verdict(
 ) -> None:
     """The verdict: advised runs against the matched baseline, on the matches that can tell."""
     with cli_runtime() as runtime, runtime.sessions() as session:
-        found = experiments.experiment_verdict(
+        found = verdicts.experiment_verdict(
             session, experiment_id=experiment, judge=judge, step=step
         )
     if found is None:
         fail(f"experiment {experiment} has too few judged runs for a verdict yet")
     if as_json:
         body = {"judge": found.judge, "step": found.step, "runs": found.runs}
+        body |= {"final": found.final, "diagnostic": found.diagnostic}
         typer.echo(json.dumps(body | {"verdict": found.verdict.to_json()}, indent=1))
     else:
-        typer.echo(f"step {found.step}, judge {found.judge}: {found.verdict.text}")
+        look = "" if found.decides else "diagnostic, " if found.diagnostic else "interim, "
+        typer.echo(f"step {found.step} ({look}judge {found.judge}): {found.verdict.text}")

@@ -1,7 +1,7 @@
 """An experiment's verdict where a researcher reads a run: its comparison pages, its HTML
 report, and a CSV of the per-seed numbers the verdict rests on.
 
-The verdict itself is :func:`app.runs.experiments.experiment_verdict`; this module only
+The verdict itself is :func:`app.runs.verdicts.experiment_verdict`; this module only
 says which judge a run's page asks it for, and lays the result out.
 """
 
@@ -14,12 +14,8 @@ from typing import Any
 from sqlalchemy.orm import Session
 
 from app.models import ExperimentRole
-from app.runs.experiments import (
-    ExperimentVerdict,
-    experiment_verdict,
-    experiments_of_run,
-    members,
-)
+from app.runs.experiments import experiments_of_run, members
+from app.runs.verdicts import ExperimentVerdict, experiment_verdict
 from engine.errors import InputError
 from engine.judges import DEFAULT_JUDGE, VERDICT_JUDGES
 

@@ -18,7 +18,7 @@ from app.http.deps import DbId, SessionDep
 from app.http.guards import ResearcherPage
 from app.http.rendering import PageRoute, render
 from app.models import ExperimentRole
-from app.runs import experiments
+from app.runs import experiments, verdicts
 from app.runs import service as runs
 from app.runs.compare_pages import JUDGE_LABELS
 from app.runs.external import advice_label as external_advice
@@ -45,7 +45,7 @@ def experiment_page(
     advised = next((run for role, run in members if role == ExperimentRole.ADVISED), None)
     external = is_external(experiment)
     try:
-        found = experiments.experiment_verdict(session, experiment_id=experiment_id, judge=judge)
+        found = verdicts.experiment_verdict(session, experiment_id=experiment_id, judge=judge)
         problem = None
     except InputError as exc:  # checkpoints judged before this judge existed
         found, problem = None, str(exc)

@@ -23,7 +23,7 @@ from app.http.deps import DbId, ResearcherDep, SessionDep, StepParam
 from app.http.errors import RESPONSES
 from app.http.files import attachment
 from app.models import Experiment, ExperimentRole, RunStatus
-from app.runs import experiment_notes, experiments, external
+from app.runs import experiment_notes, experiments, external, verdicts
 from app.runs.experiments import (
     DEFAULT_PILOT_SEEDS,
     DEFAULT_SEEDS,
@@ -105,6 +105,14 @@ class VerdictOut(BaseModel):
     step: int
     runs: dict[ExperimentRole, list[int]] = Field(description="The run ids it rests on, by role.")
     verdict: dict[str, Any]
+    final: bool = Field(
+        description="It rests on every run of the experiment, each ended at its last "
+        "checkpoint. An earlier look is interim: its outcome is not the experiment's verdict."
+    )
+    diagnostic: bool = Field(
+        description="Its judge never decides a verdict (only `behaviour` and `return` do): "
+        "its outcome is for comparison only."
+    )
 
 
 def experiment_out(session: Session, experiment: Experiment) -> ExperimentOut:
@@ -208,14 +216,19 @@ def experiment_verdict(
     step: StepQuery = None,
 ) -> VerdictOut | dict[str, str]:
     """Advised runs against the matched baseline at one checkpoint step, for one judge."""
-    found = experiments.experiment_verdict(
+    found = verdicts.experiment_verdict(
         session, experiment_id=experiment_id, judge=judge, step=step
     )
     if found is None:
         response.status_code = 202
         return {"status": "pending"}
     return VerdictOut(
-        judge=found.judge, step=found.step, runs=found.runs, verdict=found.verdict.to_json()
+        judge=found.judge,
+        step=found.step,
+        runs=found.runs,
+        verdict=found.verdict.to_json(),
+        final=found.final,
+        diagnostic=found.diagnostic,
     )
 
 
@@ -233,7 +246,7 @@ def experiment_verdict_csv(
 ) -> Response:
     """The verdict as CSV, one row per run it rests on: role, seed and the run's share of the
     contested matches kept (CA), with Δ, its interval, p, AUC and the outcome on every row."""
-    found = experiments.experiment_verdict(
+    found = verdicts.experiment_verdict(
         session, experiment_id=experiment_id, judge=judge, step=step
     )
     if found is None:

@@ -23,10 +23,11 @@
     }
   }
 
-  // The template's data-verdict-key: the step, then every run id it rests on, in order.
+  // The template's data-verdict-key: the step, every run id it rests on, in order, and
+  // whether it is final (the runs' last checkpoint can be judged before they end).
   function verdictKey(found) {
     const ids = Object.values(found.runs).flat().sort((a, b) => a - b);
-    return `${found.step}:${ids.join(",")}`;
+    return `${found.step}:${ids.join(",")}:${found.final ? "final" : "interim"}`;
   }
 
   async function poll() {

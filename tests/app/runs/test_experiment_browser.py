@@ -39,16 +39,18 @@ def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[str, Path
         yield base, data_dir
 
 
-def _judge_every_run(data_dir: Path, experiment: dict, advice: np.ndarray) -> None:
-    """Store each run's artefact at :data:`STEP` in the server's SQLite database."""
+def _judge_every_run(
+    data_dir: Path, experiment: dict, advice: np.ndarray, step: int = STEP
+) -> None:
+    """Store each run's artefact at ``step`` in the server's SQLite database."""
     engine = make_engine(f"sqlite:///{data_dir / 'acv.sqlite3'}")
     rng = np.random.default_rng(1)
     try:
         with make_sessions(engine)() as session:
             for run in experiment["runs"]:
                 sign = 1.0 if run["role"] == "advised" else -1.0
-                body = report_body(STEP, sign * advice + rng.normal(0, 1e-3, advice.size))
-                assert artefacts.store(session, run_id=run["id"], step=STEP, body=body)
+                body = report_body(step, sign * advice + rng.normal(0, 1e-3, advice.size))
+                assert artefacts.store(session, run_id=run["id"], step=step, body=body)
     finally:
         engine.dispose()
 
@@ -75,7 +77,12 @@ def test_the_verdict_arrives_on_the_experiment_page(server, browser: Browser) ->
     expect(page.locator("#verdict")).to_have_attribute("data-outcome", "pending")
     assert_accessible(page, "experiment page, nothing judged yet")
     _judge_every_run(data_dir, experiment, advice)
-    # The page polls and shows the verdict by itself.
+    # The page polls and shows the verdict by itself: interim while the runs have not ended
+    # (no outcome word), then the verdict.
+    expect(page.locator("#verdict")).to_have_attribute("data-outcome", "interim", timeout=30_000)
+    expect(page.locator("#verdict")).to_contain_text("Interim: no verdict yet")
+    assert_accessible(page, "experiment page with an interim look")
+    _judge_every_run(data_dir, experiment, advice, step=2 * STEP)  # their last checkpoint
     expect(page.locator("#verdict")).to_have_attribute("data-outcome", "used", timeout=30_000)
     expect(page.locator("#verdict")).to_contain_text("used your advice")
     # With what the validation on known answers found of the judges (docs/validation.md).
@@ -93,6 +100,7 @@ def test_the_verdict_arrives_on_the_experiment_page(server, browser: Browser) ->
     p.wait_for_url(f"{base}/studies")
     p.goto(f"{base}/experiments/{experiment['id']}?judge=shaped")
     expect(p.locator("#judge")).to_have_value("shaped")
+    expect(p.locator("#verdict")).to_have_attribute("data-outcome", "diagnostic")
     assert_accessible(p, "experiment page on a phone, a diagnostic judge")
     phone.close()
     assert errors == []

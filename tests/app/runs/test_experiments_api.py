@@ -144,21 +144,36 @@ def test_the_verdict_waits_for_judged_runs_then_says_used(client, study) -> None
     body = response.json()
     assert body["step"] == STEP  # the latest step judged in enough runs of every role
     assert sorted(body["runs"]) == ["advised", "baseline", "pilot"]
+    assert (body["final"], body["diagnostic"]) == (False, False)  # the runs are still queued
     verdict = body["verdict"]
     assert verdict["outcome"] == "used", verdict
     assert verdict["ca_advised"] == [1.0] * 5 and verdict["ca_baseline"] == [0.0] * 5
     assert verdict["p_value"] < 0.05 and verdict["n_contested"] >= 3
     _the_verdict_as_csv(client, experiment, verdict, path.replace("verdict?", "verdict.csv?"))
-    _the_verdict_on_the_runs_pages(client, experiment)
+    _the_verdict_on_the_runs_pages(client, experiment, '"interim"', "Interim: no verdict yet")
     _the_page_knows_its_verdict(client, experiment, body)
+
+    final = 3 * STEP  # the runs' timesteps: their last checkpoint
+    for run in experiment["runs"]:
+        sign = 1.0 if run["role"] == "advised" else -1.0
+        _write_artefact(client, run["id"], final, sign * advice + rng.normal(0, 1e-3, advice.size))
+    ended = client.get(path, headers=ADMIN).json()
+    assert (ended["step"], ended["final"], ended["verdict"]["outcome"]) == (final, True, "used")
+    _the_verdict_on_the_runs_pages(client, experiment, '"used"', "Used your advice")
+    shaped = client.get(path.replace("behaviour", "shaped"), headers=ADMIN).json()
+    assert (shaped["final"], shaped["diagnostic"]) == (True, True)  # never an outcome word
+    page = logged_in(client).get(f"/experiments/{experiment['id']}?judge=shaped").text
+    assert 'data-outcome="diagnostic"' in page and "Diagnostic: no verdict" in page
 
 
 def _the_page_knows_its_verdict(client: TestClient, experiment: dict, body: dict) -> None:
     """The experiment page's ``data-verdict-key`` is the key static/js/experiment.js makes of
-    the verdict's JSON (the step, then the sorted run ids): the page reloads when it changes."""
+    the verdict's JSON (the step, the sorted run ids, final or interim): the page reloads when
+    it changes."""
     html = logged_in(client).get(f"/experiments/{experiment['id']}?judge=behaviour").text
-    ids = sorted(i for role in body["runs"].values() for i in role)
-    assert f'data-verdict-key="{body["step"]}:{",".join(map(str, ids))}"' in html
+    ids = ",".join(map(str, sorted(i for role in body["runs"].values() for i in role)))
+    look = "final" if body["final"] else "interim"
+    assert f'data-verdict-key="{body["step"]}:{ids}:{look}"' in html
 
 
 def _the_verdict_as_csv(client: TestClient, experiment: dict, verdict: dict, path: str) -> None:
@@ -181,14 +196,19 @@ def _the_verdict_as_csv(client: TestClient, experiment: dict, verdict: dict, pat
     assert {int(r["contested_matches"]) for r in rows} == {verdict["n_contested"]}
 
 
-def _the_verdict_on_the_runs_pages(client: TestClient, experiment: dict) -> None:
+def _the_verdict_on_the_runs_pages(
+    client: TestClient, experiment: dict, outcome: str, words: str
+) -> None:
     """An advised run's comparison pages give its experiment's verdict with the page's judge
-    where that judge leads verdicts; these artefacts have no return column, which they say."""
+    where that judge leads verdicts (its ``outcome`` and ``words``: an outcome word only once
+    final); these artefacts have no return column, which they say."""
     page = logged_in(client)
     advised = experiment["runs"][0]["id"]
     note = f'<li data-experiment="{experiment["id"]}" data-outcome='
     shown = page.get(f"/runs/{advised}/compare?judge=behaviour").text
-    assert note + '"used"' in shown and "Used your advice" in shown and audit(shown) == []
+    assert note + outcome in shown and words in shown and audit(shown) == []
+    experiment_page = page.get(f"/experiments/{experiment['id']}?judge=behaviour").text
+    assert f"data-outcome={outcome}" in experiment_page and words in experiment_page
     diagnostic = page.get(f"/runs/{advised}/compare?judge=shaped").text  # never a verdict's
     assert note + '"unavailable"' in diagnostic and "without the &#39;return&#39; judge" in (
         diagnostic
