@@ -12,6 +12,7 @@ judges the policy, as it trains a queued run.
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 from typing import Annotated
 
@@ -65,6 +66,8 @@ def experiment(
     fields = {"teacher": teacher, "participant_id": participant, "participant_ids": pool}
     fields |= {"all_participants": all_participants or None, "pool_weighting": pool_weighting}
     spec = ExternalSpec(study_id=study, advice=advice_source(fields), seeds_per_arm=seeds)
+    if tree_out is not None:  # checked first: a refusal must store no experiment
+        _check_writable(tree_out, "--tree-out")
     with cli_runtime() as runtime, runtime.sessions() as session:
         created = create_external_experiment(session, spec=spec)
         info = external_experiment(session, experiment_id=created.id)
@@ -72,6 +75,14 @@ def experiment(
         dump_tree(tree_from_json(info.tree), tree_out)
     typer.echo(f"external experiment {created.id} on {info.env_id}: up to {seeds} seeds per arm")
     typer.echo(f"tree_sha256 {info.tree_sha256}")
+
+
+def _check_writable(path: Path, flag: str) -> None:
+    """Exit 2 unless a file can be written at ``path`` (its folder exists and is writable, and
+    it is not itself a folder)."""
+    folder = path.parent
+    if path.is_dir() or not folder.is_dir() or not os.access(folder, os.W_OK):
+        fail(f"{flag} {path}: cannot write a file there (no such folder, or not writable)")
 
 
 @agents_cli.command("import")

@@ -8,6 +8,7 @@ import json
 from typing import Annotated, Any
 
 import typer
+from pydantic import ValidationError
 
 from app.cli.options import (
     AdviceParticipantOpt,
@@ -19,14 +20,14 @@ from app.cli.options import (
     PoolWeightingOpt,
     id_option,
 )
-from app.cli.root import cli, fail
+from app.cli.root import cli, fail, validation_errors
 from app.cli.serve import cli_runtime
 from app.core.limits import MAX_DB_ID
 from app.models import RunStatus
 from app.runs import experiments, verdicts
 from app.runs.experiments import DEFAULT_PILOT_SEEDS, DEFAULT_SEEDS, ExperimentSpec
+from app.runs.experiments_api import ExperimentCreate
 from app.runs.imported import is_external
-from app.runs.spec import RunSpec
 from engine.judges import DEFAULT_JUDGE
 
 Opt = typer.Option
@@ -59,19 +60,25 @@ def create(
     run |= {"participant_ids": pool, "all_participants": all_participants or None}
     run |= {"pool_weighting": pool_weighting}
     run |= {"advice_scale": advice_scale, "checkpoint_every": checkpoint_every}
-    run |= {"num_steps": num_steps}
+    run |= {"num_steps": num_steps, "seed": first_seed}
+    run |= {"seeds": seeds, "pilot_seeds": pilot_seeds}
+    spec = _experiment_spec(run)
     with cli_runtime() as runtime, runtime.sessions() as session:
-        spec = ExperimentSpec(
-            run=RunSpec.from_request(run),
-            seeds=seeds,
-            first_seed=first_seed,
-            pilot_seeds=pilot_seeds,
-        )
         experiment = experiments.create_experiment(session, spec=spec)
         members = experiments.members(session, experiment_id=experiment.id)
     typer.echo(f"experiment {experiment.id} queued: {len(members)} runs")
     for role, member in members:
         typer.echo(f"{member.id}\t{role}\t{member.algo}\tseed {member.seed}\t{member.status}")
+
+
+def _experiment_spec(body: dict[str, Any]) -> ExperimentSpec:
+    """The experiment ``body`` asks for, checked as the API checks its body
+    (:class:`ExperimentCreate`: the same bounds, from the command line too)."""
+    try:
+        given = {name: value for name, value in body.items() if value is not None}
+        return ExperimentCreate.model_validate(given).experiment_spec()
+    except ValidationError as exc:
+        fail(validation_errors(exc))
 
 
 @experiment_cli.command("list")

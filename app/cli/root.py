@@ -7,6 +7,7 @@ import sys
 from typing import Annotated, Any, NoReturn
 
 import typer
+from pydantic import ValidationError
 from typer.core import TyperGroup
 
 from engine import __version__
@@ -21,6 +22,12 @@ def fail(message: str) -> NoReturn:
     """Print one clear line on stderr and exit with code 2 (bad input)."""
     print(f"acv: error: {message}", file=sys.stderr)
     raise typer.Exit(code=2)
+
+
+def validation_errors(exc: ValidationError, whole: str = "the input") -> str:
+    """A pydantic validation error on one line: each field's path and message (``whole``
+    where the error is about the whole input)."""
+    return "; ".join(f"{'.'.join(map(str, e['loc'])) or whole}: {e['msg']}" for e in exc.errors())
 
 
 class _Commands(TyperGroup):

@@ -25,7 +25,7 @@ from fastapi import FastAPI
 from pydantic import ValidationError
 from sqlalchemy.exc import ArgumentError, SQLAlchemyError
 
-from app.cli.root import cli, fail
+from app.cli.root import cli, fail, validation_errors
 from app.core.auth import ADMIN_TOKEN_FILE
 from app.core.errors import ServiceError
 from app.core.logs import log_config
@@ -54,10 +54,7 @@ def service_errors() -> Iterator[None]:
     except ArgumentError as exc:
         fail(f"bad DATABASE_URL: {exc}")
     except ValidationError as exc:  # a setting from the environment
-        fail(
-            "bad setting: "
-            + "; ".join(f"{'.'.join(map(str, e['loc']))}: {e['msg']}" for e in exc.errors())
-        )
+        fail(f"bad setting: {validation_errors(exc)}")
     except SQLAlchemyError as exc:
         fail(f"database error: {str(exc).splitlines()[0]}")
 

@@ -11,7 +11,7 @@ import typer
 from pydantic import ValidationError
 
 from app.cli.options import id_option
-from app.cli.root import cli, fail
+from app.cli.root import cli, fail, validation_errors
 from app.cli.serve import cli_runtime
 from app.surveys import respond
 from app.surveys import results as surveys_results
@@ -29,13 +29,7 @@ def _spec(path: Path) -> SurveyCreate:
     try:
         return SurveyCreate.model_validate_json(path.read_bytes())
     except ValidationError as exc:
-        fail(
-            f"{path}: "
-            + "; ".join(
-                f"{'.'.join(str(p) for p in e['loc']) or 'the file'}: {e['msg']}"
-                for e in exc.errors()
-            )
-        )
+        fail(f"{path}: {validation_errors(exc, 'the file')}")
 
 
 @survey_cli.command("create")

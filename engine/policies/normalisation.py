@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import io
 import zipfile
+import zlib
 from dataclasses import dataclass
 
 import numpy as np
@@ -106,7 +107,9 @@ def _read_npz(data: bytes) -> dict[str, np.ndarray]:
                     f"{', '.join(FIELDS)} (see engine/policies/normalisation.py)"
                 )
             return {name: npz[name] for name in FIELDS}
-    except (zipfile.BadZipFile, ValueError, OSError, EOFError) as exc:
+    # RuntimeError: an encrypted member, or (NotImplementedError) an unknown compression;
+    # zlib.error: a corrupt deflate stream (np.load inflates a member only when it is read).
+    except (zipfile.BadZipFile, ValueError, OSError, EOFError, RuntimeError, zlib.error) as exc:
         if isinstance(exc, InputError):
             raise
         raise InputError(f"the normalisation file is not a readable .npz ({exc})") from exc

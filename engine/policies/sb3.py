@@ -28,6 +28,7 @@ import json
 import pickle
 import re
 import zipfile
+import zlib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -132,7 +133,7 @@ def _member(archive: zipfile.ZipFile, name: str, cap: int) -> bytes:
         raise InputError(f"the SB3 file's {name!r} inflates to {info.file_size} bytes, over {cap}")
     try:
         return archive.read(info)
-    except (RuntimeError, ValueError, OSError, EOFError) as exc:  # encrypted, corrupt
+    except (RuntimeError, ValueError, OSError, EOFError, zlib.error) as exc:  # encrypted, corrupt
         raise InputError(f"the SB3 file's {name!r} cannot be read ({exc})") from exc
 
 
@@ -164,6 +165,12 @@ def _state_dict(weights: bytes) -> Mapping[str, torch.Tensor]:
         isinstance(k, str) and isinstance(v, torch.Tensor) for k, v in state.items()
     ):
         raise InputError("the SB3 file's 'policy.pth' is not a state dict of tensors")
+    for key, value in state.items():  # sparse or complex ones would not convert, or lose parts
+        if value.layout != torch.strided or not value.dtype.is_floating_point:
+            raise InputError(
+                f"the SB3 file's {key!r} is {value.layout} {value.dtype}: not a dense tensor "
+                "of floats"
+            )
     return state
 
 

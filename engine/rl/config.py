@@ -154,7 +154,10 @@ class TrainConfig:
             (self.learning_rate > 0 and self.z_learning_rate > 0, "learning rates must be > 0"),
             (self.checkpoint_every > 0, "checkpoint-every must be positive"),
             (0 < abs(self.z_init) < self.z_max, "z_init must satisfy 0 < |z_init| < z_max"),
-            (self.advice_scale > 0, f"advice-scale must be positive, got {self.advice_scale}"),
+            (
+                0 < self.advice_scale < math.inf,
+                f"advice-scale must be a positive finite number, got {self.advice_scale}",
+            ),
             (
                 0 <= self.advice_offset <= 100,
                 f"advice-offset must be in [0, 100], got {self.advice_offset}",

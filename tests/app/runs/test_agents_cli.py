@@ -198,6 +198,13 @@ def test_the_cli_refuses_an_experiment_that_is_not_external(
 ) -> None:
     own = run("agents", "experiment", "--study", study["id"])
     assert own.exit_code == 2 and "give participant_id" in own.stderr
+    experiments = client.get("/api/experiments", headers=ADMIN).json()
+    for where in (tmp_path / "no-such-folder" / "tree.json", tmp_path):
+        refused = run(
+            "agents", "experiment", "--study", study["id"], "--teacher", "good", "--tree-out", where
+        )  # fmt: skip
+        assert refused.exit_code == 2 and "cannot write a file there" in refused.stderr
+    assert client.get("/api/experiments", headers=ADMIN).json() == experiments  # none stored
     path = _write(tmp_path, "p.onnx", policy())
     missing = run("agents", "import", path, "--experiment", 999_999, "--arm", "baseline")
     assert missing.exit_code == 2 and "experiment 999999 not found" in missing.stderr

@@ -303,6 +303,9 @@ def test_the_cli_queues_lists_and_gives_the_verdict(client, study, settings, mon
     assert f"{experiment_id}\tstudy {study['id']}\tbipars-em\t2 seeds\t0/5 runs" in listed.output
     pending = CliRunner().invoke(cli, ["experiment", "verdict", str(experiment_id)])
     assert pending.exit_code == 2 and "too few judged runs" in pending.output
+    psychic = ["experiment", "verdict", str(experiment_id), "--judge", "psychic"]
+    unknown = CliRunner().invoke(cli, psychic)  # named as such, judged runs or not
+    assert unknown.exit_code == 2 and "unknown judge 'psychic'" in unknown.output
     bad = CliRunner().invoke(
         cli,
         [
@@ -318,7 +321,7 @@ def test_the_cli_queues_lists_and_gives_the_verdict(client, study, settings, mon
             "1",
         ],
     )
-    assert bad.exit_code == 2 and "seeds must be in 2..20" in bad.output
+    assert bad.exit_code == 2 and "seeds: Input should be greater than or equal to 2" in bad.output
 
 
 def test_the_cli_pools_participants_as_the_api_does(client, settings, monkeypatch) -> None:
@@ -347,9 +350,15 @@ def test_the_cli_pools_participants_as_the_api_does(client, settings, monkeypatc
         (["--pool", str(people[0])], "at least two"),
         (["--teacher", "good", "--pool-weighting", "reliability"], "weights a pool"),
         (["--pool", str(people[0]), "--pool", str(people[1]), "--teacher", "good"], "one advice"),
+        # the API's bounds hold on the command line too, and nothing is stored
+        (["--teacher", "good", "--advice-scale", "inf"], "advice_scale: Input should be"),
+        (["--teacher", "good", "--n-envs", "5000"], "n_envs: Input should be less than"),
+        (["--teacher", "good", "--seeds", "21"], "seeds: Input should be less than"),
     ]:
+        before = _n_runs(client)
         refused = CliRunner().invoke(cli, [*args, *more])
         assert refused.exit_code == 2 and message in refused.output, refused.output
+        assert _n_runs(client) == before
 
 
 def test_the_run_form_starts_an_experiment_and_its_page_shows_it(client, study) -> None:

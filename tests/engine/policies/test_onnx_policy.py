@@ -26,6 +26,7 @@ from tests.support.onnx_models import (
     numpy_mean,
     random_layers,
 )
+from tests.support.zips import BREAKS, broken_first_member
 
 
 def checked(data: bytes) -> CheckedOnnx:
@@ -100,6 +101,14 @@ def test_a_normalisation_that_is_not_a_zip_or_inflates_too_far_is_refused() -> N
         bomb.writestr("mean.npy", b"\0" * (MAX_NPZ_BYTES + 1))
     with pytest.raises(InputError, match="inflates to over"):
         ObsNormalisation.from_npz(buffer.getvalue(), obs_dim=OBS_DIM)
+
+
+@pytest.mark.parametrize("how", BREAKS)
+def test_a_broken_normalisation_zip_is_an_input_error(how: str) -> None:
+    buffer = io.BytesIO()
+    np.savez_compressed(buffer, **GOOD)  # type: ignore[arg-type]
+    with pytest.raises(InputError, match="not a readable .npz"):
+        ObsNormalisation.from_npz(broken_first_member(buffer.getvalue(), how), obs_dim=OBS_DIM)
 
 
 def test_the_cache_key_covers_the_normalisation() -> None:

@@ -20,6 +20,7 @@ from engine.errors import InputError
 from engine.policies.onnx_policy import ImportedPolicy, OnnxPolicy
 from engine.policies.sb3 import Sb3Limits, sb3_to_onnx
 from tests.support.onnx_models import ACT_DIM, ENV, OBS_DIM
+from tests.support.zips import BREAKS, broken_first_member
 
 
 def observations(n: int = 64) -> np.ndarray:
@@ -177,6 +178,30 @@ def test_members_over_their_caps_are_refused_before_reading() -> None:
 )
 def test_a_file_that_is_not_an_sb3_save_is_refused(data: bytes, match: str) -> None:
     with pytest.raises(InputError, match=match):
+        sb3_to_onnx(data, env_id=ENV)
+
+
+@pytest.mark.parametrize("how", BREAKS)
+def test_a_broken_member_is_an_input_error(how: str) -> None:
+    data = sb3_zip({"data": settings(), "policy.pth": pth(mlp_state())})
+    with pytest.raises(InputError, match="the SB3 file's 'data' cannot be read"):
+        sb3_to_onnx(broken_first_member(data, how), env_id=ENV)
+
+
+@pytest.mark.parametrize(
+    ("tensor", "kind"),
+    [
+        (lambda w: w.to_sparse(), "sparse"),
+        (lambda w: w.to(torch.complex64), "complex64"),
+        (lambda w: w.to(torch.int64), "int64"),
+    ],
+)
+def test_weights_that_are_not_dense_real_floats_are_refused(tensor, kind: str) -> None:
+    state = mlp_state()
+    key = "mlp_extractor.policy_net.0.weight"
+    state[key] = tensor(state[key])
+    data = sb3_zip({"data": settings(), "policy.pth": pth(state)})
+    with pytest.raises(InputError, match=f"{key!r} is .*{kind}.*not a dense tensor of floats"):
         sb3_to_onnx(data, env_id=ENV)
 
 

@@ -17,6 +17,8 @@ from engine.rl.config import ALGOS, TrainConfig
         ({"total_timesteps": -5}, "timesteps must be positive"),
         ({"total_timesteps": 0}, "timesteps must be positive"),
         ({"advice_scale": 0.0}, "advice-scale"),
+        ({"advice_scale": float("inf")}, "advice-scale must be a positive finite number"),
+        ({"advice_scale": float("nan")}, "advice-scale must be a positive finite number"),
         ({"advice_offset": -1.0}, "advice-offset"),
         ({"advice_offset": 101.0}, "advice-offset"),
         ({"checkpoint_every": 0}, "checkpoint-every"),
