@@ -22,6 +22,7 @@ from typer.testing import CliRunner
 from app.cli.root import cli
 from app.models import Run, RunCheckpoint
 from app.runs import artefacts, comparison
+from engine.verdict import VerdictOptions
 from tests.support.artefacts import report_body
 from tests.support.labelling import label_bracket
 from tests.support.runs import TINY, finished_participant, run_app
@@ -33,6 +34,7 @@ pytestmark = pytest.mark.postgres_only
 
 BODY = {"algo": "bipars-em", "timesteps": 512, **TINY}
 STEP = 256
+SEED_SD = VerdictOptions().seed_sd
 
 
 @pytest.fixture(scope="module")
@@ -470,6 +472,8 @@ def test_a_study_says_whether_its_bracket_can_tell(client, study) -> None:
     assert row["min_detectable_delta"] is not None
     page = logged_in(client).get(f"/studies/{study['id']}")
     assert "Can this bracket tell?" in page.text and "this bracket cannot tell" in page.text
+    assumed = f"It assumes that seeds' shares of contested matches kept spread by {SEED_SD:g}"
+    assert assumed in " ".join(page.text.split())  # the experiment page's caveat, one home
     assert audit(page.text) == []
     for bad in ("1", "21", "x"):
         assert (

@@ -143,7 +143,7 @@ def test_a_launched_run_has_its_pages(
         assert "script-src 'self'" in response.headers["content-security-policy"]
         assert audit(response.text) == [], path
     run_page = page.get(f"/runs/{launched}").text
-    assert 'id="run-status">succeeded' in run_page and 'data-step="256"' in run_page
+    assert 'id="run-status" role="status">succeeded' in run_page and 'data-step="256"' in run_page
     compare = page.get(f"/runs/{launched}/compare?checkpoint=128").text
     assert 'data-checkpoints="128,256"' in compare and 'data-selected="128"' in compare
 
