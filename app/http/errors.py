@@ -68,7 +68,8 @@ def _validation_error(_: Request, exc: RequestValidationError) -> JSONResponse:
 async def _http_error(request: Request, exc: StarletteHTTPException) -> Response:
     """FastAPI's answer, except that a 405 lists every method of the path in ``Allow``
     (Starlette names the first matching route's only, and FastAPI has a route per method),
-    and a browser asking for a page that does not exist gets a page that says so."""
+    and a browser asking for a page that does not exist, or for a form's target, gets a page
+    that says so."""
     if exc.status_code == 404 and _wants_a_page(request):
         return error_page(request, 404, "There is no such page. Check the link you were given.")
     if exc.status_code == 405:
@@ -80,7 +81,12 @@ async def _http_error(request: Request, exc: StarletteHTTPException) -> Response
                 for m in route.methods
             }
         )
-        exc = StarletteHTTPException(405, exc.detail, headers={"Allow": ", ".join(methods)})
+        allow = {"Allow": ", ".join(methods)}
+        if _wants_a_page(request):  # a form's target opened as a page (after a login, say)
+            page = error_page(request, 405, "This address only takes a form: open its page.")
+            page.headers.update(allow)
+            return page
+        exc = StarletteHTTPException(405, exc.detail, headers=allow)
     return await http_exception_handler(request, exc)
 
 

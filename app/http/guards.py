@@ -9,6 +9,7 @@ from typing import Annotated
 from fastapi import Cookie, Depends, Request
 from fastapi.responses import RedirectResponse
 from sqlalchemy.orm import Session
+from starlette.routing import Match
 
 from app.core import auth
 from app.core.errors import AuthError, NotFoundError
@@ -28,7 +29,20 @@ def researcher_page(request: Request, runtime: RuntimeDep, cookie: ResearcherCoo
     if not auth.is_researcher(
         admin_token=runtime.admin_token, cookie=cookie, max_age_s=runtime.settings.session_max_age_s
     ):
-        raise RedirectTo(login_url(request.url.path))
+        raise RedirectTo(login_url(_back_to(request)))
+
+
+def _back_to(request: Request) -> str:
+    """The page to return to after logging in: this one, or for a form posted when the login
+    had lapsed, the nearest page above its target (which may take no ``GET``)."""
+    path = request.url.path
+    if request.method in ("GET", "HEAD"):
+        return path
+    while path := path.rsplit("/", 1)[0]:
+        scope = {"type": "http", "path": path, "method": "GET"}
+        if any(route.matches(scope)[0] == Match.FULL for route in request.app.routes):
+            return path
+    return DEFAULT_NEXT
 
 
 ResearcherPage = Depends(researcher_page)

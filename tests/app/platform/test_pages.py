@@ -43,6 +43,20 @@ def test_researcher_pages_send_strangers_to_login(
     assert response.headers["location"] == f"/login?next={path}"
 
 
+def test_a_form_posted_after_the_login_lapsed_returns_to_its_page(
+    client: TestClient, study: dict[str, Any]
+) -> None:
+    """After logging in again the researcher is back on the form's page, not on its target,
+    which takes no ``GET``; a browser that opens such a target gets a page saying so."""
+    target = f"/studies/{study['id']}/crowd"
+    posted = browser(client).post(target, data={"enabled": "on"})
+    assert posted.status_code == 303
+    assert posted.headers["location"] == f"/login?next=/studies/{study['id']}"
+    opened = logged_in(client).get(target, headers={"Accept": "text/html"})
+    assert opened.status_code == 405 and "only takes a form" in opened.text
+    assert opened.headers["allow"] == "POST" and audit(opened.text) == []
+
+
 def test_login_sets_an_httponly_cookie_that_is_not_the_token(client: TestClient) -> None:
     page = browser(client)
     token = csrf_token(page, "/login")
