@@ -52,7 +52,12 @@ LABELS = {
 def experiment_section(session: Session, experiment_id: int) -> dict[str, Any]:
     """The experiment page's evaluations section: its evaluations and the creation form."""
     found = evaluations.list_evaluations(session, experiment_id=experiment_id)
-    return {"evaluations": found, "evaluation_values": FORM, "evaluation_error": None}
+    return {
+        "evaluations": found,
+        "evaluation_values": FORM,
+        "evaluation_error": None,
+        "evaluation_error_field": None,
+    }
 
 
 @router.post("/experiments/{experiment_id}/evaluations", dependencies=[ResearcherPage, CsrfChecked])
@@ -73,6 +78,7 @@ def create_evaluation(
     except (InputError, ServiceError) as exc:  # a service error says its own status
         context = {"experiment_id": experiment_id, "evaluation_values": form}
         context["evaluation_error"] = getattr(exc, "detail", str(exc))
+        context["evaluation_error_field"] = getattr(exc, "field", None)
         status = getattr(exc, "status_code", 422)
         return render(request, "evaluation_new.html", context, status_code=status)
     runtime.prepare_evaluation_later(evaluation.id)
@@ -88,8 +94,16 @@ def _design(form: dict[str, str]) -> EvaluationDesign:
         return from_form(EvaluationDesign, fields)
     except ValidationError as exc:
         error = exc.errors()[0]
-        where = LABELS.get(str(error["loc"][0]), "The form")
-        raise InputError(f"{where}: {error['msg']}") from None
+        field = str(error["loc"][0]) if error["loc"] else ""
+        raise FieldError(field, f"{LABELS.get(field, 'The form')}: {error['msg']}") from None
+
+
+class FieldError(InputError):
+    """A form's field that is wrong (``field``, its name), and what is wrong with it."""
+
+    def __init__(self, field: str, message: str) -> None:
+        super().__init__(message)
+        self.field = field
 
 
 @router.get("/evaluations/{evaluation_id}", dependencies=[ResearcherPage])

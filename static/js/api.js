@@ -26,9 +26,14 @@ window.ACV.thumbUrl = function thumbUrl(template, candidateId) {
   return template.replace("{id}", String(candidateId));
 };
 
-// The text of an API error body ({"detail": ...}) for people.
+// The text of an API error body ({"detail": ...}) for people: a service's sentence, or a
+// validation error's list (422) as "field: what is wrong; ...".
 window.ACV.errorText = function errorText(result) {
   const detail = result && result.data && result.data.detail;
   if (typeof detail === "string") return detail;
+  if (Array.isArray(detail) && detail.length) {
+    return detail.map((d) => `${(d.loc || []).slice(1).join(".") || "the request"}: ${d.msg}`)
+      .join("; ");
+  }
   return `the server answered ${result ? result.status : "nothing"}`;
 };

@@ -100,14 +100,6 @@
     $("form-error").scrollIntoView({ block: "center" });
   }
 
-  function describe(result) {
-    const detail = result.data && result.data.detail;
-    if (Array.isArray(detail)) {
-      return detail.map((d) => `${(d.loc || []).slice(1).join(".")}: ${d.msg}`).join("; ");
-    }
-    return ACV.errorText(result);
-  }
-
   form.addEventListener("submit", async (event) => {
     event.preventDefault();
     $("create").disabled = true;
@@ -117,7 +109,7 @@
         window.location.assign(`/surveys/${result.data.id}`);
         return;
       }
-      showError(`Could not create the survey: ${describe(result)}`);
+      showError(`Could not create the survey: ${ACV.errorText(result)}`);
     } catch (err) {
       showError(`Could not create the survey: ${err.message}`);
     }

@@ -206,18 +206,23 @@ def test_the_researcher_page_shows_the_answer(client, researcher, evaluation) ->
 
 
 @pytest.mark.parametrize(
-    ("form", "status", "says"),
+    ("form", "status", "says", "invalid"),
     [
-        ({"pairs_per_evaluator": "0"}, 422, "Pairs per evaluator"),
-        ({"pairs_per_evaluator": "many"}, 422, "Pairs per evaluator"),
-        ({"pairs_per_evaluator": "201"}, 422, "Pairs per evaluator"),
-        ({"stimulus": "video"}, 422, "What they see"),
-        ({"evaluator_kind": "robot"}, 422, "Who answers"),
-        ({"evaluator_kind": "advisor"}, 409, "one participant&#39;s tree"),
-        ({"show_bracket": "on"}, 422, "advisor only"),
+        ({"pairs_per_evaluator": "0"}, 422, "Pairs per evaluator", "pairs"),
+        ({"pairs_per_evaluator": "many"}, 422, "Pairs per evaluator", "pairs"),
+        ({"pairs_per_evaluator": "201"}, 422, "Pairs per evaluator", "pairs"),
+        ({"stimulus": "video"}, 422, "What they see", "stimulus"),
+        ({"evaluator_kind": "robot"}, 422, "Who answers", "kind"),
+        ({"gold_gate": "7"}, 422, "Gold gate", "gold-gate"),
+        ({"evaluator_kind": "advisor"}, 409, "one participant&#39;s tree", None),
+        ({"show_bracket": "on"}, 422, "advisor only", None),
     ],
 )
-def test_a_bad_design_shows_the_form_again(researcher, experiment, form, status, says) -> None:
+def test_a_bad_design_shows_the_form_again(
+    researcher, experiment, form, status, says, invalid
+) -> None:
+    """The form again, with what was sent and what is wrong; the field it is about (none:
+    the design as a whole) is marked invalid and described by the error."""
     response = _create(researcher, experiment["id"], **form)
     assert response.status_code == status, response.text
     assert says in response.text and 'id="evaluation-form"' in response.text
@@ -229,7 +234,11 @@ def test_a_bad_design_shows_the_form_again(researcher, experiment, form, status,
     for name in ("evaluator_kind", "stimulus"):
         if kept[name] in ("others", "advisor", "clip", "still"):
             assert f'<option value="{kept[name]}" selected>' in response.text
-    assert 'aria-invalid="true"' in response.text and 'role="alert"' in response.text
+    assert 'role="alert"' in response.text
+    marked = re.findall(r'id="evaluation-([\w-]+)"[^>]*aria-invalid="true"', response.text)
+    assert marked == ([invalid] if invalid else [])
+    if invalid:
+        assert re.search(rf'id="evaluation-{invalid}"[^>]*evaluation-error"', response.text)
 
 
 def test_bad_form_posts_are_4xx_pages(client, researcher, experiment, evaluation) -> None:

@@ -80,6 +80,16 @@ def test_respondent_on_a_phone_and_the_results(server, browser, screens: Path) -
     errors: list[str] = []
     researcher, page = new_page(browser, errors, viewport=DESKTOP)
     survey_url = build_survey(page, base)
+    count = page.locator("#count").input_value()
+    page.fill("#count", "0")  # refused: the API's list of errors, in words
+    page.click("#add-respondents")
+    expect(page.locator("#add-message")).to_contain_text(
+        "Could not invite: count: Input should be greater than or equal to 1"
+    )
+    refused = [e for e in errors if "status of 422" in e and "/respondents" in e]
+    assert len(refused) == 1  # Chromium logs the refusal's status; nothing else
+    errors.remove(refused[0])
+    page.fill("#count", count)
     page.click("#add-respondents")
     invite = page.locator("td.invite input").first
     page.wait_for_selector("td.invite input")
