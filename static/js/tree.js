@@ -32,10 +32,12 @@ function drawPreferenceTree(container, doc, options) {
   root.each((d) => { x0 = Math.min(x0, d.x); x1 = Math.max(x1, d.x); });
   const width = x1 - x0 + dx, height = root.height * dy + opts.thumb + 40;
   const scale = fitScale(width, container.clientWidth);
+  // A tree whose nodes can be chosen is a group of buttons; otherwise one picture (a role
+  // of "img" would hide the buttons from assistive technology).
   const svg = svgEl("svg", {
     viewBox: `${x0 - dx / 2} ${-opts.thumb / 2 - 8} ${width} ${height}`,
-    width: width * scale, height: height * scale, class: "pref-tree", role: "img",
-    "aria-label": `Preference tree judged by ${doc.judge}`,
+    width: width * scale, height: height * scale, class: "pref-tree",
+    role: opts.onSelect ? "group" : "img", "aria-label": `Preference tree judged by ${doc.judge}`,
   });
   for (const link of root.links()) svg.appendChild(edge(link, opts));
   for (const d of root.descendants()) svg.appendChild(node(d, opts));
@@ -73,11 +75,12 @@ function node(d, opts) {
   const id = Number(d.id), t = opts.thumb;
   const g = svgEl("g", { class: "node" + (d.depth === 0 ? " champion" : "") +
     (opts.highlight.has(id) ? " rejected" : ""),
-    transform: `translate(${d.x},${d.y})`, "data-state": id, tabindex: 0 });
+    transform: `translate(${d.x},${d.y})`, "data-state": id });
   const title = svgEl("title");
   title.textContent = `state ${id}: won ${d.data.height} round(s), depth ${d.data.depth}, ` +
     `T_r = ${d.data.reward.toFixed(2)}`;
   g.appendChild(title);
+  if (opts.onSelect) selectable(g, title.textContent, () => opts.onSelect(id));
   g.appendChild(svgEl("rect", { x: -t / 2 - 2, y: -t / 2 - 2, width: t + 4, height: t + 4,
     rx: 6 }));
   if (opts.imageUrl) {
@@ -87,8 +90,21 @@ function node(d, opts) {
   const label = svgEl("text", { y: t / 2 + 14, class: "label" });
   label.textContent = `#${id} · h${d.data.height}`;
   g.appendChild(label);
-  if (opts.onSelect) g.addEventListener("click", () => opts.onSelect(id));
   return g;
+}
+
+// A node that can be chosen: a button for the keyboard (Enter or Space) as for the mouse.
+function selectable(g, label, select) {
+  for (const [name, value] of [["tabindex", 0], ["role", "button"], ["aria-label", label]]) {
+    g.setAttribute(name, value);
+  }
+  g.addEventListener("click", select);
+  g.addEventListener("keydown", (event) => {
+    if (event.key === "Enter" || event.key === " ") {
+      event.preventDefault();
+      select();
+    }
+  });
 }
 
 window.ACVTree = { drawPreferenceTree };

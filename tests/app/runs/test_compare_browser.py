@@ -195,6 +195,13 @@ def test_comparison_page_shows_both_trees_and_the_rejected_advice(
     shown = [float(t) for t in cells.all_text_contents()]
     assert shown == sorted(shown)
     assert_accessible(p, "compare page")
+    champion = p.locator("#human-tree svg.pref-tree .node.champion")
+    champion.focus()  # a tree's node is a button for the keyboard too
+    p.keyboard.press("Enter")
+    expect(p.locator("#preview")).to_be_visible()
+    expect(p.locator("#preview-caption")).to_have_text(re.compile(r"^#\d+ \(human tree\)$"))
+    p.keyboard.press("Escape")
+    expect(p.locator("#preview")).to_be_hidden()
     n_rejected = len(metrics["rejected"])
     expect(p.locator("#rejected .pair")).to_have_count(n_rejected)
     expect(p.locator("#rejected .pair img")).to_have_count(2 * n_rejected)
