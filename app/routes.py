@@ -12,7 +12,7 @@ from fastapi import APIRouter
 from app.evaluations import api as evaluations_api
 from app.evaluations import crowd_api as evaluations_crowd_api
 from app.evaluations import crowd_pages as evaluations_crowd_pages
-from app.evaluations import evaluator_api, link_pages, researcher_pages, withdraw_pages
+from app.evaluations import evaluator_api, researcher_pages, withdraw_pages
 from app.evaluations import export_api as evaluations_export_api
 from app.evaluations import pages as evaluations_pages
 from app.evaluations import practice_api as evaluations_practice_api
@@ -35,7 +35,6 @@ from app.runs import api as runs_api
 from app.runs import pages as runs_pages
 from app.studies import api as studies_api
 from app.studies import crowd_api as studies_crowd_api
-from app.studies import crowd_pages as studies_crowd_pages
 from app.studies import dashboard_api as studies_dashboard_api
 from app.studies import downloads
 from app.studies import gold_api as studies_gold_api
@@ -89,7 +88,6 @@ for _pages in (
     experiment_pages,
     surveys_pages,
     labelling_crowd_pages,
-    studies_crowd_pages,
     studies_gold_pages,
     surveys_crowd_pages,
     webhooks_pages,
@@ -97,7 +95,6 @@ for _pages in (
     evaluations_practice_pages,
     researcher_pages,
     evaluations_crowd_pages,
-    link_pages,
     withdraw_pages,
 ):
     pages_router.include_router(_pages.router)

@@ -26,8 +26,8 @@ from app.core.limits import MAX_DB_ID
 from app.models import RunStatus
 from app.runs import experiments, verdicts
 from app.runs.experiments import DEFAULT_PILOT_SEEDS, DEFAULT_SEEDS, ExperimentSpec
-from app.runs.experiments_api import ExperimentCreate
 from app.runs.imported import is_external
+from app.runs.schemas import ExperimentCreate
 from engine.judges import DEFAULT_JUDGE
 
 Opt = typer.Option

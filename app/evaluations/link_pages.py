@@ -1,6 +1,7 @@
 """The open-link section of an evaluation's page (issue 41 §1: links like any study's): the
 link ``/e/<slug>`` with its counts, and the form (``templates/_open_link_form.html``, as on a
-study's and a survey's page) that saves it, validated like ``PUT /api/evaluations/{id}/crowd``.
+study's and a survey's page, posted to :mod:`app.evaluations.researcher_pages`) that saves it,
+validated like ``PUT /api/evaluations/{id}/crowd``.
 An evaluation's link may set a time limit per evaluator (:data:`crowd.LINK` is timed).
 """
 
@@ -8,21 +9,15 @@ from __future__ import annotations
 
 from typing import Any
 
-from fastapi import APIRouter, Request, Response
+from fastapi import Request
 from sqlalchemy.orm import Session
 
 from app.evaluations import crowd
-from app.http.csrf import CsrfChecked, FormFields
-from app.http.deps import DbId, SessionDep
-from app.http.guards import ResearcherPage
-from app.http.rendering import PageRoute, redirect
 from app.recruiting import service as recruiting
 from app.recruiting.kinds import open_url
 from app.recruiting.links import LinkOptions
 from app.recruiting.pages import link_form, validated, whole
 from app.recruiting.schemas import OpenLinkIn
-
-router = APIRouter(route_class=PageRoute, include_in_schema=False, dependencies=[ResearcherPage])
 
 
 def link_context(request: Request, session: Session, evaluation_id: int) -> dict[str, Any]:
@@ -33,7 +28,7 @@ def link_context(request: Request, session: Session, evaluation_id: int) -> dict
     return {"crowd": row, "crowd_defaults": LinkOptions(), "open_url": url}
 
 
-def options(fields: dict[str, str]) -> LinkOptions:
+def link_options(fields: dict[str, str]) -> LinkOptions:
     """The form's fields as the open link's options.
 
     Raises:
@@ -41,15 +36,3 @@ def options(fields: dict[str, str]) -> LinkOptions:
     """
     limit = whole(fields, "time_limit_min") if fields.get("time_limit_min", "").strip() else None
     return validated(OpenLinkIn, link_form(fields) | {"time_limit_min": limit}).options()
-
-
-@router.post("/evaluations/{evaluation_id}/crowd", dependencies=[CsrfChecked])
-def set_crowd(evaluation_id: DbId, session: SessionDep, fields: FormFields) -> Response:
-    """Save the open-link form, then the evaluation page's open-link section.
-
-    Raises:
-        InputError: a bad field (422 page with the message).
-        NotFoundError, ConflictError: no such evaluation, or it cannot take evaluators yet.
-    """
-    recruiting.configure(session, crowd.LINK, evaluation_id, options(fields))
-    return redirect(f"/evaluations/{evaluation_id}#crowd")

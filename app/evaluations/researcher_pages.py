@@ -14,15 +14,17 @@ from sqlalchemy.orm import Session
 from app.core.errors import ServiceError
 from app.core.json_types import IntParam, form_int, from_form
 from app.core.limits import MAX_BATCH, MAX_NAME_CHARS
-from app.evaluations import evaluators, gold, results
+from app.evaluations import crowd, evaluators, gold, results
 from app.evaluations import service as evaluations
 from app.evaluations.api import evaluator_out
-from app.evaluations.link_pages import link_context
+from app.evaluations.link_pages import link_context, link_options
 from app.evaluations.schemas import EvaluationDesign
 from app.http.csrf import CsrfChecked, FormFields
 from app.http.deps import DbId, RuntimeDep, SessionDep
 from app.http.guards import ResearcherPage
 from app.http.rendering import PageRoute, redirect, render
+from app.recruiting import service as recruiting
+from app.recruiting.pages import form_echo
 from engine.errors import InputError
 
 router = APIRouter(route_class=PageRoute, include_in_schema=False)
@@ -114,6 +116,35 @@ def evaluation_page(
     invited: Annotated[int, IntParam(ge=0, le=MAX_BATCH)] = 0,
 ) -> HTMLResponse:
     """An evaluation: status, design, open link, evaluators and their links, the answer."""
+    return _evaluation_page(request, session, evaluation_id, {"invited": invited})
+
+
+@router.post("/evaluations/{evaluation_id}/crowd", dependencies=[ResearcherPage, CsrfChecked])
+def set_crowd(
+    evaluation_id: DbId, request: Request, session: SessionDep, fields: FormFields
+) -> Response:
+    """Save the open-link form, then the evaluation page's open-link section; a bad field
+    shows the page again (422) with the form as it was sent and what is wrong.
+
+    Raises:
+        NotFoundError, ConflictError: no such evaluation, or it cannot take evaluators yet.
+    """
+    try:
+        recruiting.configure(session, crowd.LINK, evaluation_id, link_options(fields))
+    except InputError as exc:
+        again = {"crowd_form": form_echo(fields), "crowd_error": str(exc)}
+        return _evaluation_page(request, session, evaluation_id, again, status_code=422)
+    return redirect(f"/evaluations/{evaluation_id}#crowd")
+
+
+def _evaluation_page(
+    request: Request,
+    session: Session,
+    evaluation_id: int,
+    extra: dict[str, Any],
+    status_code: int = 200,
+) -> HTMLResponse:
+    """The evaluation's page, with ``extra`` in its context."""
     evaluation = evaluations.get_evaluation(session, evaluation_id=evaluation_id)
     people = evaluators.list_evaluators(session, evaluation_id=evaluation_id)
     answer = results.result(session, evaluation_id=evaluation_id).to_json()
@@ -125,12 +156,12 @@ def evaluation_page(
         "slots": list(zip(slots, answer["win_rates"], strict=True)),
         "tree_vs_asked": results.TREE_VS_ASKED,
         "gate_excluded": gold.gate_excluded(session, evaluation_id=evaluation_id),
-        "invited": invited,
+        "invited": 0,
         "max_batch": MAX_BATCH,
         "max_name": MAX_NAME_CHARS,
     }
     context |= link_context(request, session, evaluation_id)  # the open link and its form
-    return render(request, "evaluation.html", context)
+    return render(request, "evaluation.html", context | extra, status_code=status_code)
 
 
 @router.post("/evaluations/{evaluation_id}/evaluators", dependencies=[ResearcherPage, CsrfChecked])

@@ -129,6 +129,16 @@ def link_form(fields: dict[str, str]) -> dict[str, Any]:
     }
 
 
+def form_echo(fields: dict[str, str]) -> dict[str, Any]:
+    """A researcher's open-link form as it was posted, to show it again beside what was wrong
+    (``templates/_open_link_form.html`` reads it as it reads saved options): ticked boxes
+    stay ticked, and the typed text stays as typed."""
+    echo: dict[str, Any] = {k: True if v == "on" else v for k, v in fields.items()}
+    params = fields.get("external_params", "").split(",")
+    echo["external_params"] = [p.strip() for p in params if p.strip()]
+    return echo
+
+
 def validated(schema: type[M], data: dict[str, Any]) -> M:
     """``data`` validated like the API's body; the first error as an :class:`InputError`."""
     try:

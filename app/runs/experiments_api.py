@@ -13,30 +13,20 @@ from typing import Annotated, Any
 
 from fastapi import APIRouter, Query, Response
 from fastapi.responses import JSONResponse
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, Field
 from sqlalchemy.orm import Session
 
 from app.core.csv_export import csv_text
-from app.core.json_types import JsonInt, UtcDatetime
+from app.core.json_types import UtcDatetime
 from app.core.rows import from_row
 from app.http.deps import DbId, ResearcherDep, SessionDep, StepParam
 from app.http.errors import RESPONSES
 from app.http.files import attachment
 from app.models import Experiment, ExperimentRole, RunStatus
 from app.runs import experiment_notes, experiments, external, verdicts
-from app.runs.experiments import (
-    DEFAULT_PILOT_SEEDS,
-    DEFAULT_SEEDS,
-    MAX_PILOT_SEEDS,
-    MAX_SEEDS,
-    MIN_SEEDS,
-    PILOT_SEED_BASE,
-    ExperimentSpec,
-)
 from app.runs.imported import public_spec, tree_digest
 from app.runs.imported_schemas import ImportedOut
-from app.runs.schemas import Judge, RunCreate
-from app.runs.spec import RunSpec
+from app.runs.schemas import ExperimentCreate, Judge
 from app.studies.schemas import ProgressOut
 from engine.judges import DEFAULT_JUDGE
 from engine.rl.config import Algo
@@ -50,24 +40,6 @@ PENDING: dict[int | str, dict[str, Any]] = {
         "description": "No such experiment, or ``step`` is no checkpoint of its runs.",
     },
 }
-
-
-class ExperimentCreate(RunCreate):
-    """A run request (``/api/runs``'s body, whose ``seed`` is the first evaluation seed)
-    trained on ``seeds`` seeds, with a matched ``ppo`` baseline on the same seeds and
-    ``pilot_seeds`` pilot runs that pick the contested matches."""
-
-    model_config = ConfigDict(extra="forbid")
-
-    seeds: JsonInt = Field(DEFAULT_SEEDS, ge=MIN_SEEDS, le=MAX_SEEDS)
-    pilot_seeds: JsonInt = Field(DEFAULT_PILOT_SEEDS, ge=1, le=MAX_PILOT_SEEDS)
-    seed: JsonInt = Field(0, ge=0, lt=PILOT_SEED_BASE - MAX_SEEDS)
-
-    def experiment_spec(self) -> ExperimentSpec:
-        run = RunSpec.from_request(self.model_dump(exclude={"seeds", "pilot_seeds", "seed"}))
-        return ExperimentSpec(
-            run=run, seeds=self.seeds, first_seed=self.seed, pilot_seeds=self.pilot_seeds
-        )
 
 
 class ExperimentRunOut(BaseModel):

@@ -26,8 +26,7 @@ from app.models import Participant, StudyStatus
 from app.runs import experiments, run_state
 from app.runs import service as runs
 from app.runs.experiments import DEFAULT_SEEDS
-from app.runs.experiments_api import ExperimentCreate
-from app.runs.schemas import RunCreate, RunOut
+from app.runs.schemas import ExperimentCreate, RunCreate, RunOut
 from app.studies import service as studies
 from engine.errors import InputError
 from engine.rl.config import ADVICE_MODES, ALGOS

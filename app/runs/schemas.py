@@ -9,6 +9,15 @@ from pydantic import BaseModel, ConfigDict, Field, StrictBool
 from app.core.json_types import JsonFloat, JsonInt, UtcDatetime
 from app.core.rows import from_row
 from app.models import Run, RunStatus
+from app.runs.experiments import (
+    DEFAULT_PILOT_SEEDS,
+    DEFAULT_SEEDS,
+    MAX_PILOT_SEEDS,
+    MAX_SEEDS,
+    MIN_SEEDS,
+    PILOT_SEED_BASE,
+    ExperimentSpec,
+)
 from app.runs.imported_schemas import ImportedOut
 from app.runs.pools import members, weighting_of, weights_of
 from app.runs.service import MAX_TIMESTEPS, advice_label
@@ -167,3 +176,21 @@ class CheckpointOut(BaseModel):
 
     checkpoint: int
     metrics: dict[str, Any] | None
+
+
+class ExperimentCreate(RunCreate):
+    """A run request (``/api/runs``'s body, whose ``seed`` is the first evaluation seed)
+    trained on ``seeds`` seeds, with a matched ``ppo`` baseline on the same seeds and
+    ``pilot_seeds`` pilot runs that pick the contested matches."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    seeds: JsonInt = Field(DEFAULT_SEEDS, ge=MIN_SEEDS, le=MAX_SEEDS)
+    pilot_seeds: JsonInt = Field(DEFAULT_PILOT_SEEDS, ge=1, le=MAX_PILOT_SEEDS)
+    seed: JsonInt = Field(0, ge=0, lt=PILOT_SEED_BASE - MAX_SEEDS)
+
+    def experiment_spec(self) -> ExperimentSpec:
+        run = RunSpec.from_request(self.model_dump(exclude={"seeds", "pilot_seeds", "seed"}))
+        return ExperimentSpec(
+            run=run, seeds=self.seeds, first_seed=self.seed, pilot_seeds=self.pilot_seeds
+        )

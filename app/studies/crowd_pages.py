@@ -1,17 +1,14 @@
-"""The crowd part of a study's page (issue 14): the open-link form, quality flags and the
-agreement heat map (:func:`crowd_context`, rendered by ``templates/study_crowd.html``)."""
+"""The crowd part of a study's page (issue 14): the open-link form (:func:`crowd_options`;
+posted to :mod:`app.studies.pages`), quality flags and the agreement heat map
+(:func:`crowd_context`, rendered by ``templates/study_crowd.html``)."""
 
 from __future__ import annotations
 
 from typing import Any
 
-from fastapi import APIRouter, Request, Response
+from fastapi import Request
 from sqlalchemy.orm import Session
 
-from app.http.csrf import CsrfChecked, FormFields
-from app.http.deps import DbId, SessionDep
-from app.http.guards import ResearcherPage
-from app.http.rendering import PageRoute, redirect
 from app.labelling import consensus, quality, study_link
 from app.recruiting import service as recruiting
 from app.recruiting.kinds import open_url
@@ -19,8 +16,6 @@ from app.recruiting.pages import link_form, validated, whole
 from app.studies import crowd, gold
 from app.studies.crowd_schemas import CrowdIn
 from engine.errors import InputError
-
-router = APIRouter(route_class=PageRoute, include_in_schema=False, dependencies=[ResearcherPage])
 
 
 def _heat(value: float | None) -> str:
@@ -71,7 +66,7 @@ def crowd_context(request: Request, session: Session, study_id: int) -> dict[str
     }
 
 
-def _options(fields: dict[str, str]) -> crowd.CrowdOptions:
+def crowd_options(fields: dict[str, str]) -> crowd.CrowdOptions:
     """The form's fields, validated like ``PUT /api/studies/{id}/crowd``."""
     body = validated(
         CrowdIn,
@@ -100,10 +95,3 @@ def _share(fields: dict[str, str], name: str) -> float | None:
         return float(text) if text else None
     except ValueError:
         raise InputError(f"{name} must be a number from 0 to 1") from None
-
-
-@router.post("/studies/{study_id}/crowd", dependencies=[CsrfChecked])
-def set_crowd(study_id: DbId, session: SessionDep, fields: FormFields) -> Response:
-    """Save the open-link form, then show the study page's crowd section."""
-    quality.configure_crowd(session, study_id=study_id, options=_options(fields))
-    return redirect(f"/studies/{study_id}#crowd")

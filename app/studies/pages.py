@@ -20,13 +20,15 @@ from app.http.deps import DbId, RuntimeDep, SessionDep, SettingsDep
 from app.http.guards import ResearcherPage
 from app.http.rendering import PageRoute, redirect, render, thumb_template
 from app.http.urls import image_url
-from app.labelling import dashboard, participants
+from app.labelling import dashboard, participants, quality
 from app.models import StudyStatus
+from app.recruiting.pages import form_echo
 from app.runs import power as runs_power
 from app.runs.experiments import DEFAULT_SEEDS
+from app.settings import Settings
 from app.studies import service as studies
 from app.studies.clips import CLIPS_WARNING, clips_state
-from app.studies.crowd_pages import crowd_context
+from app.studies.crowd_pages import crowd_context, crowd_options
 from app.studies.schemas import StudyCreate
 from app.webhooks.outbox import Owner
 from app.webhooks.pages import webhooks_context
@@ -145,6 +147,32 @@ def study_page(
 ) -> HTMLResponse:
     """Candidates, participants with progress and invite links, finished trees, and
     webhooks."""
+    return _study_page(request, session, settings, study_id, {"invited": invited})
+
+
+@router.post("/studies/{study_id}/crowd", dependencies=[CsrfChecked])
+def set_crowd(
+    study_id: DbId, request: Request, session: SessionDep, settings: SettingsDep, fields: FormFields
+) -> Response:
+    """Save the open-link form, then show the study page's crowd section; a bad field shows
+    the page again (422) with the form as it was sent and what is wrong."""
+    try:
+        quality.configure_crowd(session, study_id=study_id, options=crowd_options(fields))
+    except InputError as exc:
+        again = {"crowd_form": form_echo(fields), "crowd_error": str(exc)}
+        return _study_page(request, session, settings, study_id, again, status_code=422)
+    return redirect(f"/studies/{study_id}#crowd")
+
+
+def _study_page(
+    request: Request,
+    session: Session,
+    settings: Settings,
+    study_id: int,
+    extra: dict[str, Any],
+    status_code: int = 200,
+) -> HTMLResponse:
+    """The study's page, with ``extra`` in its context."""
     study = studies.get_study(session, study_id=study_id)
     return render(
         request,
@@ -152,7 +180,7 @@ def study_page(
         {
             "study": study,
             "clips_state": clips_state(study),
-            "invited": invited,
+            "invited": 0,
             "max_batch": MAX_BATCH,
             "thumb_template": thumb_template(study_id),
             "candidates": _candidates(session, study_id),
@@ -165,7 +193,9 @@ def study_page(
             **(_power(session, study_id) if study.status == StudyStatus.READY else {}),
             **(_live(session, study_id) if study.status == StudyStatus.READY else {}),
             **webhooks_context(session, Owner("study", study_id), settings),
+            **extra,
         },
+        status_code=status_code,
     )
 
 

@@ -23,6 +23,7 @@ from app.recruiting import members
 from app.recruiting import service as recruiting
 from app.recruiting.kinds import open_url
 from app.recruiting.links import LinkOptions
+from app.settings import Settings
 from app.surveys import crowd, respond
 from app.surveys import results as surveys_results
 from app.surveys import service as surveys
@@ -92,10 +93,22 @@ def survey_page(
 ) -> HTMLResponse:
     """A survey: its stimuli drawn as respondents see them, invite links, results, and
     webhooks."""
+    return render_survey_page(request, session, settings, survey_id)
+
+
+def render_survey_page(
+    request: Request,
+    session: Session,
+    settings: Settings,
+    survey_id: int,
+    extra: dict[str, Any] | None = None,
+    status_code: int = 200,
+) -> HTMLResponse:
+    """The survey's page, with ``extra`` in its context (a form shown again, say)."""
     survey = surveys.get_survey(session, survey_id=survey_id)
     context = _survey_context(session, survey, request)
     hooks = webhooks_context(session, Owner("survey", survey_id), settings)
-    return render(request, "survey.html", context | hooks)
+    return render(request, "survey.html", context | hooks | (extra or {}), status_code=status_code)
 
 
 @router.get("/r/{token}")

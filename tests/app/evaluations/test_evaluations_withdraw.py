@@ -157,6 +157,8 @@ def test_a_bad_open_link_form_is_a_4xx_page_that_says_why(
     response = researcher.post(f"{path}/crowd", data=data)
     assert response.status_code == 422, response.text
     assert says in response.text and response.headers["content-type"].startswith("text/html")
+    assert 'id="crowd-error" role="alert">Not saved:' in response.text  # the page, again
+    assert f'value="{bad}"' in response.text  # with the form as it was sent
     assert client.get(f"/api/evaluations/{evaluation_id}/crowd", headers=ADMIN).status_code == 404
 
 

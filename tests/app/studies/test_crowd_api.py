@@ -6,6 +6,7 @@ from __future__ import annotations
 import csv
 import io
 import json
+import re
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
@@ -22,7 +23,7 @@ from app.labelling.sides import a_on_left
 from tests.support.crowd import SETTINGS, configure, joined_player, visit, visitor
 from tests.support.postgres import empty_database
 from tests.support.studies import Player
-from tests.support.web import ADMIN
+from tests.support.web import ADMIN, audit, csrf_token, logged_in
 
 
 @pytest.fixture(autouse=True)
@@ -70,6 +71,23 @@ def test_settings_round_trip_with_defaults(client, make_study) -> None:
 def test_bad_settings_are_4xx_json(client, study, bad) -> None:
     response = client.put(f"/api/studies/{study['id']}/crowd", json=SETTINGS | bad, headers=ADMIN)
     assert response.status_code == 422 and "detail" in response.json(), response.text
+
+
+def test_a_bad_open_link_form_shows_the_study_page_again_as_typed(client, study) -> None:
+    """The researcher's form on the study page: a bad field is a 422 page, the study's own,
+    with the form as it was sent and what is wrong; nothing is saved."""
+    page = logged_in(client)
+    path = f"/studies/{study['id']}"
+    before = client.get(f"/api/studies/{study['id']}/crowd", headers=ADMIN).json()
+    form = {"csrf_token": csrf_token(page, path), "enabled": "on", "max_participants": "9"}
+    form |= {"external_params": "PROLIFIC_PID, study-id", "speed_threshold_ms": "700"}
+    form |= {"consent_text": "We keep your choices.", "consistency_check": "on"}
+    bad = page.post(f"{path}/crowd", data=form)
+    assert bad.status_code == 422 and 'id="crowd-error" role="alert">Not saved:' in bad.text
+    assert "external_params" in bad.text and 'value="PROLIFIC_PID, study-id"' in bad.text
+    assert "We keep your choices.</textarea>" in bad.text and 'value="700"' in bad.text
+    assert re.search(r'id="consistency_check"\s+checked', bad.text) and audit(bad.text) == []
+    assert client.get(f"/api/studies/{study['id']}/crowd", headers=ADMIN).json() == before
 
 
 def test_settings_are_the_researchers(client, study) -> None:

@@ -262,8 +262,11 @@ def test_survey_page_form_sets_the_open_link(client, survey) -> None:
     html = page.get(path).text
     assert f"http://testserver/q/{link['slug']}" in html and "0 of 4 joined" in html
     assert audit(html) == []
-    bad = page.post(f"{path}/crowd", data=form | {"redirect_url": "ftp://x.org/"})
-    assert bad.status_code == 422 and "redirect_url" in bad.text
+    typed = {"redirect_url": "ftp://x.org/", "consent_text": "Kept as typed"}
+    bad = page.post(f"{path}/crowd", data=form | typed)
+    assert bad.status_code == 422 and "Not saved: redirect_url" in bad.text
+    assert "Kept as typed</textarea>" in bad.text and 'value="ftp://x.org/"' in bad.text
+    assert 'value="PROLIFIC_PID, STUDY_ID"' in bad.text and audit(bad.text) == []
     assert page.post(f"{path}/crowd", data=form | {"max_participants": "-1"}).status_code == 422
     stranger = browser(client).post(f"{path}/crowd", data=form | {"completion_code": "HACK"})
     assert stranger.status_code in (303, 403)
