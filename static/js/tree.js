@@ -42,6 +42,12 @@ function drawPreferenceTree(container, doc, options) {
   for (const link of root.links()) svg.appendChild(edge(link, opts));
   for (const d of root.descendants()) svg.appendChild(node(d, opts));
   container.replaceChildren(svg);
+  if (!opts.onSelect && !container.hasAttribute("tabindex")) {
+    // Its nodes take no focus here, so the box does: a tree wider than it scrolls from the
+    // keyboard too (WCAG 2.1.1; axe's scrollable-region-focusable).
+    for (const [name, value] of [["tabindex", 0], ["role", "region"],
+      ["aria-label", svg.getAttribute("aria-label")]]) container.setAttribute(name, value);
+  }
   // A tree still wider than its box starts scrolled so that the champion is in view.
   container.scrollLeft = Math.max(0, (root.x - x0 + dx / 2) * scale -
     container.clientWidth / 2);
