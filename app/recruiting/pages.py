@@ -42,6 +42,8 @@ M = TypeVar("M", bound=BaseModel)
 #: The consent form's one-time key (:attr:`app.models.Member.join_key`): 16 random bytes.
 JOIN_KEY_BYTES = 16
 JOIN_KEY = re.compile(r"[A-Za-z0-9_-]{22}")
+#: The open-link forms' checkboxes (a browser sends ``on`` for a ticked one, nothing else).
+CHECKBOXES = ("enabled", "consistency_check", "gate_excludes")
 DECLINED = "You declined to take part; nothing about you was stored. You can close this page."
 
 
@@ -133,7 +135,7 @@ def form_echo(fields: dict[str, str]) -> dict[str, Any]:
     """A researcher's open-link form as it was posted, to show it again beside what was wrong
     (``templates/_open_link_form.html`` reads it as it reads saved options): ticked boxes
     stay ticked, and the typed text stays as typed."""
-    echo: dict[str, Any] = {k: True if v == "on" else v for k, v in fields.items()}
+    echo: dict[str, Any] = dict(fields) | {k: True for k in CHECKBOXES if fields.get(k) == "on"}
     params = fields.get("external_params", "").split(",")
     echo["external_params"] = [p.strip() for p in params if p.strip()]
     return echo
