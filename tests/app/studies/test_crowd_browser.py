@@ -36,8 +36,9 @@ def ready_study(api: httpx.Client) -> int:
     return study["id"]
 
 
-def open_the_link(page: Page, base: str, study_id: int, platform: str) -> str:
-    """Fill the study page's crowd form; returns the open link it then shows."""
+def open_the_link(page: Page, base: str, study_id: int, platform: str, errors: list[str]) -> str:
+    """Fill the study page's crowd form (first with a bad field, refused); returns the open
+    link it then shows."""
     page.goto(f"{base}/login#token={ADMIN_TOKEN}")
     page.wait_for_url(f"{base}/studies")
     page.goto(f"{base}/studies/{study_id}")
@@ -47,6 +48,17 @@ def open_the_link(page: Page, base: str, study_id: int, platform: str) -> str:
     page.fill("#completion_code", "C0MPL3TE")
     page.fill("#redirect_url", f"{platform}/submissions/complete?cc=C0MPL3TE")
     page.check("#consistency_check")
+    page.fill("#external_params", "PROLIFIC_PID, study-id")  # refused: shown again as typed
+    page.click("text=Save open link")
+    expect(page.locator("#crowd-error")).to_contain_text("Not saved: external_params")
+    expect(page.locator("#consent_text")).to_have_value(
+        "We store your choices and your Prolific id, nothing else."
+    )
+    assert_accessible(page, "study page, open-link form refused")
+    refused = [e for e in errors if "status of 422" in e]
+    assert len(refused) == 1  # Chromium logs the refusal's status; nothing else
+    errors.remove(refused[0])
+    page.fill("#external_params", "PROLIFIC_PID, STUDY_ID, SESSION_ID")
     page.click("text=Save open link")
     page.wait_for_url(f"{base}/studies/{study_id}#crowd")
     return page.inner_text("#open-link")
@@ -72,7 +84,7 @@ def test_open_link_consent_bracket_check_and_completion(
     with httpx.Client(base_url=base, headers=ADMIN, timeout=HTTP_TIMEOUT_S) as api:
         study_id = ready_study(api)
     _, page = new_page(browser, errors, viewport=DESKTOP)
-    link = open_the_link(page, base, study_id, platform)
+    link = open_the_link(page, base, study_id, platform, errors)
     assert link.startswith(f"{base}/s/")
     assert_accessible(page, "study page with the crowd form")
 
