@@ -107,14 +107,16 @@ def invite(
 def result(
     evaluation: Annotated[int, id_option("Evaluation id.")], as_json: JsonOpt = False
 ) -> None:
-    """The answer so far: the outcome in words, the statistic, its interval and p."""
+    """The answer so far: the outcome in words (interim until the design's evaluators have
+    finished), the statistic, its interval and p."""
     with cli_runtime() as runtime, runtime.sessions() as session:
         found = results.result(session, evaluation_id=evaluation).to_json()
     if as_json:
         typer.echo(json.dumps(found, indent=2))
         return
     typer.echo(found["sentence"])
-    for key in ("statistic", "p_value", "interval", "n_answers", "n_evaluators"):
+    keys = ("final", "finished_evaluators", "planned_evaluators")
+    for key in ("statistic", "p_value", "interval", "n_answers", "n_evaluators", *keys):
         typer.echo(f"{key}\t{found.get(key)}")
 
 

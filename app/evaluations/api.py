@@ -77,7 +77,9 @@ def get_evaluation(evaluation_id: DbId, session: SessionDep, _: ResearcherDep) -
 def evaluation_result(evaluation_id: DbId, session: SessionDep, _: ResearcherDep) -> dict[str, Any]:
     """The answer so far: the difference in mean win rate over all opponents between the
     arms, its exact permutation p and bootstrap interval, the advised agents' win rate in
-    between-arm pairs, the side bias of within-arm pairs, and the outcome in words."""
+    between-arm pairs, the side bias of within-arm pairs, and the outcome in words. Until the
+    design's evaluators have finished (`final`), `sentence` says the look is interim and
+    `outcome` is only what the rule would say now."""
     return results.result(session, evaluation_id=evaluation_id).to_json()
 
 

@@ -16,13 +16,14 @@ from datetime import datetime
 from typing import Any
 
 import numpy as np
-from sqlalchemy import select
+from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
 from app.evaluations import service
-from app.models import EvaluationPair, Evaluator, as_utc, utcnow
+from app.models import Evaluation, EvaluationPair, Evaluator, as_utc, utcnow
 from app.recruiting import seats
 from engine.evaluation.outcome import EvaluationResult, evaluate
+from engine.evaluation.power import MAX_EVALUATORS
 from engine.evaluation.stats import Answers
 
 #: How the tree verdict and an evaluation can differ, said beside the answer wherever both
@@ -89,20 +90,57 @@ def _score(pair: EvaluationPair) -> float:
 
 @dataclass(frozen=True)
 class EvaluationAnswer:
-    """The evaluation's result now, with what it rests on."""
+    """The evaluation's result now, with what it rests on. ``final``: the design's evaluators
+    (:func:`planned_evaluators`) have all finished. Only a final answer gets its outcome in
+    words; each earlier look is interim, since looking after every answer must not give many
+    chances to say "more"."""
 
     result: EvaluationResult
     advised: tuple[bool, ...]
     run_ids: tuple[int, ...]
+    finished: int
+    planned: int
+
+    @property
+    def final(self) -> bool:
+        """As many kept evaluators have finished as the design planned."""
+        return self.finished >= self.planned
 
     def to_json(self) -> dict[str, Any]:
         return {
             **self.result.to_json(),
+            "sentence": self.result.sentence if self.final else self.interim_sentence(),
+            "final": self.final,
+            "finished_evaluators": self.finished,
+            "planned_evaluators": self.planned,
             "slots": [
                 {"slot": s, "run_id": r, "advised": a}
                 for s, (r, a) in enumerate(zip(self.run_ids, self.advised, strict=True))
             ],
         }
+
+    def interim_sentence(self) -> str:
+        """What an interim look says in place of the outcome."""
+        return (
+            f"Interim: no answer yet. It is given once {self.planned} evaluators have "
+            f"finished ({self.finished} so far); this look shows the win rates and the "
+            "interval only."
+        )
+
+
+def planned_evaluators(evaluation: Evaluation) -> int:
+    """The evaluators the design planned: its size for the target at 80% power, or the most
+    it is sized to when no count reaches that power (:data:`MAX_EVALUATORS`)."""
+    return evaluation.needed_evaluators or MAX_EVALUATORS
+
+
+def finished_evaluators(session: Session, *, evaluation_id: int) -> int:
+    """Kept evaluators who have answered all their pairs."""
+    kept = seats.kept_in_data(include_excluded=False, now=utcnow(), excluded=Evaluator.excluded)
+    query = select(func.count(Evaluator.id)).where(
+        Evaluator.evaluation_id == evaluation_id, Evaluator.finished_at.is_not(None), *kept
+    )
+    return int(session.scalar(query) or 0)
 
 
 def result(session: Session, *, evaluation_id: int) -> EvaluationAnswer:
@@ -113,7 +151,13 @@ def result(session: Session, *, evaluation_id: int) -> EvaluationAnswer:
     answers = answers_of(kept_pairs(session, evaluation_id=evaluation_id))
     rng = np.random.default_rng([evaluation.seed, 2])
     found = evaluate(answers, advised, rng, evaluation.evaluator_kind)  # type: ignore[arg-type]
-    return EvaluationAnswer(found, tuple(advised.tolist()), tuple(s.run_id for s in slots))
+    return EvaluationAnswer(
+        found,
+        tuple(advised.tolist()),
+        tuple(s.run_id for s in slots),
+        finished=finished_evaluators(session, evaluation_id=evaluation_id),
+        planned=planned_evaluators(evaluation),
+    )
 
 
 def export_rows(session: Session, *, evaluation_id: int) -> list[dict[str, Any]]:

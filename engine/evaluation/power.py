@@ -53,6 +53,8 @@ from scipy.special import expit
 from engine.errors import InputError
 from engine.evaluation.simulate import DesignBatch, NoisyTeacher, outcome_signs, simulate_designs
 
+#: The most evaluators a design is sized to (:func:`answers_needed` searches up to it).
+MAX_EVALUATORS = 100
 #: Simulated designs per count of evaluators (power within about ±0.02).
 N_POWER_SIMULATIONS = 400
 #: Gauss-Hermite (probabilists') nodes for :func:`arm_effect`.
@@ -177,7 +179,7 @@ def answers_needed(
     rng: np.random.Generator,
     power: float = 0.8,
     alpha: float = 0.05,
-    max_evaluators: int = 100,
+    max_evaluators: int = MAX_EVALUATORS,
     n_sims: int = N_POWER_SIMULATIONS,
 ) -> AnswersNeeded:
     """The fewest evaluators (and answers) whose simulated power reaches ``power``.

@@ -10,12 +10,15 @@ from __future__ import annotations
 import csv
 import io
 from collections.abc import Iterator
+from contextlib import contextmanager
 from typing import Any
 
 import pytest
 from fastapi.testclient import TestClient
 from PIL import Image
+from sqlalchemy import update
 
+from app.models import Evaluation
 from tests.support.crowd import join
 from tests.support.evaluations import evaluable_experiment, wait_evaluation
 from tests.support.runs import run_app
@@ -115,6 +118,51 @@ def _pictures_are_blind(
             assert (image.format, getattr(image, "is_animated", False)) == (
                 ("JPEG", False) if kind == "still" else ("WEBP", True)
             )
+
+
+@contextmanager
+def _design_size(client: TestClient, evaluation_id: int, evaluators: int) -> Iterator[None]:
+    """The evaluation as if its design had needed ``evaluators`` (put back afterwards)."""
+
+    def set_needed(value: int | None) -> None:
+        with client.app.state.runtime.sessions() as session:
+            session.execute(
+                update(Evaluation)
+                .where(Evaluation.id == evaluation_id)
+                .values(needed_evaluators=value)
+            )
+            session.commit()
+
+    with client.app.state.runtime.sessions() as session:
+        before = session.get(Evaluation, evaluation_id).needed_evaluators  # type: ignore[union-attr]
+    set_needed(evaluators)
+    try:
+        yield
+    finally:
+        set_needed(before)
+
+
+def test_the_answer_is_interim_until_the_designs_evaluators_finish(client, evaluation) -> None:
+    """Each look before the planned evaluators have all finished says "interim" in place of
+    an outcome; the look once they have gives the outcome in words."""
+    assert _result(client, evaluation)["planned_evaluators"] == 100  # no size reaches 80% power
+    finished = _result(client, evaluation)["finished_evaluators"]
+    (person,) = _invite(client, evaluation["id"])
+    headers = _bearer(person)
+    with _design_size(client, evaluation["id"], finished + 1):
+        for _ in range(evaluation["pairs_per_evaluator"]):
+            early = _result(client, evaluation)
+            assert not early["final"] and early["sentence"].startswith("Interim: no answer yet")
+            assert (early["finished_evaluators"], early["planned_evaluators"]) == (
+                finished,
+                finished + 1,
+            )
+            key = client.get("/api/evaluators/me/pairs/next", headers=headers).json()["key"]
+            url = f"/api/evaluators/me/pairs/{key}"
+            assert client.post(url, json={"choice": "right"}, headers=headers).status_code == 200
+        final = _result(client, evaluation)
+    assert final["final"] and final["finished_evaluators"] == finished + 1
+    assert not final["sentence"].startswith("Interim") and "agent trained with" in final["sentence"]
 
 
 def test_an_answer_is_written_once(client, evaluation) -> None:

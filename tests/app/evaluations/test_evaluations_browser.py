@@ -242,7 +242,10 @@ def test_an_evaluation_from_the_experiment_page_to_its_answer(
     found = api.get(f"/api/evaluations/{evaluation_id}/result").json()
     researcher.goto(evaluation_url)
     expect(researcher.locator("#counts")).to_have_text(f"{PAIRS + 1} · 2")
-    expect(researcher.locator("#outcome")).to_have_attribute("data-outcome", found["outcome"])
+    assert not found["final"]  # 1 of the design's 100 evaluators finished
+    expect(researcher.locator("#outcome")).to_have_attribute("data-outcome", "interim")
+    expect(researcher.locator("#outcome")).to_have_text(found["sentence"])
+    expect(researcher.locator("#finished")).to_have_text(f"1 of {found['planned_evaluators']}")
     expect(researcher.locator("#tree-vs-asked")).to_contain_text("does what you asked")
     expect(researcher.locator("#answers-csv")).to_be_visible()
     settled(researcher, f"evaluation page with answers {where}")
