@@ -5,6 +5,7 @@ clips, render here before the command returns), invite evaluators, read the answ
 from __future__ import annotations
 
 import json
+import re
 from typing import Annotated
 
 import typer
@@ -22,14 +23,13 @@ evaluate_cli = typer.Typer(help="Agent evaluations: people judge what trained ag
 cli.add_typer(evaluate_cli, name="evaluate", no_args_is_help=True)
 
 
-def _ids(text: str | None) -> tuple[int, ...]:
-    """``"3,4,5"`` as run ids (exit 2 on anything else)."""
-    if not text:
-        return ()
-    try:
-        return tuple(int(part) for part in text.split(","))
-    except ValueError:
+def _ids(text: str) -> tuple[int, ...]:
+    """``"3,4,5"`` as run ids (exit 2 on anything else: digits only, so ``1_0``, which
+    Python's ``int()`` reads as 10, is refused)."""
+    parts = [part.strip() for part in text.split(",")]
+    if not all(re.fullmatch(r"[0-9]+", part) for part in parts):
         fail(f"run ids are whole numbers separated by commas, got {text!r}")
+    return tuple(int(part) for part in parts)
 
 
 @evaluate_cli.command("create")
@@ -56,8 +56,9 @@ def create(
     practice_pairs: Annotated[int, Opt(help="Practice pairs first: 0, or 2 to 5.")] = 0,
 ) -> None:
     """Create an evaluation and render its stimuli; prints its id and status."""
-    if (experiment is None) == (advised is None):
-        fail("give --experiment, or --advised with --baseline")
+    runs_named = [group is not None for group in (advised, baseline)]
+    if any(runs_named) if experiment is not None else not all(runs_named):
+        fail("give --experiment, or --advised with --baseline (not both)")
     if kind not in ("advisor", "others") or stimulus not in ("clip", "still"):
         fail("--kind is 'advisor' or 'others', --stimulus 'clip' or 'still'")
     with cli_runtime() as runtime:
@@ -65,7 +66,7 @@ def create(
             arms = (
                 evaluations.experiment_arms(session, experiment_id=experiment)
                 if experiment is not None
-                else (_ids(advised), _ids(baseline))
+                else (_ids(advised), _ids(baseline))  # type: ignore[arg-type]  # both given
             )
             spec = evaluations.EvaluationSpec(
                 advised=arms[0],

@@ -106,7 +106,10 @@ def test_the_advisor_may_be_shown_their_bracket(run, client, advised_by_one) -> 
     ("args", "says"),
     [
         (("--advised", "1,x", "--baseline", "2,3"), "whole numbers"),
+        (("--advised", "1_0,2", "--baseline", "3,4"), "whole numbers"),  # int() reads 10
         ((), "give --experiment"),
+        (("--advised", "1,2"), "with --baseline"),
+        (("--experiment", "{experiment}", "--baseline", "3,4"), "not both"),
         (("--experiment", 999_999), "experiment 999999 not found"),
         (("--experiment", "{experiment}", "--kind", "nobody"), "--kind is"),
         (("--experiment", "{experiment}", "--pairs", 0), "pairs_per_evaluator"),
