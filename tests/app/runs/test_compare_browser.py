@@ -283,6 +283,41 @@ def test_run_page_shows_progress_curves_and_checkpoints(
     assert errors == []
 
 
+#: Draws 7 series with acvPlots (the page's own scripts) into a new chart box, and reads each
+#: line's and each legend key's stroke colour and dash pattern, and the x a series' dot opens.
+SEVEN_SERIES = """() => {
+  const box = document.body.appendChild(document.createElement("div"));
+  box.className = "chart";
+  const series = Array.from({ length: 7 }, (_, i) => ({ label: `run ${i}`,
+    points: [[i, i], [10 + i, i + 1]] }));
+  let picked = null;
+  acvPlots.lines(box, series, { onPick: (x) => { picked = x; } });
+  const look = (el) => `${getComputedStyle(el).stroke}|${getComputedStyle(el).strokeDasharray}`;
+  const lines = [...box.querySelectorAll("svg.acv-plot g.line path")].map(look);
+  const keys = [...box.querySelectorAll(".plot-legend line")].map(look);
+  box.querySelectorAll("g.dot.series-5 circle")[1].dispatchEvent(new MouseEvent("click"));
+  return { lines, keys, picked };
+}"""
+
+
+def test_chart_series_differ_without_colour_and_never_repeat(
+    server: str, finished_run: dict, page: tuple[Page, list[str]]
+) -> None:
+    """Each series has its own colour and dash pattern, shown in its legend key too (WCAG
+    1.4.1: not by colour alone); a sixth and seventh series repeat neither, and a dot of the
+    sixth opens its own point, not the first series' (they share a colour)."""
+    p, errors = page
+    p.goto(f"{server}/runs/{finished_run['id']}/compare-runs")
+    expect(p.locator("#chart-runs svg.acv-plot")).to_have_count(1)
+    drawn = p.evaluate(SEVEN_SERIES)
+    assert len(set(drawn["lines"])) == 7, drawn
+    assert drawn["keys"] == drawn["lines"]
+    assert len({look.split("|")[1] for look in drawn["lines"][:4]}) == 4  # 4 patterns
+    assert drawn["picked"] == 15  # series 5's second point
+    p.locator(".chart").last.screenshot(path=SCREENS / "chart-seven-series.png")
+    assert errors == []
+
+
 def test_new_run_without_a_study_picks_one(
     server: str, finished_run: dict, page: tuple[Page, list[str]]
 ) -> None:
