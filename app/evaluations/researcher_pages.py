@@ -12,7 +12,7 @@ from pydantic import ValidationError
 from sqlalchemy.orm import Session
 
 from app.core.errors import ServiceError
-from app.core.json_types import IntParam, form_int, from_form
+from app.core.json_types import IntParam, from_form
 from app.core.limits import MAX_BATCH, MAX_NAME_CHARS
 from app.evaluations import crowd, evaluators, gold, results
 from app.evaluations import service as evaluations
@@ -21,6 +21,7 @@ from app.evaluations.link_pages import link_context, link_options
 from app.evaluations.schemas import EvaluationDesign
 from app.http.csrf import CsrfChecked, FormFields
 from app.http.deps import DbId, RuntimeDep, SessionDep
+from app.http.forms import REFUSED, invite_count, refused
 from app.http.guards import ResearcherPage
 from app.http.rendering import PageRoute, redirect, render
 from app.recruiting import service as recruiting
@@ -165,11 +166,18 @@ def _evaluation_page(
 
 
 @router.post("/evaluations/{evaluation_id}/evaluators", dependencies=[ResearcherPage, CsrfChecked])
-def invite(evaluation_id: DbId, session: SessionDep, fields: FormFields) -> Response:
-    """Invite evaluators, then the evaluation's page with their links."""
-    count = form_int(fields.get("count", "").strip() or "1")
-    if count is None:
-        raise InputError(f"the number of evaluators must be a whole number in 1..{MAX_BATCH}")
+def invite(
+    evaluation_id: DbId, request: Request, session: SessionDep, fields: FormFields
+) -> Response:
+    """Invite evaluators, then the evaluation's page with their links; a bad count shows the
+    page again with the form as typed."""
     name = fields.get("name", "").strip()[:MAX_NAME_CHARS] or None
-    people = evaluators.add_evaluators(session, evaluation_id=evaluation_id, count=count, name=name)
+    try:
+        count = invite_count(fields, "evaluators")
+        people = evaluators.add_evaluators(
+            session, evaluation_id=evaluation_id, count=count, name=name
+        )
+    except REFUSED as exc:
+        again, status = refused("invite", fields, exc)
+        return _evaluation_page(request, session, evaluation_id, again, status)
     return redirect(f"/evaluations/{evaluation_id}?invited={len(people)}#evaluators")

@@ -3,17 +3,19 @@ services as ``/api/studies/{id}/gold`` and ``/api/participants/{id}/exclusion``.
 
 from __future__ import annotations
 
-from fastapi import APIRouter, Response
+from fastapi import APIRouter, Request, Response
 
 from app.core.errors import NotFoundError
 from app.http.csrf import CsrfChecked, FormFields
-from app.http.deps import DbId, SessionDep
+from app.http.deps import DbId, SessionDep, SettingsDep
+from app.http.forms import REFUSED, refused
 from app.http.guards import ResearcherPage
 from app.http.rendering import PageRoute, redirect
 from app.labelling import participants
 from app.recruiting.pages import validated
 from app.studies import gold
 from app.studies.gold_api import GoldItemIn
+from app.studies.pages import render_study_page
 
 router = APIRouter(route_class=PageRoute, include_in_schema=False, dependencies=[ResearcherPage])
 
@@ -27,16 +29,20 @@ def _number(text: str) -> int | str:
 
 
 @router.post("/studies/{study_id}/gold", dependencies=[CsrfChecked])
-def add_gold(study_id: DbId, session: SessionDep, fields: FormFields) -> Response:
-    """Add the gold item the form describes, then show the study page's gold section."""
-    body = validated(
-        GoldItemIn,
-        {"kind": fields.get("kind", "")}
-        | {k: _number(fields.get(k, "")) for k in ("a", "b", "answer")},
-    )
-    gold.add_item(
-        session, study_id=study_id, kind=body.kind, a=body.a, b=body.b, answer=body.answer
-    )
+def add_gold(
+    study_id: DbId, request: Request, session: SessionDep, settings: SettingsDep, fields: FormFields
+) -> Response:
+    """Add the gold item the form describes, then show the study page's gold section; a
+    refused item shows the page again with the form as typed."""
+    numbers = {k: _number(fields.get(k, "")) for k in ("a", "b", "answer")}
+    try:
+        body = validated(GoldItemIn, {"kind": fields.get("kind", "")} | numbers)
+        gold.add_item(
+            session, study_id=study_id, kind=body.kind, a=body.a, b=body.b, answer=body.answer
+        )
+    except REFUSED as exc:
+        again, status = refused("gold", fields, exc)
+        return render_study_page(request, session, settings, study_id, again, status)
     return redirect(f"/studies/{study_id}#gold")
 
 

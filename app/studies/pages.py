@@ -13,10 +13,11 @@ from fastapi.responses import HTMLResponse
 from pydantic import ValidationError
 from sqlalchemy.orm import Session
 
-from app.core.json_types import IntParam, form_int, from_form
+from app.core.json_types import IntParam, from_form
 from app.core.limits import MAX_BATCH
 from app.http.csrf import CsrfChecked, FormFields
 from app.http.deps import DbId, RuntimeDep, SessionDep, SettingsDep
+from app.http.forms import REFUSED, invite_count, refused
 from app.http.guards import ResearcherPage
 from app.http.rendering import PageRoute, redirect, render, thumb_template
 from app.http.urls import image_url
@@ -31,7 +32,7 @@ from app.studies.clips import CLIPS_WARNING, clips_state
 from app.studies.crowd_pages import crowd_context, crowd_options
 from app.studies.schemas import StudyCreate
 from app.webhooks.outbox import Owner
-from app.webhooks.pages import webhooks_context
+from app.webhooks.section import webhooks_context
 from engine.candidates import MAX_CANDIDATES, SAMPLING_MODES
 from engine.disagreement import MAX_PAIRS
 from engine.envs import DEFAULT_ENV_ID
@@ -147,7 +148,7 @@ def study_page(
 ) -> HTMLResponse:
     """Candidates, participants with progress and invite links, finished trees, and
     webhooks."""
-    return _study_page(request, session, settings, study_id, {"invited": invited})
+    return render_study_page(request, session, settings, study_id, {"invited": invited})
 
 
 @router.post("/studies/{study_id}/crowd", dependencies=[CsrfChecked])
@@ -160,11 +161,11 @@ def set_crowd(
         quality.configure_crowd(session, study_id=study_id, options=crowd_options(fields))
     except InputError as exc:
         again = {"crowd_form": form_echo(fields), "crowd_error": str(exc)}
-        return _study_page(request, session, settings, study_id, again, status_code=422)
+        return render_study_page(request, session, settings, study_id, again, status_code=422)
     return redirect(f"/studies/{study_id}#crowd")
 
 
-def _study_page(
+def render_study_page(
     request: Request,
     session: Session,
     settings: Settings,
@@ -244,11 +245,16 @@ def _participants(request: Request, session: Session, study_id: int) -> list[dic
 
 
 @router.post("/studies/{study_id}/participants", dependencies=[CsrfChecked])
-def invite(study_id: DbId, session: SessionDep, fields: FormFields) -> Response:
-    """Invite one or many participants, then show the study page with their links."""
-    count = form_int(fields.get("count", "").strip() or "1")
-    if count is None:
-        raise InputError(f"the number of participants must be a whole number in 1..{MAX_BATCH}")
+def invite(
+    study_id: DbId, request: Request, session: SessionDep, settings: SettingsDep, fields: FormFields
+) -> Response:
+    """Invite one or many participants, then show the study page with their links; a bad
+    count shows the page again with the form as typed."""
     name = fields.get("name", "").strip()[:200] or None
-    people = participants.add_participants(session, study_id=study_id, count=count, name=name)
+    try:
+        count = invite_count(fields, "participants")
+        people = participants.add_participants(session, study_id=study_id, count=count, name=name)
+    except REFUSED as exc:
+        again, status = refused("invite", fields, exc)
+        return render_study_page(request, session, settings, study_id, again, status)
     return redirect(f"/studies/{study_id}?invited={len(people)}#participants")

@@ -29,7 +29,7 @@ from app.surveys import results as surveys_results
 from app.surveys import service as surveys
 from app.surveys.sources import source_menus
 from app.webhooks.outbox import Owner
-from app.webhooks.pages import webhooks_context
+from app.webhooks.section import webhooks_context
 
 router = APIRouter(route_class=PageRoute, include_in_schema=False)
 RESPOND = "/survey"

@@ -3,6 +3,7 @@ and the audit of a page's scripts and styles (the CSP forbids anything inline)."
 
 from __future__ import annotations
 
+import html as html_lib
 import re
 from html.parser import HTMLParser
 from typing import Any
@@ -66,3 +67,26 @@ def audit(html: str) -> list[str]:
     parser = ScriptAudit()
     parser.feed(html)
     return parser.problems
+
+
+#: Fields that cannot be what is wrong (an invitation's note), never pointed at the reason.
+UNMARKED = {"invite-name"}
+
+
+def _input(page: str, input_id: str) -> str:
+    """The ``<input>`` or ``<select>`` element with ``input_id``."""
+    found = re.search(rf'<(?:input|select) id="{input_id}"[^>]*>', page)
+    assert found, f"no #{input_id}"
+    return found.group(0)
+
+
+def shown_again(page: str, form: str, typed: dict[str, str], inputs: dict[str, str]) -> None:
+    """A refused form (``app.http.forms``) in ``page``: its reason beside it, each of
+    ``inputs`` (element id -> field) holding what was ``typed`` and pointing at the reason."""
+    reason = re.search(rf'<p class="field-error" id="{form}-error" role="alert">([^<]+)</p>', page)
+    assert reason and reason.group(1).startswith("Not saved: "), form
+    for input_id, field in inputs.items():
+        element = _input(page, input_id)
+        assert f'value="{html_lib.escape(typed[field])}"' in element, element
+        marked = f'aria-describedby="{form}-error"' in element
+        assert marked == (input_id not in UNMARKED), element

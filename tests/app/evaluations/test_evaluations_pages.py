@@ -21,7 +21,16 @@ from app.models import Member, utcnow
 from tests.support.evaluations import evaluable_experiment, wait_evaluation
 from tests.support.runs import run_app
 from tests.support.studies import new_study
-from tests.support.web import ADMIN, ADMIN_TOKEN, CSRF_RE, audit, browser, csrf_token, logged_in
+from tests.support.web import (
+    ADMIN,
+    ADMIN_TOKEN,
+    CSRF_RE,
+    audit,
+    browser,
+    csrf_token,
+    logged_in,
+    shown_again,
+)
 
 # postgres_only: pages are the subject, not storage.
 pytestmark = pytest.mark.postgres_only
@@ -245,8 +254,13 @@ def test_a_bad_design_shows_the_form_again(
 def test_bad_form_posts_are_4xx_pages(client, researcher, experiment, evaluation) -> None:
     page = f"/evaluations/{evaluation['id']}/evaluators"
     token = csrf_token(researcher, f"/evaluations/{evaluation['id']}")
-    assert researcher.post(page, data={"count": "x", "csrf_token": token}).status_code == 422
-    assert researcher.post(page, data={"count": "0", "csrf_token": token}).status_code == 422
+    before = len(INVITE.findall(researcher.get(f"/evaluations/{evaluation['id']}").text))
+    for count in ("x", "0", "1_0"):
+        typed = {"count": count, "name": "session 3"}
+        refused = researcher.post(page, data={**typed, "csrf_token": token})
+        assert refused.status_code == 422 and "<title>Evaluation #" in refused.text
+        shown_again(refused.text, "invite", typed, {"count": "count", "invite-name": "name"})
+    assert len(INVITE.findall(researcher.get(f"/evaluations/{evaluation['id']}").text)) == before
     assert researcher.post(page, data={"count": "1"}).status_code == 403  # no CSRF token
     create = f"/experiments/{experiment['id']}/evaluations"
     assert researcher.post(create, data={"pairs_per_evaluator": "3"}).status_code == 403

@@ -121,6 +121,14 @@ def test_the_researcher_adds_gold_sets_a_gate_and_excludes(
     page.select_option("#gold-kind", "pair")
     page.fill("#gold-a", "3")
     page.fill("#gold-b", "4")
+    page.fill("#gold-answer", "5")  # refused: the page comes back with the form as typed
+    page.click("#gold-form button[type=submit]")
+    expect(page.locator("#gold-error")).to_contain_text("answer must be 3 or 4, got 5")
+    expect(page.locator("#gold-answer")).to_have_value("5")
+    wait_until_still(page)
+    assert_accessible(page, "study page with a refused gold item")
+    assert [e for e in errors if "422" not in e] == []  # the browser logs the refusal's 422
+    errors.clear()
     page.fill("#gold-answer", "4")
     page.click("#gold-form button[type=submit]")
     expect(page.locator("#gold-table")).to_contain_text("#3 vs #4")

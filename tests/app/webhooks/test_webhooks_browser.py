@@ -1,5 +1,6 @@
 """A real browser through the "Webhooks" section of the study and survey pages (issue 29
-§3): the researcher registers a URL (a refused one first: the error page names the rule),
+§3): the researcher registers a URL (a refused one first: the page comes back with it as typed
+and the rule it breaks),
 sees its secret, an event's delivery in the attempts log, and removes it. axe-core audits
 both pages with a webhook and its log, on a desktop and on a phone. The receiver listens on
 127.0.0.1 (the browser tests' server allows loopback targets only)."""
@@ -59,8 +60,9 @@ def test_the_study_page_registers_a_webhook_and_shows_its_log(
     path, errors = f"{base}/studies/{sid}", []
     page = researcher_page(browser, base, errors)
     _register(page, path, "https://10.0.0.1/hook")
-    expect(page.locator("main")).to_contain_text("10.0.0.1 is a private address")
-    assert_accessible(page, "the refused webhook's error page")
+    expect(page.locator("#webhook-error")).to_contain_text("10.0.0.1 is a private address")
+    expect(page.locator("#webhook-url")).to_have_value("https://10.0.0.1/hook")  # as typed
+    _audit_both_sizes(page, "the study page with the refused webhook")
     assert [e for e in errors if "422" not in e] == []  # the browser logs the refusal's 422
     errors.clear()
     with Receiver() as receiver:
