@@ -112,14 +112,24 @@ class Blindness:
             assert "advised" not in text and "baseline" not in text
 
 
-def create_and_invite(page: Page, base: str, experiment_id: int, where: str) -> str:
-    """Create an evaluation with the experiment page's form, wait for its clips, invite two
-    evaluators; the evaluation page's URL."""
+def create_and_invite(
+    page: Page, base: str, experiment_id: int, where: str, errors: list[str]
+) -> str:
+    """Create an evaluation with the experiment page's form (a refused design first), wait
+    for its clips, invite two evaluators; the evaluation page's URL."""
     page.goto(f"{base}/login#token={ADMIN_TOKEN}")
     page.wait_for_url(f"{base}/studies")
     page.goto(f"{base}/experiments/{experiment_id}")
     expect(page.locator("#evaluation-pairs")).to_have_value("20")
     settled(page, f"experiment page with its evaluations section {where}")
+    # A refused design (a gate without gold pairs): the form comes back as typed.
+    page.fill("#evaluation-gold-gate", "0.8")
+    page.click("#create-evaluation")
+    expect(page.locator("#evaluation-error")).to_contain_text("gold_pairs")
+    expect(page.locator("#evaluation-gold-gate")).to_have_value("0.8")
+    settled(page, f"experiment page with a refused evaluation design {where}")
+    errors[:] = [e for e in errors if "422" not in e]  # the browser logs the refusal's 422
+    page.fill("#evaluation-gold-gate", "")
     page.select_option("#evaluation-stimulus", "clip")
     page.fill("#evaluation-pairs", str(PAIRS))
     page.click("#create-evaluation")
@@ -153,7 +163,7 @@ def test_an_evaluation_from_the_experiment_page_to_its_answer(
     width = viewport["width"]
     errors: list[str] = []
     _, researcher = new_page(browser, errors, viewport=viewport)
-    evaluation_url = create_and_invite(researcher, base, experiment["id"], where)
+    evaluation_url = create_and_invite(researcher, base, experiment["id"], where, errors)
     evaluation_id = int(evaluation_url.rsplit("/", 1)[1])
     links = researcher.locator("#evaluator-table td.invite input")
     first, second = links.nth(0).input_value(), links.nth(1).input_value()

@@ -18,8 +18,9 @@ pytestmark = pytest.mark.browser
     [
         ("/participate/nope", 404, "There is no such page"),
         ("/logout", 405, "This address only takes a form"),
+        ("/studies/1/webhooks", 405, "This address only takes a form"),  # a researcher's
     ],
-    ids=["missing", "form-target"],
+    ids=["missing", "form-target", "researcher-form-target"],
 )
 @pytest.mark.parametrize("viewport", [DESKTOP, PHONE], ids=["desktop", "phone"])
 def test_a_missing_page_is_a_page_that_says_so(
