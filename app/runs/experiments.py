@@ -13,12 +13,13 @@ The verdict is :mod:`app.runs.verdicts`.
 
 from __future__ import annotations
 
+from contextlib import suppress
 from dataclasses import dataclass, replace
 
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
-from app.core.errors import NotFoundError
+from app.core.errors import ConflictError, NotFoundError
 from app.db import writing
 from app.models import Experiment, ExperimentRole, ExperimentRun, Run
 from app.runs import service as runs
@@ -64,12 +65,35 @@ def create_experiment(session: Session, *, spec: ExperimentSpec) -> Experiment:
         NotFoundError, ConflictError: as :func:`app.runs.service.create_run`.
     """
     _check_spec(spec)
-    advised = [
-        runs.create_run(session, spec=replace(spec.run, seed=seed))
-        for seed in spec.evaluation_seeds()
-    ]
-    baseline = [_baseline_run(session, spec, seed) for seed in spec.evaluation_seeds()]
-    pilot = [_baseline_run(session, spec, seed) for seed in spec.pilot_seed_list()]
+    advised: list[Run] = []  # each run commits as it is queued (a baseline may be shared)
+    try:
+        for seed in spec.evaluation_seeds():
+            advised.append(runs.create_run(session, spec=replace(spec.run, seed=seed)))
+        baseline = [_baseline_run(session, spec, seed) for seed in spec.evaluation_seeds()]
+        pilot = [_baseline_run(session, spec, seed) for seed in spec.pilot_seed_list()]
+        return _store(session, spec, advised, baseline, pilot)
+    except Exception:
+        _cancel(session, advised)
+        raise
+
+
+def _cancel(session: Session, advised: list[Run]) -> None:
+    """Cancel the advised runs queued for an experiment that was never made, so none trains
+    outside one (the baselines stay: they are shared with any experiment on the settings)."""
+    session.rollback()
+    for run in advised:
+        with suppress(ConflictError):  # ended meanwhile: nothing left to stop
+            runs.cancel_run(session, run_id=run.id)
+
+
+def _store(
+    session: Session,
+    spec: ExperimentSpec,
+    advised: list[Run],
+    baseline: list[Run],
+    pilot: list[Run],
+) -> Experiment:
+    """The experiment's row and its members'."""
     experiment = Experiment(
         study_id=spec.run.study_id,
         spec=spec.run.to_request(),

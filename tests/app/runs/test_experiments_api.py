@@ -20,8 +20,9 @@ from sqlalchemy import func, select
 from typer.testing import CliRunner
 
 from app.cli.root import cli
-from app.models import Run, RunCheckpoint
-from app.runs import artefacts, comparison
+from app.core.errors import ConflictError
+from app.models import Experiment, Run, RunCheckpoint, RunStatus
+from app.runs import artefacts, comparison, experiments
 from engine.verdict import VerdictOptions
 from tests.support.artefacts import report_body
 from tests.support.labelling import label_bracket
@@ -237,6 +238,27 @@ def test_bad_experiments_are_refused_and_queue_nothing(client, study, change, sa
     response = client.post("/api/experiments", json=body, headers=ADMIN)
     assert 400 <= response.status_code < 500 and says in response.text, response.text
     assert _n_runs(client) == before
+
+
+def test_a_failure_after_the_advised_runs_leaves_none_to_train(client, study, monkeypatch) -> None:
+    """Each run commits as it is queued: when a later step fails (here the baselines', as a
+    race in the shared store could), the advised runs already queued are cancelled and no
+    experiment is left half made."""
+
+    def fails(*_: Any) -> None:
+        raise ConflictError("the shared store moved")
+
+    monkeypatch.setattr(experiments, "_baseline_run", fails)
+    with client.app.state.runtime.sessions() as session:
+        last_run = session.scalar(select(func.max(Run.id))) or 0
+        n_experiments = session.scalar(select(func.count()).select_from(Experiment))
+    body = {"study_id": study["id"], "teacher": "good", **BODY, "seeds": 3}
+    response = client.post("/api/experiments", json=body, headers=ADMIN)
+    assert response.status_code == 409 and "shared store" in response.text
+    with client.app.state.runtime.sessions() as session:
+        queued = session.scalars(select(Run).where(Run.id > last_run)).all()
+        assert session.scalar(select(func.count()).select_from(Experiment)) == n_experiments
+    assert [r.status for r in queued] == [RunStatus.CANCELLED] * 3  # the 3 advised seeds
 
 
 def test_unknown_experiments_and_judges(client, study) -> None:
