@@ -108,7 +108,7 @@ def answer(
     check_stimulus(session, participant.study_id, (match.a, match.b), stimulus)
     now = utcnow()
     with writing(session):  # the answer is read again under the write lock: two answers race
-        seats.lock_in_time(session, participant.id, now)
+        seats.lock_in_time(session, participant.id, now, after_finishing=True)
         check = session.get_one(
             ConsistencyCheck, participant.id, with_for_update=True, populate_existing=True
         )

@@ -95,7 +95,7 @@ def answer(
         raise InputError(f"response_ms must be in 0..{MAX_RESPONSE_MS}, got {response_ms}")
     total = len(pairs(session, participant=participant))
     with writing(session):
-        seats.lock_in_time(session, participant.id, utcnow())
+        seats.lock_in_time(session, participant.id, utcnow(), after_finishing=True)
         row = session.get(
             DisagreementPair,
             (participant.id, position),

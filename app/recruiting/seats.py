@@ -142,19 +142,26 @@ def set_share_consent(session: Session, member: Member, *, share: bool) -> None:
 
 
 def lock_in_time(
-    db: Session | Connection, member_id: int, now: datetime, *, noun: str = "study"
+    db: Session | Connection,
+    member_id: int,
+    now: datetime,
+    *,
+    noun: str = "study",
+    after_finishing: bool = False,
 ) -> None:
     """Take ``member_id``'s row lock inside the caller's write transaction, if they may still
     act (:func:`within_time`): the first statement of an answer that is not a label (a gold
     item, a disagreement pair), as the label's own lock is. ``noun``: their kind of
-    collection, for the refusal's title.
+    collection, for the refusal's title; ``after_finishing``: an answer that comes after
+    ``finished_at`` (the bracket's consistency check and disagreement pairs), which one who
+    finished in time may give after their deadline: the completion code waits on it.
 
     Raises:
         MemberEndedError: they withdrew, or their time is over (a time limit, or the gate).
     """
     lock = (
         update(Member)
-        .where(Member.id == member_id, within_time(now))
+        .where(Member.id == member_id, within_time(now, or_finished=after_finishing))
         .values(finished_at=Member.finished_at)
         .execution_options(synchronize_session=False)
     )
@@ -165,13 +172,16 @@ def lock_in_time(
         )
 
 
-def within_time(now: Any) -> ColumnElement[bool]:
+def within_time(now: Any, *, or_finished: bool = False) -> ColumnElement[bool]:
     """The condition a member who may still act meets: not withdrawn, not past their time
-    (``now``: a datetime or a bound parameter)."""
-    return and_(
-        Member.withdrawn_at.is_(None),
-        Member.deadline_at.is_(None) | (Member.deadline_at > now),
-    )
+    (``now``: a datetime or a bound parameter); with ``or_finished``, one who finished counts
+    as in time."""
+    return and_(Member.withdrawn_at.is_(None), _in_time(now, or_finished=or_finished))
+
+
+def _in_time(now: Any, *, or_finished: bool) -> ColumnElement[bool]:
+    in_time = or_(Member.deadline_at.is_(None), Member.deadline_at > now)
+    return or_(Member.finished_at.is_not(None), in_time) if or_finished else in_time
 
 
 def kept_in_data(
@@ -184,10 +194,7 @@ def kept_in_data(
     always: list[ColumnElement[bool]] = [Member.withdrawn_at.is_(None)]
     if include_excluded:
         return always
-    in_time = or_(
-        Member.finished_at.is_not(None), Member.deadline_at.is_(None), Member.deadline_at > now
-    )
-    return [*always, in_time, excluded.is_(False)]
+    return [*always, _in_time(now, or_finished=True), excluded.is_(False)]
 
 
 def outcome(

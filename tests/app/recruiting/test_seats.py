@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import csv
 import io
+import re
 import threading
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
@@ -103,6 +104,33 @@ def test_a_seat_freed_by_time_goes_to_a_newcomer(client, settings, study_id) -> 
     assert back.status_code == 200 and "Your time is over" in back.text
     assert "completion-code" not in back.text  # no code for a time-out
     assert _joined(client, study_id) == 1  # never a second seat
+
+
+def test_one_who_finished_the_bracket_in_time_answers_the_check_after_it(
+    client, settings, study_id
+) -> None:
+    """The time limit frees the seats of those who leave unfinished; one who finished the
+    bracket in time (``finished_at`` set) may still answer the consistency check after it
+    and gets the completion code (the check was refused, and the thank-you page sent them
+    back to it for ever)."""
+    link = configure(client, study_id, **LIMITED, consistency_check=True)
+    browser, answer = _join(client, link, "slow")
+    player = joined_player(client, browser, answer)
+    player.play()
+    _expire(settings, player.id)
+    assert browser.get("/participate/thanks").headers["location"] == "/participate/check"
+    page = browser.get("/participate/check")
+    winner = re.search(r'name="winner" value="(\d+)"', page.text)
+    assert page.status_code == 200 and winner, page.text
+    data = {"csrf_token": csrf_token(browser, "/participate/check"), "winner": winner.group(1)}
+    answered = browser.post("/participate/check", data=data | {"stimulus": "still"})
+    assert answered.status_code == 303, answered.text
+    thanks = browser.get("/participate/thanks")
+    assert thanks.status_code == 200 and "DONE-1" in thanks.text
+    assert (_person(client, player.id)["outcome"], _person(client, player.id)["code"]) == (
+        "finished",
+        "DONE-1",
+    )
 
 
 def test_a_timed_out_participant_and_newcomers_at_once_never_overfill(
