@@ -129,12 +129,19 @@ def screens_of(session: Session, *, respondent_id: int) -> list[SurveyScreen]:
     )
 
 
+#: What ``static/js/tree.js`` draws of a node; nothing else of a tree reaches a respondent.
+DRAWN_NODE_FIELDS = ("state", "parent", "height", "depth", "weight", "reward")
+
+
 def _tree_view(tree: dict[str, Any], *, survey: Survey) -> dict[str, Any]:
-    """One tree as a respondent's page draws it (highlights only if the survey shows them;
-    the judge's name, which would say whose tree it is, replaced by the tree's)."""
+    """One tree as a respondent's page draws it, and no more: its nodes' shape, named by the
+    tree (the judge's name would say whose tree it is, and an agent's tree alone carries
+    per-candidate scores); highlights only if the survey shows them."""
+    shape = tree["doc"]["tree"]
+    nodes = [{k: n[k] for k in DRAWN_NODE_FIELDS} for n in shape["nodes"]]
     return {
         "name": tree["name"],
-        "doc": tree["doc"] | {"judge": tree["name"]},
+        "doc": {"judge": tree["name"], "tree": {"root": shape["root"], "nodes": nodes}},
         "study_id": tree["study_id"],
         "highlight": tree["highlight"] if survey.highlights else [],
     }

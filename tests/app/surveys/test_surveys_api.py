@@ -14,6 +14,7 @@ from typing import Any
 import pytest
 from fastapi.testclient import TestClient
 
+from app.surveys.respond import DRAWN_NODE_FIELDS
 from tests.support.studies import Player
 from tests.support.surveys import (
     finished,
@@ -266,6 +267,10 @@ def test_answers_are_final_and_checked(client, trees) -> None:
     assert "expected" not in json.dumps(screen["questions"])
     assert {screen["left"]["name"], screen["right"]["name"]} == {"Tree 1", "Tree 2"}
     assert screen["left"]["doc"]["judge"] in ("Tree 1", "Tree 2")  # whose tree stays hidden
+    for side in ("left", "right"):  # the shape drawn, and nothing that tells an agent's tree
+        doc = screen[side]["doc"]
+        assert set(doc) == {"judge", "tree"} and set(doc["tree"]) == {"root", "nodes"}
+        assert {k for n in doc["tree"]["nodes"] for k in n} == set(DRAWN_NODE_FIELDS)
     assert screen["left"]["highlight"] == screen["right"]["highlight"] == []  # off by default
     assert r.screen() == screen  # resumed: the same screen, the same placement
     good = paper_answers(screen)
