@@ -1,5 +1,6 @@
 """Exception handlers: every error is JSON ``{"detail": ...}`` with a 4xx status where the
-request was at fault, 503 when the database is unreachable, never a stack trace."""
+request was at fault, 503 when the database is unreachable, never a stack trace; a browser
+asking for a page gets an HTML page saying the same (pages' own errors: ``PageRoute``)."""
 
 from __future__ import annotations
 
@@ -116,23 +117,40 @@ def _service_error(_: Request, exc: ServiceError) -> JSONResponse:
     )
 
 
-def _unstorable(_: Request, exc: DataError) -> JSONResponse:
+def _unstorable(request: Request, exc: DataError) -> Response:
     log.warning("refused value: %s", bounded.text(str(exc)))
-    return JSONResponse({"detail": "a value in the request cannot be stored"}, status_code=422)
+    return _answer(request, 422, "a value in the request cannot be stored")
 
 
-def _database_down(_: Request, exc: OperationalError) -> JSONResponse:
+def _database_down(request: Request, exc: OperationalError) -> Response:
     log.error("database error: %s", bounded.text(str(exc)))
-    return JSONResponse(
-        {"detail": "the database is unavailable; try again"},
-        status_code=503,
-        headers={"Retry-After": "1"},
-    )
+    return _answer(request, 503, "the database is unavailable; try again", {"Retry-After": "1"})
 
 
-def _unexpected(_: Request, exc: Exception) -> JSONResponse:
+def _unexpected(request: Request, exc: Exception) -> Response:
     log.exception("unhandled error", exc_info=exc)
-    return JSONResponse({"detail": "internal server error"}, status_code=500)
+    return _answer(request, 500, "internal server error")
+
+
+#: A failure's words on an HTML page, by status (the API's ``detail`` is terser).
+_PAGE_WORDS = {
+    422: "Something you sent cannot be stored. Go back, check what you typed and try again.",
+    503: "The service is briefly unavailable. Nothing was lost: go back and try again in a "
+    "moment.",
+    500: "Something went wrong on our side. Go back and try again; if it happens again, tell "
+    "the researchers.",
+}
+
+
+def _answer(
+    request: Request, status: int, detail: str, headers: dict[str, str] | None = None
+) -> Response:
+    """``{"detail": ...}``, or for a browser's page an HTML page saying the same in words."""
+    if _wants_a_page(request):
+        page = error_page(request, status, _PAGE_WORDS[status])
+        page.headers.update(headers or {})
+        return page
+    return JSONResponse({"detail": detail}, status_code=status, headers=headers)
 
 
 def install(app: FastAPI) -> None:

@@ -29,9 +29,10 @@ def csrf_token(page: TestClient, path: str = "/login") -> str:
     return match.group(1)
 
 
-def logged_in(client: TestClient, address: str = "testclient") -> TestClient:
-    """A cookie jar logged in as the researcher (with the tests' admin token)."""
-    page = browser(client, address)
+def logged_in(client: TestClient, address: str = "testclient", **kwargs: Any) -> TestClient:
+    """A cookie jar logged in as the researcher (with the tests' admin token); ``kwargs``
+    go to :func:`browser`."""
+    page = browser(client, address, **kwargs)
     response = page.post(
         "/login", data={"csrf_token": csrf_token(page), "token": ADMIN_TOKEN, "next": "/studies"}
     )
