@@ -112,7 +112,7 @@ def _message(
 ) -> HTMLResponse:
     """An evaluator's page with a message, a ``link`` on, and an open link's ``ending``."""
     context = {"header_name": HEADER, "title": title, "text": text, "link": link, "ending": ending}
-    return render(request, "evaluate_message.html", context)
+    return render(request, "member_message.html", context)
 
 
 @router.get(INSTRUCTIONS)

@@ -135,8 +135,7 @@ def _unexpected(request: Request, exc: Exception) -> Response:
 #: A failure's words on an HTML page, by status (the API's ``detail`` is terser).
 _PAGE_WORDS = {
     422: "Something you sent cannot be stored. Go back, check what you typed and try again.",
-    503: "The service is briefly unavailable. Nothing was lost: go back and try again in a "
-    "moment.",
+    503: "The service is briefly unavailable. Nothing was lost: go back and try again in a moment.",
     500: "Something went wrong on our side. Go back and try again; if it happens again, tell "
     "the researchers.",
 }

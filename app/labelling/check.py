@@ -114,7 +114,9 @@ def answer(
         )
         if check.winner is not None:
             if check.winner != winner:
-                raise ConflictError("the consistency check is already answered")
+                raise ConflictError(
+                    "the consistency check is already answered, with another choice"
+                )
             return
         check.winner, check.answered_at, check.stimulus = winner, now, stimulus
         check.response_ms = max(0, round((now - as_utc(check.shown_at)).total_seconds() * 1000))

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from fastapi import Request, Response
 
+from app.core.errors import ConflictError
 from app.core.json_types import form_int
 from app.http.csrf import CsrfChecked, FormFields
 from app.http.deps import SessionDep
@@ -13,8 +14,9 @@ from app.http.guards import PageParticipant
 from app.http.rendering import RedirectTo, redirect, render
 from app.labelling import check, dataset, participants, study_link
 from app.labelling.open_matches import pair_shows_clips
-from app.labelling.pages import THANKS, where_next
+from app.labelling.pages import THANKS, answer_refused, where_next
 from app.recruiting import pages as recruiting_pages
+from app.recruiting.seats import MemberEndedError
 from app.studies import service as studies
 
 CHECK = "/participate/check"
@@ -42,12 +44,17 @@ def check_page(request: Request, session: SessionDep, person: PageParticipant) -
 
 
 @router.post(CHECK, dependencies=[CsrfChecked])
-def check_answer(session: SessionDep, person: PageParticipant, fields: FormFields) -> Response:
+def check_answer(
+    request: Request, session: SessionDep, person: PageParticipant, fields: FormFields
+) -> Response:
     """Store the check's answer (a plain form: two buttons) and what it showed
     (``stimulus``, stills for a form without it), then the thank-you page."""
     winner = form_int(fields.get("winner", ""))
     stimulus = fields.get("stimulus", "still")
-    check.answer(
-        session, participant=person, winner=-1 if winner is None else winner, stimulus=stimulus
-    )
+    try:
+        check.answer(
+            session, participant=person, winner=-1 if winner is None else winner, stimulus=stimulus
+        )
+    except (ConflictError, MemberEndedError) as exc:
+        return answer_refused(request, session, person, exc, link=THANKS)
     return redirect(THANKS)

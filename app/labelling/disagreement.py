@@ -109,7 +109,7 @@ def answer(
         check_stimulus(session, participant.study_id, (row.a, row.b), stimulus)
         created = row.winner is None
         if not created and row.winner != winner:
-            raise ConflictError(f"pair {position} is already answered: {row.winner} won")
+            raise ConflictError(f"pair {position} is already answered, with another choice")
         if created:
             _store_answer(session, row, winner, response_ms)
             row.stimulus = stimulus

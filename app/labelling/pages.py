@@ -14,6 +14,7 @@ from fastapi import APIRouter, Request, Response
 from fastapi.responses import HTMLResponse, RedirectResponse
 from sqlalchemy.orm import Session
 
+from app.core.errors import ConflictError
 from app.http.csrf import CsrfChecked, FormFields
 from app.http.deps import SessionDep, SettingsDep
 from app.http.guards import PageParticipant, enter_by_invite
@@ -164,7 +165,27 @@ def ended(request: Request, session: SessionDep, person: PageParticipant) -> Res
     title, text = ENDED_TEXT[result.name]
     name = studies.get_study(session, study_id=person.study_id).name
     context = {"header_name": name, "title": title, "text": text, "ending": shown}
-    return render(request, "crowd_message.html", context)
+    return render(request, "member_message.html", context)
+
+
+def answer_refused(
+    request: Request,
+    session: Session,
+    person: Participant,
+    exc: ConflictError | seats.MemberEndedError,
+    *,
+    link: str,
+) -> Response:
+    """The page for an answer after the bracket that is not stored: the ended page for one
+    who withdrew or ran out of time, else (answered before with another choice, in a second
+    tab or before going back; or nothing due) a page that says why, that what they answered
+    before is kept, and that leads on to ``link``."""
+    if isinstance(exc, seats.MemberEndedError):
+        return redirect(ENDED)
+    name = studies.get_study(session, study_id=person.study_id).name
+    text = f"This answer was not stored: {exc.detail}. What you answered before is kept."
+    context = {"header_name": name, "title": "Not stored", "text": text, "link": link}
+    return render(request, "member_message.html", context, status_code=409)
 
 
 @router.get(THANKS)

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from fastapi import APIRouter, Request, Response
 
+from app.core.errors import ConflictError
 from app.core.json_types import form_int
 from app.http.csrf import CsrfChecked, FormFields
 from app.http.deps import SessionDep
@@ -14,7 +15,8 @@ from app.http.guards import PageParticipant
 from app.http.rendering import PageRoute, RedirectTo, redirect, render
 from app.labelling import disagreement
 from app.labelling.open_matches import pair_shows_clips
-from app.labelling.pages import PAIRS, THANKS
+from app.labelling.pages import PAIRS, THANKS, answer_refused
+from app.recruiting.seats import MemberEndedError
 from app.studies import service as studies
 
 router = APIRouter(route_class=PageRoute, include_in_schema=False)
@@ -32,16 +34,20 @@ def pair_page(request: Request, session: SessionDep, person: PageParticipant) ->
 
 
 @router.post(PAIRS, dependencies=[CsrfChecked])
-def pair_answer(session: SessionDep, person: PageParticipant, fields: FormFields) -> Response:
+def pair_answer(
+    request: Request, session: SessionDep, person: PageParticipant, fields: FormFields
+) -> Response:
     """Store the answer to the pair the form showed (and what it showed: ``stimulus``, stills
     for a form without it), then the next one."""
     position, winner = (form_int(fields.get(name, "")) for name in ("position", "winner"))
-    stimulus = fields.get("stimulus", "still")
-    disagreement.answer(
-        session,
-        participant=person,
-        position=-1 if position is None else position,  # -1: no such pair, a clear 4xx
-        winner=-1 if winner is None else winner,
-        stimulus=stimulus,
-    )
+    try:
+        disagreement.answer(
+            session,
+            participant=person,
+            position=-1 if position is None else position,  # -1: no such pair, a clear 4xx
+            winner=-1 if winner is None else winner,
+            stimulus=fields.get("stimulus", "still"),
+        )
+    except (ConflictError, MemberEndedError) as exc:
+        return answer_refused(request, session, person, exc, link=PAIRS)
     return redirect(PAIRS)

@@ -85,7 +85,7 @@ def message(
     the code and way back to the platform it shows."""
     return render(
         request,
-        "crowd_message.html",
+        "member_message.html",
         {"header_name": name, "title": title, "text": text, "ending": ending},
         status_code=status_code,
     )

@@ -229,6 +229,7 @@ def test_the_pages_ask_the_pairs_before_thanking(
             },
         )
         assert odd.status_code == 404, position
+    token = csrf_token(page, "/participate/pairs")  # a second tab's form, kept for later
     for n in range(total):
         shown = page.get("/participate/pairs")
         assert shown.status_code == 200 and f"Pair {n + 1} of {total}." in shown.text
@@ -243,6 +244,16 @@ def test_the_pages_ask_the_pairs_before_thanking(
         )
         assert answered.status_code == 303 and answered.headers["location"] == "/participate/pairs"
     assert page.get("/participate/pairs").headers["location"] == "/participate/thanks"
+    stale = page.post(  # a second tab's form, the other picture: the first answer is kept
+        "/participate/pairs",
+        data={
+            "csrf_token": token,
+            "position": "0",
+            "winner": str(_pairs(player)[0]["right"]),
+        },
+    )
+    assert stale.status_code == 409 and "What you answered before is kept" in stale.text
+    assert 'id="continue" href="/participate/pairs"' in stale.text
     assert page.get("/participate/thanks").status_code == 200
     assert [p["winner"] for p in _pairs(player)] == [p["left"] for p in _pairs(player)]
     undo = client.post("/api/participants/me/undo", headers=player.headers)  # pairs answered:

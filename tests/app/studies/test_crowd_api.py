@@ -399,6 +399,12 @@ def test_consistency_check_repeats_a_pair_swapped(client, make_study) -> None:
     # when that pair was decided by side (always left), so the check reports "differs".
     done = browser.post("/participate/check", data={"csrf_token": csrf, "winner": str(left)})
     assert done.headers["location"] == "/participate/thanks"
+    # A second tab (or the back button) sends the other picture: the first answer is kept,
+    # and the page says so and leads on.
+    other = int(page.text.split('id="check-right"')[0].rsplit('value="', 1)[1].split('"')[0])
+    stale = browser.post("/participate/check", data={"csrf_token": csrf, "winner": str(other)})
+    assert stale.status_code == 409 and "What you answered before is kept" in stale.text
+    assert 'id="continue" href="/participate/thanks"' in stale.text
     thanks = browser.get("/participate/thanks")
     assert "C0DE" in thanks.text and "https://example.org/done?cc=C0DE" in thanks.text
     quality = client.get(f"/api/studies/{study['id']}/quality", headers=ADMIN).json()
