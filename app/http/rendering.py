@@ -56,6 +56,9 @@ def _when(moment: datetime | None) -> str:
 
 templates = Jinja2Templates(directory=TEMPLATES_DIR)
 templates.env.filters["when"] = _when
+#: How long an open link's last page waits before it sends the person back to the platform:
+#: long enough to read and copy the code, with a button to stay (static/js/complete.js).
+templates.env.globals["redirect_ms"] = 20_000
 
 
 def is_https(request: Request) -> bool:

@@ -108,7 +108,12 @@ def test_open_link_consent_bracket_check_and_completion(
     p.click("#check-left")
     p.wait_for_url(f"{base}/participate/thanks")
     expect(p.locator("#completion-code")).to_have_text("C0MPL3TE")
+    expect(p.locator("#stay-here")).to_be_visible()  # the way back waits, and can be stopped
     assert_accessible(p, "thank-you page with the completion code")
+    p.click("#stay-here")
+    expect(p.locator("#complete-link")).to_be_focused()
+    expect(p.locator("#redirect-note")).to_contain_text("you stay here")
+    p.click("#complete-link")
     p.wait_for_url(f"{platform}/submissions/complete?cc=C0MPL3TE")
     expect(p.locator("h1")).to_have_text("Submission complete")
 

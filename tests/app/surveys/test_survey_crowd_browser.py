@@ -130,9 +130,10 @@ def test_open_link_consent_screens_and_completion(
     expect(p.locator("#done")).to_be_visible()
     expect(p.locator("#completion-code")).to_have_text(CODE)
     expect(p.locator("#complete-link")).to_be_visible()
+    expect(p.locator("#stay-here")).to_be_visible()  # the person may stop the way back
     assert_accessible(p, "survey thank-you screen with the completion code")
-    gate.open()
-    p.wait_for_url(f"{platform}/submissions/complete?cc={CODE}")
+    gate.open()  # left alone, the page goes back by itself (after 20 s)
+    p.wait_for_url(f"{platform}/submissions/complete?cc={CODE}", timeout=60_000)
     expect(p.locator("h1")).to_have_text("Submission complete")
     context.close()
 
