@@ -28,7 +28,7 @@ from app.http.deps import SessionDep, SettingsDep
 from app.http.guards import enter_by_invite, page_member
 from app.http.member_auth import EvaluatorCookie
 from app.http.rendering import PageRoute, RedirectTo, redirect, render
-from app.models import Evaluator
+from app.models import Evaluator, utcnow
 from app.recruiting import members, seats
 from app.recruiting import service as recruiting
 from engine.errors import InputError
@@ -126,6 +126,7 @@ def instructions(
     pairs = len(practice.practice(session, evaluator=person, data_dir=settings.data_dir).pairs)
     context |= {"advisor_text": ADVISOR_TEXT, "share_label": evaluators.SHARE_LABEL}
     context |= {"practice_pairs": pairs, "start_url": PRACTICE if pairs else PAIR}
+    context["minutes_left"] = seats.minutes_left(person, utcnow())
     return render(request, "evaluate.html", context)
 
 

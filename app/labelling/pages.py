@@ -20,7 +20,7 @@ from app.http.deps import SessionDep, SettingsDep
 from app.http.guards import PageParticipant, enter_by_invite
 from app.http.rendering import PageRoute, RedirectTo, redirect, render, thumb_template
 from app.labelling import check, dataset, disagreement, participants, practice, study_link
-from app.models import Participant
+from app.models import Participant, utcnow
 from app.recruiting import members, seats
 from app.recruiting import service as recruiting
 from app.studies import service as studies
@@ -105,6 +105,7 @@ def instructions(
         "practice_pairs": len(pairs),
         "start_url": PRACTICE if pairs else LABEL,
         "share_label": dataset.SHARE_LABEL,
+        "minutes_left": seats.minutes_left(person, utcnow()),
     }
     return render(request, "instructions.html", context)
 

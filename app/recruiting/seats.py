@@ -18,6 +18,7 @@ out itself).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from datetime import datetime, timedelta
 from typing import Any, Literal, cast
@@ -101,6 +102,14 @@ def timed_out(member: Member, now: datetime) -> bool:
         and member.withdrawn_at is None
         and as_utc(member.deadline_at) <= now
     )
+
+
+def minutes_left(member: Member, now: datetime) -> int | None:
+    """Whole minutes (rounded up) before ``member``'s time limit ends; None without one, or
+    once they finished."""
+    if member.deadline_at is None or member.finished_at is not None:
+        return None
+    return max(0, math.ceil((as_utc(member.deadline_at) - now).total_seconds() / 60))
 
 
 def check_can_act(member: Member, now: datetime) -> None:

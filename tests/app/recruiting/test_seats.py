@@ -27,7 +27,7 @@ from sqlalchemy import func, select, update
 from app.db import make_engine, make_sessions, writing
 from app.models import Member, utcnow
 from app.recruiting.seats import within_time
-from tests.support.crowd import configure, joined_player, visit
+from tests.support.crowd import configure, joined_player, start, visit, visitor
 from tests.support.studies import Player
 from tests.support.surveys import paper_body
 from tests.support.web import ADMIN, csrf_token
@@ -104,6 +104,23 @@ def test_a_seat_freed_by_time_goes_to_a_newcomer(client, settings, study_id) -> 
     assert back.status_code == 200 and "Your time is over" in back.text
     assert "completion-code" not in back.text  # no code for a time-out
     assert _joined(client, study_id) == 1  # never a second seat
+
+
+def test_the_time_limit_is_said_before_it_runs_out(client, study_id) -> None:
+    """The welcome page says how long one has once started; the instructions, how long is
+    left (they said "come back at any time", and the first word of the limit was "your
+    place was given to someone else")."""
+    link = configure(client, study_id, **LIMITED)
+    browser = visitor(client)
+    welcome = browser.get(f"/s/{link['slug']}")
+    assert "you have 30 minutes to finish" in welcome.text
+    joined = start(browser, welcome)
+    instructions = browser.get(joined.headers["location"], follow_redirects=True)
+    assert re.search(r"You have about (29|30) minutes\s+left to finish", instructions.text)
+    assert "come back through your link at any time" not in instructions.text
+    unlimited = configure(client, study_id, max_participants=5)  # the same link, no limit now
+    again = visitor(client).get(f"/s/{unlimited['slug']}")
+    assert "minutes to finish" not in again.text
 
 
 def test_one_who_finished_the_bracket_in_time_answers_the_check_after_it(
