@@ -76,7 +76,8 @@ def page_evaluator(session: SessionDep, cookie: EvaluatorCookie = None) -> Evalu
         session,
         members.EVALUATION,
         cookie,
-        lost="This browser has no valid evaluation invitation: open your link (/v/...) again.",
+        lost="This browser has no valid evaluation invitation. Open the link you were sent "
+        "again (an invite link, /v/..., or the link on your study platform).",
     )
 
 

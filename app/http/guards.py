@@ -96,8 +96,8 @@ def page_participant(session: SessionDep, cookie: ParticipantCookie = None) -> P
         session,
         members.STUDY,
         cookie,
-        lost="This browser has no valid invitation. Open the invite link you "
-        "were sent (it looks like /p/...) to start or continue.",
+        lost="This browser has no valid invitation. Open the link you were sent again (an "
+        "invite link, /p/..., or the study's link on your study platform) to start or continue.",
     )
 
 

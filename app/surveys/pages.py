@@ -124,8 +124,9 @@ def _respondent(session: Session, cookie: str | None) -> SurveyRespondent:
         session,
         members.SURVEY,
         cookie,
-        lost="This browser has no valid survey invitation. Open the link you were "
-        "sent (it looks like /r/...) to start or continue.",
+        lost="This browser has no valid survey invitation. Open the link you were sent again "
+        "(an invite link, /r/..., or the survey's link on your study platform) to start or "
+        "continue.",
     )
 
 

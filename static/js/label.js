@@ -40,7 +40,7 @@ const $ = (id) => document.getElementById(id);
 class ApiError extends Error {
   constructor(result) {
     super(result.status === 401
-      ? "Your invitation was not recognised: open your invite link again."
+      ? "Your invitation was not recognised: open the link you were sent again."
       : ACV.errorText(result));
     this.status = result.status;
   }

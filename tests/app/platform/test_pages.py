@@ -166,7 +166,8 @@ def test_invite_link_sets_the_cookie_and_resumes(
 ) -> None:
     person = invite()
     page = browser(client)
-    assert page.get("/participate").status_code == 401  # no invitation in this browser yet
+    lost = page.get("/participate")  # no invitation in this browser yet: the way back, for
+    assert lost.status_code == 401 and "on your study platform" in lost.text  # open links too
     first = page.get(f"/p/{person.token}")
     assert first.headers["location"] == "/participate"
     assert "HttpOnly" in first.headers["set-cookie"]
