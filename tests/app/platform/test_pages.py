@@ -179,6 +179,7 @@ def test_invite_link_sets_the_cookie_and_resumes(
     assert page.get("/participate/label").headers["location"] == "/participate/thanks"
     thanks = page.get("/participate/thanks")
     assert f'data-tree-url="/api/participants/{person.id}/tree"' in thanks.text
+    assert '<span class="brand">ACV</span>' in thanks.text  # no link to the researchers' login
     assert browser(client).get("/p/not-a-token").status_code == 404
 
 
