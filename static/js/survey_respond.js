@@ -64,12 +64,20 @@
     root.dataset.position = screen.position;
     root.dataset.ready = "true";
     window.scrollTo(0, 0);
+    $("screen-title").focus();  // the control that led here is gone or done: say where we are
     shownAt = performance.now();
   }
 
   async function next() {
     root.dataset.ready = "false";
-    const result = await ACV.api("GET", "/api/surveys/me/screen");
+    let result;
+    try {
+      result = await ACV.api("GET", "/api/surveys/me/screen");
+    } catch (error) {  // the network: nothing was lost, the same step can be tried again
+      show("screen");
+      fail("Could not load the next screen: check your connection and reload the page.");
+      return;
+    }
     if (result.status === 204) {
       show("done");
       await complete();
@@ -132,13 +140,23 @@
     }
     $("submit").disabled = true;
     const screenMs = Math.max(0, Math.round(performance.now() - shownAt));
-    const result = await ACV.api("POST", `/api/surveys/me/screens/${current.position}/answers`,
-      { answers, screen_ms: screenMs });
+    let result;
+    try {
+      result = await ACV.api("POST", `/api/surveys/me/screens/${current.position}/answers`,
+        { answers, screen_ms: screenMs });
+    } catch (error) {  // the network: the answers are still in the form, to send again
+      fail("Your answers were not sent: check your connection and press Submit again.");
+      $("submit").disabled = false;
+      return;
+    }
     if (result.status === 201 || result.status === 200) {
       await next();
+    } else if (result.status === 409) {  // answered before (another tab): that answer stands
+      await next();
+      fail("That screen was answered before, in another tab or window; those answers are kept.");
     } else {
       fail(`Your answers were not stored: ${ACV.errorText(result)}`);
-      $("submit").disabled = result.status === 409;
+      $("submit").disabled = false;
     }
   });
 

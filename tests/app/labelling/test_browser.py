@@ -119,6 +119,7 @@ def test_participant_bracket_and_researcher_tree(
     d.screenshot(path=screens / "match-desktop.png")
     decide(d, match, "#btn-left", "a", chosen)
     match = wait_for_match(d, match)
+    expect(d.locator("#btn-left")).to_be_focused()  # disabled meanwhile, it gets it back
     decide(d, match, "ArrowLeft", "a", chosen)
     match = wait_for_match(d, match)
     expect(d.locator("#round-text")).to_have_text("Round 3 of 3, match 1 of 1")

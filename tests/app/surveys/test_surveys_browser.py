@@ -105,6 +105,7 @@ def test_respondent_on_a_phone_and_the_results(server, browser, screens: Path) -
     p.tap("#start")
     p.wait_for_function(READY)
     expect(p.locator("#screen-title")).to_have_text("Screen 1 of 2")
+    expect(p.locator("#screen-title")).to_be_focused()  # Start is gone: the new screen's title
     expect(p.locator("#tree-left svg.pref-tree image")).to_have_count(5)
     expect(p.locator("#tree-right svg.pref-tree g.node")).to_have_count(5)
     expect(p.locator("svg.pref-tree .rejected")).to_have_count(0)  # highlights are off
@@ -128,6 +129,17 @@ def test_respondent_on_a_phone_and_the_results(server, browser, screens: Path) -
     assert fits_width(p)
     assert_accessible(p, "stimulus screen on a desktop")
     p.screenshot(path=screens / "survey-stimulus-desktop.png", full_page=True)
+    # The network fails on Submit: the page says so and Submit works again (it stayed off).
+    p.route("**/answers", lambda route: route.abort())
+    p.click("fieldset[data-key=q1] label:has(input[value=same])")
+    p.click("fieldset[data-key=q1] .confidence label:has(input[value='2'])")
+    p.click("fieldset[data-key=q2] label:has(input[value=no])")
+    p.click("fieldset[data-key=q2] .confidence label:has(input[value='2'])")
+    p.click("#submit")
+    expect(p.locator("#answer-error")).to_contain_text("Your answers were not sent")
+    expect(p.locator("#submit")).to_be_enabled()
+    p.unroute("**/answers")
+    errors[:] = [e for e in errors if "ERR_FAILED" not in e]  # the aborted request's log
     assert answer_screen(p, "same", "no", "2") == "2"
     expect(p.locator("#done")).to_be_visible()
     assert_accessible(p, "thank-you screen")
