@@ -4,6 +4,7 @@
 "use strict";
 
 const SVG_NS = "http://www.w3.org/2000/svg";
+let treesDrawn = 0;
 
 function svgEl(name, attrs) {
   const el = document.createElementNS(SVG_NS, name);
@@ -41,7 +42,10 @@ function drawPreferenceTree(container, doc, options) {
   });
   for (const link of root.links()) svg.appendChild(edge(link, opts));
   for (const d of root.descendants()) svg.appendChild(node(d, opts));
-  container.replaceChildren(svg);
+  const words = described(root, opts);
+  words.id = `tree-words-${++treesDrawn}`;  // unique: a page may draw many trees
+  svg.setAttribute("aria-describedby", words.id);
+  container.replaceChildren(svg, words);
   if (!opts.onSelect && !container.hasAttribute("tabindex")) {
     // Its nodes take no focus here, so the box does: a tree wider than it scrolls from the
     // keyboard too (WCAG 2.1.1; axe's scrollable-region-focusable).
@@ -52,6 +56,23 @@ function drawPreferenceTree(container, doc, options) {
   container.scrollLeft = Math.max(0, (root.x - x0 + dx / 2) * scale -
     container.clientWidth / 2);
   return svg;
+}
+
+// The tree in words, for screen readers (WCAG 1.1.1): the champion, whom each state beat,
+// and the highlighted states (drawn only by colour and stroke).
+function described(root, opts) {
+  const name = (d) => `#${d.id}`;
+  const sentences = [`The champion is ${name(root)}.`];
+  for (const d of root.descendants()) {
+    if (d.children) sentences.push(`${name(d)} beat ${d.children.map(name).join(", ")}.`);
+  }
+  if (opts.highlight.size) {
+    sentences.push(`Highlighted: ${[...opts.highlight].map((id) => `#${id}`).join(", ")}.`);
+  }
+  const words = document.createElement("p");
+  words.className = "visually-hidden";
+  words.textContent = sentences.join(" ");
+  return words;
 }
 
 // Shrink a tree wider than its box to fit it, down to MIN_SCALE (thumbnails stay

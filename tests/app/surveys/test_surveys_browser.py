@@ -108,6 +108,9 @@ def test_respondent_on_a_phone_and_the_results(server, browser, screens: Path) -
     expect(p.locator("#screen-title")).to_be_focused()  # Start is gone: the new screen's title
     expect(p.locator("#tree-left svg.pref-tree image")).to_have_count(5)
     expect(p.locator("#tree-right svg.pref-tree g.node")).to_have_count(5)
+    words = p.locator("#tree-left p.visually-hidden")  # the tree in words, for screen readers
+    expect(words).to_contain_text("The champion is #")
+    expect(words).to_contain_text(" beat #")
     expect(p.locator("svg.pref-tree .rejected")).to_have_count(0)  # highlights are off
     names = [p.inner_text("#left-name"), p.inner_text("#right-name")]
     assert sorted(names) == ["Tree 1", "Tree 2"]
