@@ -27,6 +27,11 @@ class ConflictError(ServiceError):
     status_code = 409
 
 
+class AnsweredError(ConflictError):
+    """Answered before with another choice (a second tab, the back button): the first
+    answer is kept."""
+
+
 class AuthError(ServiceError):
     """No valid credentials."""
 

@@ -13,7 +13,7 @@ from sqlalchemy import select
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
-from app.core.errors import ConflictError
+from app.core.errors import AnsweredError, ConflictError
 from app.db import writing
 from app.labelling.flow import check_stimulus
 from app.models import (
@@ -114,9 +114,7 @@ def answer(
         )
         if check.winner is not None:
             if check.winner != winner:
-                raise ConflictError(
-                    "the consistency check is already answered, with another choice"
-                )
+                raise AnsweredError("the consistency check is already answered the other way")
             return
         check.winner, check.answered_at, check.stimulus = winner, now, stimulus
         check.response_ms = max(0, round((now - as_utc(check.shown_at)).total_seconds() * 1000))

@@ -23,7 +23,7 @@ from sqlalchemy import func, select
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
-from app.core.errors import ConflictError, NotFoundError
+from app.core.errors import AnsweredError, NotFoundError
 from app.db import writing
 from app.labelling.flow import MAX_RESPONSE_MS, check_stimulus
 from app.labelling.participants import ParticipantKey, progress
@@ -109,7 +109,7 @@ def answer(
         check_stimulus(session, participant.study_id, (row.a, row.b), stimulus)
         created = row.winner is None
         if not created and row.winner != winner:
-            raise ConflictError(f"pair {position} is already answered, with another choice")
+            raise AnsweredError(f"pair {position} is already answered: {row.winner} won")
         if created:
             _store_answer(session, row, winner, response_ms)
             row.stimulus = stimulus

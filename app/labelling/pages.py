@@ -14,7 +14,7 @@ from fastapi import APIRouter, Request, Response
 from fastapi.responses import HTMLResponse, RedirectResponse
 from sqlalchemy.orm import Session
 
-from app.core.errors import ConflictError
+from app.core.errors import AnsweredError, ConflictError
 from app.http.csrf import CsrfChecked, FormFields
 from app.http.deps import SessionDep, SettingsDep
 from app.http.guards import PageParticipant, enter_by_invite
@@ -184,7 +184,11 @@ def answer_refused(
     if isinstance(exc, seats.MemberEndedError):
         return redirect(ENDED)
     name = studies.get_study(session, study_id=person.study_id).name
-    text = f"This answer was not stored: {exc.detail}. What you answered before is kept."
+    text = (
+        "You answered this pair before with another choice; your first answer is kept."
+        if isinstance(exc, AnsweredError)
+        else f"This answer was not stored: {exc.detail}. What you answered before is kept."
+    )
     context = {"header_name": name, "title": "Not stored", "text": text, "link": link}
     return render(request, "member_message.html", context, status_code=409)
 

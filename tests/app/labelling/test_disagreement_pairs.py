@@ -252,7 +252,7 @@ def test_the_pages_ask_the_pairs_before_thanking(
             "winner": str(_pairs(player)[0]["right"]),
         },
     )
-    assert stale.status_code == 409 and "What you answered before is kept" in stale.text
+    assert stale.status_code == 409 and "your first answer is kept" in stale.text
     assert 'id="continue" href="/participate/pairs"' in stale.text
     assert page.get("/participate/thanks").status_code == 200
     assert [p["winner"] for p in _pairs(player)] == [p["left"] for p in _pairs(player)]

@@ -403,7 +403,7 @@ def test_consistency_check_repeats_a_pair_swapped(client, make_study) -> None:
     # and the page says so and leads on.
     other = int(page.text.split('id="check-right"')[0].rsplit('value="', 1)[1].split('"')[0])
     stale = browser.post("/participate/check", data={"csrf_token": csrf, "winner": str(other)})
-    assert stale.status_code == 409 and "What you answered before is kept" in stale.text
+    assert stale.status_code == 409 and "your first answer is kept" in stale.text
     assert 'id="continue" href="/participate/thanks"' in stale.text
     thanks = browser.get("/participate/thanks")
     assert "C0DE" in thanks.text and "https://example.org/done?cc=C0DE" in thanks.text
