@@ -48,14 +48,15 @@ class ApiError extends Error {
 
 // The match's controls. A control that is disabled while the next match loads loses the
 // focus (to the page), so it gets it back once the match answers (WCAG 2.4.3).
-const CONTROLS = ["pick-a", "pick-b", "btn-left", "btn-right", "tie", "undo"];
+const CHOICES = ["pick-a", "pick-b", "btn-left", "btn-right", "tie"];
+const CONTROLS = [...CHOICES, "undo"];
 
 function setEnabled() {
   const ready = !state.busy && state.shown;
   if (ready && state.shownAt === null) state.shownAt = performance.now();
   const focused = document.activeElement;
   if (!ready && focused && CONTROLS.includes(focused.id)) state.refocus = focused.id;
-  for (const id of CONTROLS.slice(0, 5)) $(id).disabled = !ready;
+  for (const id of CHOICES) $(id).disabled = !ready;
   $("undo").disabled = state.busy || !state.canUndo;
   if (ready && state.refocus) {
     const lost = !document.activeElement || document.activeElement === document.body;
