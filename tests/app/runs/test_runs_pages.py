@@ -160,6 +160,7 @@ def test_the_compare_page_offers_every_judge_and_its_tables(
     assert all("diagnostic" in label for j, _, label in judges if j in DIAGNOSTIC_JUDGES)
     assert 'id="judges-body"' in html and 'id="candidates"' in html
     assert "no judge passed ACV's validation" in html  # the experiment page's caveat, one home
+    assert "passed on Humanoid-v5 but failed on Hopper-v5" in " ".join(html.split())  # round 2
     # the caveat names the spread the page's smallest Δ assumes: the verdict's own option
     assumed = f"matches kept spread by {VerdictOptions().seed_sd:g}, which no validation"
     assert assumed in " ".join(html.split())
