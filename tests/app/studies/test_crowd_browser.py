@@ -105,8 +105,17 @@ def test_open_link_consent_bracket_check_and_completion(
         int(p.get_attribute("#check-left", "value")),
         int(p.get_attribute("#check-right", "value")),
     )
+    stale = p.context.new_page()  # a second tab on the same check, answered after the first
+    stale.goto(f"{base}/participate/check")
     p.click("#check-left")
     p.wait_for_url(f"{base}/participate/thanks")
+    stale.click("#check-right")
+    expect(stale.locator("h1")).to_have_text("Not stored")
+    expect(stale.locator("#message-text")).to_contain_text("your first answer is kept")
+    assert_accessible(stale, "a second tab's check answer, not stored")
+    stale.click("#continue")
+    stale.wait_for_url(f"{base}/participate/thanks")
+    stale.close()
     expect(p.locator("#completion-code")).to_have_text("C0MPL3TE")
     expect(p.locator("#stay-here")).to_be_visible()  # the way back waits, and can be stopped
     assert_accessible(p, "thank-you page with the completion code")
