@@ -96,12 +96,17 @@ def ids(pid: str) -> str:
     return f"?PROLIFIC_PID={pid}&STUDY_ID=st&SESSION_ID=se-{pid}"
 
 
-def join(page: Page, base: str, link: str, pid: str) -> str:
-    """Consent as ``pid`` and start the bracket; the first match's id, once settled."""
+def join(page: Page, base: str, link: str, pid: str, audit: str | None = None) -> str:
+    """Consent as ``pid`` and start the bracket; the first match's id, once settled. With
+    ``audit``, the instructions page (its time left) is checked by axe-core first."""
     page.goto(link + ids(pid))
     expect(page.locator("#consent-text")).to_contain_text("Prolific id")
+    expect(page.locator("#time-limit")).to_contain_text(f"{TIME_LIMIT_MIN} minutes to finish")
     page.click("#agree")
     page.wait_for_url(f"{base}/participate")
+    if audit is not None:
+        expect(page.locator("#time-left")).to_contain_text("minutes")
+        settled(page, audit)
     page.click("#start")
     page.wait_for_url(f"{base}/participate/label")
     return wait_for_match(page)
@@ -266,7 +271,7 @@ def test_decline_time_out_withdraw_and_the_dashboard(
 
     # (3) Withdrawing after a label: a confirm page, then the ended page with the code.
     _, w = new_page(browser, errors, viewport=viewport)
-    first = join(w, base, link, "withdrawer")
+    first = join(w, base, link, "withdrawer", audit=f"instructions with the time left {where}")
     assert joined(api, study_id) == 1  # the late one's seat was freed by this join
     settled(w, f"labelling page with the withdraw link {where}")
     w.click("#pick-a")

@@ -119,7 +119,16 @@ def test_respondent_on_a_phone_and_the_results(server, browser, screens: Path) -
     p.screenshot(path=screens / "survey-stimulus-phone.png", full_page=True)
     p.tap("#submit")  # nothing chosen yet: nothing is sent
     expect(p.locator("#answer-error")).to_contain_text("Please answer")
+    stale = p.context.new_page()  # a second tab on screen 1, answered after the first
+    stale.goto(link)
+    stale.tap("#start")  # nothing answered yet: it starts from the intro too
+    stale.wait_for_function(READY)
     assert answer_screen(p, "different", "yes", "4") == "1"
+    assert answer_screen(stale, "same", "no", "2") == "1"  # 409: it moves on and says so
+    expect(stale.locator("#screen-title")).to_have_text("Screen 2 of 2")
+    expect(stale.locator("#answer-error")).to_contain_text("those answers are kept")
+    assert_accessible(stale, "the next screen after a second tab's answer")
+    stale.close()
     phone.close()
 
     # The link resumes at screen 2, here on a desktop: the trees side by side.
